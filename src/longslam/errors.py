@@ -1,0 +1,30 @@
+"""Errors raised for bad input: each names the file, field or value and what was expected."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+
+class LongslamError(Exception):
+    """Base class of every error longslam raises on purpose."""
+
+
+class InputError(LongslamError, ValueError):
+    """Input that longslam cannot use (a file, a field or a value)."""
+
+
+class UnknownNameError(InputError, KeyError):
+    """A name (route, noise level, method, world...) that is not registered."""
+
+    def __init__(self, kind: str, name: str, valid: Iterable[str]):
+        self.kind = kind
+        self.name = name
+        self.valid = sorted(valid)
+        super().__init__(f"unknown {kind} {name!r}; valid {kind} names: {', '.join(self.valid)}")
+
+    def __str__(self) -> str:  # KeyError would otherwise quote the message
+        return self.args[0]
+
+
+class TrajectoryError(InputError):
+    """A trajectory that is malformed, not rigid, contains NaNs, or cannot be associated."""

@@ -1,0 +1,1 @@
+"""Reading and writing sequences, trajectories and maps on disk."""

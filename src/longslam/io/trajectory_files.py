@@ -1,0 +1,116 @@
+"""Trajectory files: TUM (`t tx ty tz qx qy qz qw`) and KITTI (12 numbers, a 3x4 matrix, a line).
+
+KITTI files carry no timestamps: a KITTI trajectory gets the frame index as its timestamp and is
+matched to another trajectory by index.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from longslam.errors import InputError, TrajectoryError
+from longslam.geometry import poses_from_tum, tum_from_poses
+from longslam.io.atomic import write_text_atomic
+from longslam.trajectory import Trajectory
+
+TUM, KITTI = "tum", "kitti"
+
+
+def _read_rows(path: Path) -> list[tuple[int, list[str]]]:
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise InputError(f"trajectory file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"trajectory file {path} cannot be read: {err}") from None
+    rows = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if line and not line.startswith("#"):
+            rows.append((number, line.replace(",", " ").split()))
+    return rows
+
+
+def _numbers(path: Path, rows: list[tuple[int, list[str]]], width: int, what: str) -> np.ndarray:
+    out = np.empty((len(rows), width))
+    for i, (number, fields) in enumerate(rows):
+        if len(fields) != width:
+            raise InputError(f"{path}:{number}: expected {width} numbers ({what}), got {len(fields)}")
+        try:
+            out[i] = [float(f) for f in fields]
+        except ValueError:
+            raise InputError(f"{path}:{number}: not a number in {' '.join(fields)!r} (expected {what})") from None
+    return out
+
+
+def detect_format(path: str | Path) -> str:
+    """'tum' for 8 fields a line, 'kitti' for 12."""
+    path = Path(path)
+    rows = _read_rows(path)
+    if not rows:
+        raise InputError(f"trajectory file {path} holds no poses")
+    width = len(rows[0][1])
+    if width == 8:
+        return TUM
+    if width == 12:
+        return KITTI
+    raise InputError(
+        f"{path}:{rows[0][0]}: {width} fields; expected 8 (TUM: t tx ty tz qx qy qz qw) or 12 (KITTI: 3x4 matrix)"
+    )
+
+
+def read_tum(path: str | Path) -> Trajectory:
+    path = Path(path)
+    data = _numbers(path, _read_rows(path), 8, "t tx ty tz qx qy qz qw")
+    if len(data) and np.any(np.linalg.norm(data[:, 4:8], axis=1) < 1e-9):
+        bad = int(np.flatnonzero(np.linalg.norm(data[:, 4:8], axis=1) < 1e-9)[0])
+        raise TrajectoryError(f"{path}: pose {bad} has a zero quaternion")
+    return Trajectory(data[:, 0], poses_from_tum(data[:, 1:8]), source=str(path))
+
+
+def read_kitti(path: str | Path) -> Trajectory:
+    path = Path(path)
+    data = _numbers(path, _read_rows(path), 12, "a row-major 3x4 pose matrix")
+    poses = np.tile(np.eye(4), (len(data), 1, 1))
+    poses[:, :3, :4] = data.reshape(-1, 3, 4)
+    return Trajectory(np.arange(len(data), dtype=np.float64), poses, source=str(path))
+
+
+def read_trajectory(path: str | Path, fmt: str | None = None) -> tuple[Trajectory, str]:
+    """Read a TUM or KITTI file (format detected unless given). Returns the trajectory and its format."""
+    fmt = fmt or detect_format(path)
+    if fmt == TUM:
+        return read_tum(path), fmt
+    if fmt == KITTI:
+        return read_kitti(path), fmt
+    raise InputError(f"unknown trajectory format {fmt!r}; valid formats: {TUM}, {KITTI}")
+
+
+def format_tum(trajectory: Trajectory) -> str:
+    # Nine decimals on the stamp: evo and the TUM tools match stamps, so they must round-trip.
+    rows = tum_from_poses(trajectory.poses)
+    lines = ["# timestamp tx ty tz qx qy qz qw"]
+    lines += [
+        f"{t:.9f} " + " ".join(f"{v:.9f}" for v in row) for t, row in zip(trajectory.timestamps, rows)
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def write_tum(path: str | Path, trajectory: Trajectory) -> None:
+    write_text_atomic(path, format_tum(trajectory))
+
+
+def write_kitti(path: str | Path, trajectory: Trajectory) -> None:
+    rows = trajectory.poses[:, :3, :4].reshape(-1, 12)
+    write_text_atomic(path, "".join(" ".join(f"{v:.9e}" for v in row) + "\n" for row in rows))
+
+
+def write_trajectory(path: str | Path, trajectory: Trajectory, fmt: str = TUM) -> None:
+    if fmt == TUM:
+        write_tum(path, trajectory)
+    elif fmt == KITTI:
+        write_kitti(path, trajectory)
+    else:
+        raise InputError(f"unknown trajectory format {fmt!r}; valid formats: {TUM}, {KITTI}")
