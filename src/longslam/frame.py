@@ -55,5 +55,7 @@ class Frame:
     timestamp: float  # seconds
     rgb: np.ndarray  # (H, W, 3) uint8
     depth: np.ndarray  # (H, W) float32 metres, 0 where there is no return
-    odometry: np.ndarray  # (4, 4) camera-in-world pose reported by the odometry
+    # (4, 4) camera-in-world pose reported by the odometry; None for a recorded sequence that
+    # has none (real TUM sequences carry no odometry).
+    odometry: np.ndarray | None
     intrinsics: Intrinsics

@@ -1,0 +1,191 @@
+"""The `longslam` command: a thin layer over the library."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from longslam.errors import LongslamError
+
+
+def _camera_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--width", type=int, default=320, help="image width in pixels (default 320)")
+    parser.add_argument("--height", type=int, default=240, help="image height in pixels (default 240)")
+    parser.add_argument("--fov", type=float, default=90.0, help="horizontal field of view in degrees (default 90)")
+    parser.add_argument("--max-depth", type=float, default=8.0, help="depth range in metres (default 8)")
+
+
+def _camera(args: argparse.Namespace):
+    from longslam.sim.camera import CameraSettings
+
+    return CameraSettings(width=args.width, height=args.height, hfov_deg=args.fov, max_depth=args.max_depth)
+
+
+def _params(pairs: list[str]) -> dict:
+    params = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise LongslamError(f"--param {pair!r}: expected KEY=VALUE")
+        key, value = pair.split("=", 1)
+        try:
+            params[key] = json.loads(value)
+        except json.JSONDecodeError:
+            params[key] = value
+    return params
+
+
+def cmd_world(args: argparse.Namespace) -> None:
+    from longslam.sim.drive import drive_route
+    from longslam.sim.routes import get_route
+    from longslam.study.plots import plot_plan
+    from longslam.world import get_world, load_mesh_world
+
+    world = load_mesh_world(args.mesh, args.floor) if args.mesh else get_world(args.world)
+    paths, waypoints, title = {}, None, f"world {world.name}"
+    if args.route:
+        route = get_route(args.route)
+        driven = drive_route(world, route)
+        paths[f"route {route.name} ({driven.length:.0f} m)"] = driven.xyyaw[:, :2]
+        waypoints = route.resolve(world.places)
+        title += f", route {route.name}: {len(waypoints)} waypoints, {driven.length:.1f} m"
+    plot_plan(world.occupancy, args.out, paths, waypoints=waypoints, title=title)
+    print(f"wrote {args.out}")
+
+
+def cmd_simulate(args: argparse.Namespace) -> None:
+    from longslam.sim.noise import get_noise
+    from longslam.sim.routes import get_route
+    from longslam.sim.simulate import simulate
+
+    route, noise = get_route(args.route), get_noise(args.noise)
+    out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite)
+    print(f"wrote sequence {out}")
+
+
+def cmd_run(args: argparse.Namespace) -> None:
+    from longslam.pipeline import run_sequence
+
+    figures = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite)
+    print(
+        f"wrote {args.out}: {figures['frames']} frames, real-time factor {figures['real_time_factor']:.1f}, "
+        f"peak RSS {figures['peak_rss_bytes'] / 1e6:.0f} MB"
+    )
+
+
+def _trajectory_path(path: Path, names: tuple[str, ...]) -> Path:
+    """A trajectory file, or the usual file inside a run or sequence folder."""
+    if path.is_dir():
+        for name in names:
+            if (path / name).is_file():
+                return path / name
+        raise LongslamError(f"{path} is a folder without {' or '.join(names)}")
+    return path
+
+
+def cmd_evaluate(args: argparse.Namespace) -> None:
+    from longslam.eval.metrics import evaluate
+    from longslam.eval.sync import associate, associate_by_index
+    from longslam.io.trajectory_files import KITTI, read_trajectory
+
+    estimate, est_fmt = read_trajectory(_trajectory_path(Path(args.estimate), ("trajectory.txt",)))
+    truth, gt_fmt = read_trajectory(_trajectory_path(Path(args.groundtruth), ("groundtruth.txt",)))
+    if KITTI in (est_fmt, gt_fmt):
+        ref, est = associate_by_index(truth, estimate)
+    else:
+        ref, est = associate(truth, estimate, max_diff=args.max_diff)
+    scores = evaluate(ref, est, align=args.align)
+    if args.json:
+        print(json.dumps(scores))
+        return
+    for key, value in scores.items():
+        print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
+
+
+def cmd_demo(args: argparse.Namespace) -> None:
+    from longslam.demo import format_table, run_demo
+
+    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args))
+    print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
+    print(format_table(rows))
+    print(f"\ntrajectories over the floor plan: {plot}")
+
+
+def cmd_list(args: argparse.Namespace) -> None:
+    from longslam.sim.noise import NOISE_LEVELS
+    from longslam.sim.routes import ROUTES
+    from longslam.slam.registry import method_names
+    from longslam.world import WORLDS
+
+    print("worlds:      ", ", ".join(WORLDS.names()))
+    print("routes:      ", ", ".join(ROUTES.names()))
+    print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
+    print("methods:     ", ", ".join(method_names()))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("world", help="draw a world's floor plan, optionally with a route")
+    p.add_argument("--world", default="university", help="world name (default university)")
+    p.add_argument("--mesh", help="load a building from a mesh file (PLY/OBJ/GLB) instead")
+    p.add_argument("--floor", type=float, default=0.0, help="floor height of --mesh in metres")
+    p.add_argument("--route", help="a route name or a waypoint file to draw")
+    p.add_argument("--out", required=True, help="image file to write (e.g. plan.png)")
+    p.set_defaults(func=cmd_world)
+
+    p = sub.add_parser("simulate", help="render a route with noisy odometry into a TUM RGB-D sequence")
+    p.add_argument("--route", required=True, help="route name (see `longslam list`) or a waypoint file")
+    p.add_argument("--noise", default="none", help="odometry noise level (none, small, medium, large, xlarge)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise")
+    p.add_argument("--out", required=True, help="sequence folder to write")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    _camera_args(p)
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("run", help="run a SLAM method over a sequence")
+    p.add_argument("--method", required=True, help="method name (see `longslam list`)")
+    p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")
+    p.add_argument("--out", required=True, help="run folder to write")
+    p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="method parameter (repeatable)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("evaluate", help="score a trajectory (TUM or KITTI) against ground truth")
+    p.add_argument("estimate", help="estimated trajectory file, or a run folder")
+    p.add_argument("groundtruth", help="ground-truth trajectory file, or a sequence folder")
+    p.add_argument("--align", default="none", choices=("none", "se3", "sim3"), help="alignment for APE (default none)")
+    p.add_argument("--max-diff", type=float, default=0.01, help="timestamp matching tolerance in seconds")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("demo", help="the demo route at large noise with every method: a table and a plot")
+    p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
+    p.add_argument("--route", default="demo")
+    p.add_argument("--noise", default="large")
+    p.add_argument("--seed", type=int, default=0)
+    _camera_args(p)
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")
+    p.set_defaults(func=cmd_list)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        args.func(args)
+    except LongslamError as err:
+        print(f"longslam {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"longslam {args.command}: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,72 @@
+"""The demo: the `demo` route at `large` noise, every registered method, a table and a plot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from longslam.eval.metrics import evaluate
+from longslam.eval.sync import associate
+from longslam.io.sequence import SequenceReader
+from longslam.io.trajectory_files import read_tum
+from longslam.pipeline import run_sequence_isolated
+from longslam.sim.camera import CameraSettings
+from longslam.sim.noise import get_noise
+from longslam.sim.routes import get_route
+from longslam.sim.simulate import simulate
+from longslam.slam.registry import method_names
+from longslam.study.plots import plot_plan
+from longslam.world import get_world
+
+COLUMNS = ("method", "ATE [m]", "E_trans", "E_rot [deg/m]", "peak RSS [MB]", "real-time factor")
+
+
+def format_table(rows: list[dict]) -> str:
+    cells = [COLUMNS] + [
+        (
+            r["method"],
+            f"{r['ate']:.3f}",
+            f"{r['e_trans']:.4f}",
+            f"{r['e_rot']:.4f}",
+            f"{r['peak_rss_bytes'] / 1e6:.0f}",
+            f"{r['real_time_factor']:.1f}",
+        )
+        for r in rows
+    ]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(COLUMNS))]
+    lines = [" | ".join(c.ljust(w) for c, w in zip(row, widths)) for row in cells]
+    lines.insert(1, "-+-".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def run_demo(
+    out: str | Path = "out/demo",
+    route_name: str = "demo",
+    noise_name: str = "large",
+    seed: int = 0,
+    methods: list[str] | None = None,
+    camera: CameraSettings = CameraSettings(),
+    progress: bool = True,
+) -> tuple[list[dict], Path]:
+    """Simulate, run each method in its own process, evaluate. Returns the table rows and the plot path."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    route, noise = get_route(route_name), get_noise(noise_name)
+    methods = methods or method_names()
+    sequence = out / f"sequence-{route.name}-{noise.name}-{seed}"
+    if not sequence.exists():
+        simulate(route, noise, seed, sequence, camera=camera, progress=progress)
+    truth = SequenceReader(sequence).ground_truth
+    rows, paths = [], {"ground truth": truth.positions[:, :2]}
+    for name in methods:
+        run_dir = out / "runs" / name
+        figures = run_sequence_isolated(name, sequence, run_dir, overwrite=True, progress=progress)
+        estimate = read_tum(run_dir / "trajectory.txt")
+        ref, est = associate(truth, estimate)
+        scores = evaluate(ref, est)
+        rows.append({"method": name, **scores, **{k: figures[k] for k in ("peak_rss_bytes", "real_time_factor")}})
+        paths[name] = estimate.positions[:, :2]
+    world = get_world(route.world)
+    plot = out / "trajectories.png"
+    waypoints = route.resolve(world.places)
+    plot_plan(world.occupancy, plot, paths, waypoints=waypoints, title=f"route {route.name}, noise {noise.name}, seed {seed}")
+    return rows, plot

@@ -1,0 +1,32 @@
+"""From a route to ground truth: plan the paths, drive them, and place the camera."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from longslam.geometry import camera_poses_from_planar
+from longslam.sim.follower import DrivenPath, FollowerSettings, follow_paths
+from longslam.sim.navigation import NavigationGrid
+from longslam.sim.routes import Route
+from longslam.trajectory import Trajectory
+from longslam.world.world import World
+
+
+def drive_route(
+    world: World,
+    route: Route,
+    follower: FollowerSettings = FollowerSettings(),
+    robot_radius: float = 0.2,
+) -> DrivenPath:
+    """The robot's true planar path along the route's waypoints, one pose per camera frame."""
+    nav = NavigationGrid(world.occupancy, robot_radius=robot_radius)
+    waypoints = route.resolve(world.places)
+    for i, wp in enumerate(waypoints):
+        nav.check_waypoint(wp, f"route {route.name!r} waypoint {i}")
+    paths = [nav.shortest_path(a, b) for a, b in zip(waypoints[:-1], waypoints[1:])]
+    return follow_paths(paths, follower)
+
+
+def camera_trajectory(timestamps: np.ndarray, xyyaw: np.ndarray, camera_height: float, floor_z: float = 0.0, source: str = "") -> Trajectory:
+    """Camera-in-world poses for robot base poses on the floor."""
+    return Trajectory(timestamps, camera_poses_from_planar(xyyaw, camera_height, floor_z), source=source)

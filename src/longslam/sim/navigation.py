@@ -1,0 +1,87 @@
+"""Where the robot can drive, and the shortest paths between waypoints on that grid."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+from skimage.graph import MCP_Geometric
+
+from longslam.errors import InputError
+from longslam.gridmap import FREE, GridMap
+
+
+class NavigationGrid:
+    """Traversable cells for a round robot of `robot_radius` on a coarse grid.
+
+    Paths cost more near walls (up to `clearance` metres away), so the robot keeps to the middle
+    of corridors and doors as a person would rather than shaving corners.
+    """
+
+    def __init__(
+        self,
+        occupancy: GridMap,
+        robot_radius: float = 0.2,
+        resolution: float = 0.1,
+        clearance: float = 0.8,
+        wall_penalty: float = 4.0,
+    ):
+        factor = max(1, int(round(resolution / occupancy.resolution)))
+        free = occupancy.data == FREE
+        clearance_fine = ndimage.distance_transform_edt(free) * occupancy.resolution
+        rows, cols = (s // factor * factor for s in free.shape)
+        # A coarse cell's clearance is its worst fine cell's, so a coarse path never grazes a wall.
+        blocks = clearance_fine[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
+        self.clearance_m = blocks.min(axis=(1, 3))
+        self.resolution = occupancy.resolution * factor
+        self.origin = occupancy.origin
+        self.robot_radius = robot_radius
+        self.traversable = self.clearance_m > robot_radius
+        closeness = np.clip((clearance - self.clearance_m) / clearance, 0.0, 1.0)
+        self.costs = np.where(self.traversable, 1.0 + wall_penalty * closeness**2, np.inf)
+        self._grid = GridMap(np.zeros(self.traversable.shape, np.int8), self.resolution, self.origin)
+
+    def cell(self, xy: tuple[float, float]) -> tuple[int, int]:
+        rc = self._grid.world_to_cell(np.asarray(xy))[0]
+        return int(rc[0]), int(rc[1])
+
+    def is_traversable(self, xy: tuple[float, float]) -> bool:
+        r, c = self.cell(xy)
+        rows, cols = self.traversable.shape
+        return 0 <= r < rows and 0 <= c < cols and bool(self.traversable[r, c])
+
+    def check_waypoint(self, xy: tuple[float, float], label: str) -> None:
+        if not self.is_traversable(xy):
+            raise InputError(
+                f"{label} ({xy[0]:.2f}, {xy[1]:.2f}) is not on free floor: it is inside a wall or "
+                f"furniture, outside the building, or closer than {self.robot_radius} m to an obstacle"
+            )
+
+    def shortest_path(self, start: tuple[float, float], goal: tuple[float, float]) -> np.ndarray:
+        """(N, 2) world polyline from start to goal through traversable cells, smoothed."""
+        self.check_waypoint(start, "start")
+        self.check_waypoint(goal, "goal")
+        mcp = MCP_Geometric(self.costs, fully_connected=True)
+        s, g = self.cell(start), self.cell(goal)
+        cumulative, _ = mcp.find_costs([s], [g])
+        if not np.isfinite(cumulative[g]):
+            raise InputError(f"no path from ({start[0]:.2f}, {start[1]:.2f}) to ({goal[0]:.2f}, {goal[1]:.2f})")
+        cells = np.asarray(mcp.traceback(g), dtype=np.float64)
+        xy = self._grid.cell_to_world(cells)
+        xy = _smooth(xy, window=7)
+        xy[0], xy[-1] = start, goal
+        return _dedupe(xy)
+
+
+def _smooth(xy: np.ndarray, window: int) -> np.ndarray:
+    """Moving average that keeps the ends: takes the staircase out of 8-connected grid paths."""
+    if len(xy) <= window:
+        return xy
+    pad = window // 2
+    padded = np.concatenate([np.repeat(xy[:1], pad, 0), xy, np.repeat(xy[-1:], pad, 0)])
+    kernel = np.ones(window) / window
+    return np.column_stack([np.convolve(padded[:, i], kernel, mode="valid") for i in range(2)])
+
+
+def _dedupe(xy: np.ndarray) -> np.ndarray:
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(xy, axis=0), axis=1) > 1e-6])
+    return xy[keep]

@@ -1,0 +1,121 @@
+"""Named waypoint routes through a world, and routes read from a file.
+
+A waypoint is an (x, y) on the floor or the name of one of the world's places. The named
+routes follow the paper: `paper-300m` has 12 waypoints, `paper-1km` 25, and both revisit the
+corridor and the hall several times, which gives the loop closures the paper depends on.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from longslam.errors import InputError
+from longslam.registry import Registry
+
+Waypoint = tuple[float, float] | str
+
+
+@dataclass(frozen=True)
+class Route:
+    name: str
+    world: str
+    waypoints: tuple[Waypoint, ...]
+
+    def resolve(self, places: dict[str, tuple[float, float]]) -> list[tuple[float, float]]:
+        """Waypoints as (x, y), place names looked up in the world's places."""
+        out = []
+        for i, wp in enumerate(self.waypoints):
+            if isinstance(wp, str):
+                if wp not in places:
+                    raise InputError(
+                        f"route {self.name!r}: waypoint {i} names place {wp!r}, which world {self.world!r} "
+                        f"does not have; places: {', '.join(sorted(places)) or '(none)'}"
+                    )
+                out.append(tuple(map(float, places[wp])))
+            else:
+                out.append((float(wp[0]), float(wp[1])))
+        if len(out) < 2:
+            raise InputError(f"route {self.name!r} needs at least two waypoints, has {len(out)}")
+        return out
+
+
+ROUTES: Registry[Route] = Registry("route")
+
+
+def _named(name: str, *waypoints: Waypoint) -> None:
+    ROUTES.register(name, Route(name, "university", tuple(waypoints)))
+
+
+# A loop of about 60 m: from the end of the spine once round the hall's inner pillars and back.
+_named("demo", "spine_e", "hall_entry", (114.0, 38.5), (120.5, 38.5), (120.5, 23.5), (114.0, 23.5), "hall_entry", "spine_e")
+
+# The paper's routes: waypoint sequences picked once (a seeded search over the world's places for
+# the target length, visiting the classroom, a side branch and the hall more than once).
+_named(
+    "paper-300m",
+    "hall_sw", "hall_center", "hall_entry", "hall_nw", "office_3", "junction_c",
+    "classroom", "office_3", "junction_b", "office_2", "office_4", "hall_se",
+)
+
+_named(
+    "paper-1km",
+    "hall_center", "branch_c_end", "hall_entry", "lobby", "seminar", "office_2", "classroom_front",
+    "spine_w", "junction_a", "junction_c", "spine_e", "office_4", "branch_b_end", "spine_e",
+    "junction_b", "hall_nw", "branch_a_end", "spine_mid", "classroom_front", "office_3", "spine_e",
+    "hall_center", "hall_entry", "hall_sw", "spine_e",
+)
+
+
+def load_route_file(path: str | Path, world: str = "university") -> Route:
+    """A route from a file: JSON {"world": ..., "waypoints": [[x, y] or "place", ...]}, or
+    text with one waypoint a line (`x y`, or a place name); '#' starts a comment."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise InputError(f"route file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"route file {path} cannot be read: {err}") from None
+    waypoints: list[Waypoint] = []
+    if path.suffix.lower() == ".json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as err:
+            raise InputError(f"route file {path}: not valid JSON ({err})") from None
+        if not isinstance(data, dict) or not isinstance(data.get("waypoints"), list):
+            raise InputError(f"route file {path}: expected an object with a list field 'waypoints'")
+        world = str(data.get("world", world))
+        for i, wp in enumerate(data["waypoints"]):
+            if isinstance(wp, str):
+                waypoints.append(wp)
+            elif isinstance(wp, list) and len(wp) == 2 and all(isinstance(v, (int, float)) for v in wp):
+                waypoints.append((float(wp[0]), float(wp[1])))
+            else:
+                raise InputError(f"route file {path}: waypoints[{i}] = {wp!r}; expected [x, y] or a place name")
+    else:
+        for number, line in enumerate(text.splitlines(), start=1):
+            line = line.split("#", 1)[0].strip()
+            if not line:
+                continue
+            fields = line.replace(",", " ").split()
+            if len(fields) == 1:
+                waypoints.append(fields[0])
+            elif len(fields) == 2:
+                try:
+                    waypoints.append((float(fields[0]), float(fields[1])))
+                except ValueError:
+                    raise InputError(f"{path}:{number}: expected 'x y' in metres or a place name, got {line!r}") from None
+            else:
+                raise InputError(f"{path}:{number}: expected 'x y' in metres or a place name, got {line!r}")
+    if len(waypoints) < 2:
+        raise InputError(f"route file {path} has {len(waypoints)} waypoints; a route needs at least two")
+    return Route(path.stem, world, tuple(waypoints))
+
+
+def get_route(name_or_path: str) -> Route:
+    """A registered route by name, or a route file if the argument is an existing path."""
+    if name_or_path not in ROUTES and Path(name_or_path).suffix and Path(name_or_path).exists():
+        return load_route_file(name_or_path)
+    return ROUTES.get(name_or_path)

@@ -1,0 +1,42 @@
+"""Dead reckoning: the odometry's own poses. The floor every SLAM method must beat."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from longslam.errors import InputError
+from longslam.frame import Frame
+from longslam.slam.base import MethodContext, Result
+from longslam.slam.registry import METHODS
+from longslam.trajectory import Trajectory
+
+
+class OdometryMethod:
+    name = "odometry"
+
+    def __init__(self, context: MethodContext, params: dict[str, Any]):
+        if params:
+            raise InputError(f"method 'odometry' takes no parameters, got {', '.join(sorted(params))}")
+        self._stamps: list[float] = []
+        self._poses: list[np.ndarray] = []
+
+    def step(self, frame: Frame) -> np.ndarray:
+        if frame.odometry is None:
+            raise InputError(
+                f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the 'odometry' method "
+                f"needs a sequence with odometry.txt"
+            )
+        pose = np.array(frame.odometry, dtype=np.float64)
+        self._stamps.append(frame.timestamp)
+        self._poses.append(pose)
+        return pose
+
+    def finish(self) -> Result:
+        poses = np.array(self._poses).reshape(-1, 4, 4)
+        trajectory = Trajectory(np.array(self._stamps), poses, source="odometry")
+        return Result(trajectory=trajectory, online=trajectory, stats={"map_bytes": {}, "frames": len(poses)})
+
+
+METHODS.register("odometry", OdometryMethod)
