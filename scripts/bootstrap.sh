@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Set up longslam on a fresh machine and run one task: `demo` or `test`.
+#   bash scripts/bootstrap.sh demo   # installs everything, runs `longslam demo`
+#   bash scripts/bootstrap.sh test   # installs everything (with test extras), runs the tests
+# Extra arguments go to the task (e.g. `bash scripts/bootstrap.sh test -k metrics`).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+task="${1:-}"
+shift || true
+case "$task" in
+  demo|test) ;;
+  *) echo "usage: bash scripts/bootstrap.sh demo|test [args...]" >&2; exit 2 ;;
+esac
+
+PYTHON="${PYTHON:-python3}"
+VENV="${VENV:-.venv}"
+
+# Open3D's wheel links against libusb and libgomp, which a minimal Debian does not have.
+missing=()
+for lib in libusb-1.0.so.0:libusb-1.0-0 libgomp.so.1:libgomp1; do
+  so="${lib%%:*}"; pkg="${lib##*:}"
+  ldconfig -p 2>/dev/null | grep -q "$so" || missing+=("$pkg")
+done
+if ((${#missing[@]})); then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    echo "installing system packages: ${missing[*]}"
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
+  else
+    echo "error: Open3D needs the system packages: ${missing[*]}" >&2
+    echo "install them first, e.g.: sudo apt-get install ${missing[*]}" >&2
+    exit 1
+  fi
+fi
+
+extras=""
+[ "$task" = test ] && extras="[test]"
+stamp="$VENV/.installed$extras"
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  [ -x "$VENV/bin/python" ] || "$PYTHON" -m venv "$VENV"
+  "$VENV/bin/python" -m pip install -q --upgrade pip
+  "$VENV/bin/python" -m pip install -q -e ".$extras"
+  touch "$stamp"
+fi
+
+if [ "$task" = demo ]; then
+  exec "$VENV/bin/longslam" demo "$@"
+else
+  exec "$VENV/bin/python" -m pytest "$@"
+fi

@@ -1,0 +1,104 @@
+"""Running a method over a sequence on disk, its outputs and the harness's figures; the CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+from longslam.cli import main
+from longslam.errors import InputError, UnknownNameError
+from longslam.frame import Intrinsics
+from longslam.geometry import camera_poses_from_planar
+from longslam.io.sequence import SequenceWriter
+from longslam.io.trajectory_files import read_tum, write_kitti, write_tum
+from longslam.pipeline import run_sequence, run_sequence_isolated
+from longslam.slam.base import Method, MethodContext
+from longslam.slam.registry import create_method, method_names
+from longslam.trajectory import Trajectory
+
+N = 30
+
+
+@pytest.fixture(scope="module")
+def sequence(tmp_path_factory):
+    path = tmp_path_factory.mktemp("seq") / "seq"
+    rng = np.random.default_rng(0)
+    stamps = 0.1 * np.arange(N)
+    xyyaw = np.column_stack([0.15 * np.arange(N), np.zeros(N), np.linspace(0, 0.3, N)])
+    truth = Trajectory(stamps, camera_poses_from_planar(xyyaw, 1.25))
+    noisy = xyyaw.copy()
+    noisy[:, 0] *= 1.05
+    odometry = Trajectory(stamps, camera_poses_from_planar(noisy, 1.25))
+    with SequenceWriter(path, Intrinsics.from_fov(16, 12, 90.0), 8.0, {"route": "test"}) as writer:
+        for t in stamps:
+            writer.add(t, rng.integers(0, 255, (12, 16, 3), dtype=np.uint8), rng.uniform(0.5, 4, (12, 16)).astype(np.float32))
+        writer.set_ground_truth(truth)
+        writer.set_odometry(odometry)
+    return path, truth, odometry
+
+
+def test_odometry_method_returns_the_odometry(sequence, tmp_path):
+    path, truth, odometry = sequence
+    figures = run_sequence("odometry", path, tmp_path / "run", progress=False)
+    estimate = read_tum(tmp_path / "run" / "trajectory.txt")
+    online = read_tum(tmp_path / "run" / "online.txt")
+    np.testing.assert_allclose(estimate.poses, odometry.poses, atol=1e-7)
+    np.testing.assert_allclose(online.poses, odometry.poses, atol=1e-7)
+    stats = json.loads((tmp_path / "run" / "stats.json").read_text())
+    for key in ("wall_time_s", "real_time_factor", "peak_rss_bytes", "method_stats", "frames"):
+        assert key in stats
+    assert stats["frames"] == N
+    assert stats["peak_rss_bytes"] >= stats["baseline_rss_bytes"] > 10_000_000
+    assert abs(stats["sequence_duration_s"] - N * 0.1) < 1e-6
+    assert figures["real_time_factor"] > 1.0
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no temporary folder left
+
+
+def test_existing_run_folder_is_refused(sequence, tmp_path):
+    (tmp_path / "run").mkdir()
+    with pytest.raises(InputError, match="exists already"):
+        run_sequence("odometry", sequence[0], tmp_path / "run", progress=False)
+
+
+def test_isolated_run_measures_its_own_process(sequence, tmp_path):
+    figures = run_sequence_isolated("odometry", sequence[0], tmp_path / "run", progress=False)
+    assert figures["frames"] == N and figures["peak_rss_bytes"] > 0
+    with pytest.raises(RuntimeError, match="method"):
+        run_sequence_isolated("no-such-method", sequence[0], tmp_path / "run2", progress=False)
+
+
+def test_registry_lists_methods_and_rejects_unknown_names():
+    assert "odometry" in method_names()
+    context = MethodContext(Intrinsics.from_fov(16, 12, 90.0), 8.0)
+    assert isinstance(create_method("odometry", context), Method)
+    with pytest.raises(UnknownNameError, match="valid method names: .*odometry"):
+        create_method("orbslam9", context)
+    with pytest.raises(InputError, match="takes no parameters"):
+        create_method("odometry", context, {"alpha": 1})
+
+
+def test_cli_evaluate_json_on_tum_and_kitti(sequence, tmp_path, capsys):
+    path, truth, odometry = sequence
+    write_tum(tmp_path / "est.txt", odometry)
+    assert main(["evaluate", str(tmp_path / "est.txt"), str(path), "--json"]) == 0
+    scores = json.loads(capsys.readouterr().out)
+    for key in ("ate", "e_trans", "e_rot", "ape_rmse", "rpe_trans", "rpe_rot", "skipped_steps"):
+        assert key in scores
+    # The odometry overestimates every forward step by 5%.
+    assert scores["e_trans"] == pytest.approx(0.05, rel=0.05)
+    write_kitti(tmp_path / "est.kitti", odometry)
+    write_kitti(tmp_path / "gt.kitti", truth)
+    assert main(["evaluate", str(tmp_path / "est.kitti"), str(tmp_path / "gt.kitti"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["ate"] == pytest.approx(scores["ate"], abs=1e-6)
+
+
+def test_cli_reports_bad_names_and_files(tmp_path, capsys):
+    assert main(["simulate", "--route", "nowhere", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown route 'nowhere'" in err and "paper-1km" in err
+    assert main(["evaluate", str(tmp_path / "missing.txt"), str(tmp_path / "gt.txt")]) == 2
+    assert "missing.txt does not exist" in capsys.readouterr().err
+    bad = tmp_path / "nan.txt"
+    bad.write_text("0 nan 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 1\n")
+    assert main(["evaluate", str(bad), str(bad)]) == 2
+    assert "NaN" in capsys.readouterr().err
