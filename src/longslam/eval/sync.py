@@ -1,0 +1,116 @@
+"""Pairing the poses of two trajectories before they are compared.
+
+`associate` matches by timestamp the way evo's `sync.associate_trajectories` does (nearest stamp,
+within `max_diff`, starting from the trajectory with fewer poses so none of its poses is lost), but
+always one-to-one: evo can pair two close stamps of the shorter trajectory with the same pose of
+the longer one, which would give a trajectory with a repeated timestamp. `associate_by_index` is for
+KITTI files, which carry no timestamps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from longslam.errors import InputError, TrajectoryError
+from longslam.trajectory import Trajectory
+
+# Fewer matches than this fraction of the shorter trajectory means the stamps are in different
+# clocks or units (or the offset is wrong), not that a few frames were dropped.
+MIN_MATCHED_FRACTION = 0.5
+
+
+def _name(trajectory: Trajectory, default: str) -> str:
+    return f"{default} ({trajectory.source})" if trajectory.source else default
+
+
+def require_same_length(reference: Trajectory, estimate: Trajectory, minimum: int = 1) -> None:
+    """Raise TrajectoryError unless both trajectories hold the same number (>= minimum) of poses."""
+    if len(reference) != len(estimate):
+        raise TrajectoryError(
+            f"{_name(reference, 'reference')} has {len(reference)} poses but "
+            f"{_name(estimate, 'estimate')} has {len(estimate)}; associate them first "
+            f"(longslam.eval.sync.associate, or associate_by_index for KITTI files)"
+        )
+    if len(reference) < minimum:
+        raise TrajectoryError(f"need at least {minimum} associated poses, got {len(reference)}")
+
+
+def matching_indices(
+    short_stamps: np.ndarray, long_stamps: np.ndarray, max_diff: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (into short, into long) of one-to-one nearest-stamp matches within max_diff.
+
+    Both stamp arrays must be sorted. Each short stamp takes its nearest long stamp (the earlier
+    one on a tie, as evo does); when several short stamps take the same long stamp only the
+    closest keeps it (the earliest on a tie), so the result is one-to-one and stays sorted.
+    """
+    short_stamps = np.asarray(short_stamps, dtype=np.float64)
+    long_stamps = np.asarray(long_stamps, dtype=np.float64)
+    if not len(short_stamps) or not len(long_stamps):
+        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+    above = np.searchsorted(long_stamps, short_stamps, side="right")
+    upper = np.minimum(above, len(long_stamps) - 1)
+    lower = np.maximum(above - 1, 0)
+    diff_upper = np.abs(long_stamps[upper] - short_stamps)
+    diff_lower = np.where(above > 0, np.abs(short_stamps - long_stamps[lower]), np.inf)
+    take_upper = diff_upper < diff_lower
+    nearest = np.where(take_upper, upper, lower)
+    diff = np.where(take_upper, diff_upper, diff_lower)
+
+    short_idx = np.flatnonzero(diff <= max_diff)
+    if not len(short_idx):
+        return short_idx, short_idx.copy()
+    long_idx, diff = nearest[short_idx], diff[short_idx]
+    # Sorted by long index, then by time difference: the first of each run is the one to keep.
+    order = np.lexsort((diff, long_idx))
+    first = np.r_[True, long_idx[order][1:] != long_idx[order][:-1]]
+    keep = np.sort(order[first])
+    return short_idx[keep], long_idx[keep]
+
+
+def associate(
+    reference: Trajectory, estimate: Trajectory, max_diff: float = 0.01, offset: float = 0.0
+) -> tuple[Trajectory, Trajectory]:
+    """Reduce both trajectories to their poses with matching timestamps.
+
+    `offset` (seconds) is added to the estimate's stamps for matching only; both returned
+    trajectories keep their own stamps. Raises TrajectoryError if fewer than half of the
+    shorter trajectory's poses find a match.
+    """
+    if not max_diff >= 0.0:
+        raise InputError(f"max_diff must be a time difference >= 0 s, got {max_diff}")
+    # evo starts from the trajectory with fewer poses (the estimate on a tie) and shifts the
+    # other one's stamps; doing the same keeps the rounding, and so the matches, identical.
+    estimate_short = len(estimate) <= len(reference)
+    if estimate_short:
+        est_idx, ref_idx = matching_indices(estimate.timestamps, reference.timestamps - offset, max_diff)
+    else:
+        ref_idx, est_idx = matching_indices(reference.timestamps, estimate.timestamps + offset, max_diff)
+
+    shorter = min(len(reference), len(estimate))
+    if shorter == 0 or len(ref_idx) < MIN_MATCHED_FRACTION * shorter:
+        which = "estimate" if estimate_short else "reference"
+        raise TrajectoryError(
+            f"only {len(ref_idx)} of {shorter} poses of the shorter trajectory ({which}) matched a "
+            f"timestamp of the other within max_diff {max_diff} s (offset {offset} s); need at "
+            f"least half. Reference stamps span {_span(reference)}, estimate stamps span "
+            f"{_span(estimate)}: check that both use the same clock and units, or raise max_diff"
+        )
+    return reference.subset(ref_idx), estimate.subset(est_idx)
+
+
+def _span(trajectory: Trajectory) -> str:
+    if not len(trajectory):
+        return "nothing (no poses)"
+    return f"{trajectory.timestamps[0]:.6f}..{trajectory.timestamps[-1]:.6f} s"
+
+
+def associate_by_index(reference: Trajectory, estimate: Trajectory) -> tuple[Trajectory, Trajectory]:
+    """Pair pose i with pose i (KITTI files have no stamps); the lengths must be equal."""
+    if len(reference) != len(estimate):
+        raise TrajectoryError(
+            f"cannot pair poses by index: {_name(reference, 'reference')} has {len(reference)} "
+            f"poses and {_name(estimate, 'estimate')} has {len(estimate)}. Files without "
+            f"timestamps (KITTI) must hold one pose per frame, for the same frames"
+        )
+    return reference, estimate
