@@ -64,7 +64,7 @@ def rendered_sequence(
     root.mkdir(parents=True, exist_ok=True)
     world = get_world(route.world)
     driven = drive_route(world, route, follower)
-    truth = camera_trajectory(driven.timestamps, driven.xyyaw, camera.height, world.floor_z)
+    truth = camera_trajectory(driven.timestamps, driven.xyyaw, camera.camera_height, world.floor_z)
     renderer = RGBDCamera(world.mesh, camera)
     meta = {
         "world": route.world,

@@ -20,10 +20,11 @@ from longslam.sim.routes import Route
 from longslam.trajectory import Trajectory
 
 
-def noisy_odometry(truth: Trajectory, noise: BiasNoise, seed: int, camera_height: float, floor_z: float = 0.0) -> Trajectory:
+def noisy_odometry(truth: Trajectory, noise: BiasNoise, seed: int, camera_height: float) -> Trajectory:
     """Camera-in-world odometry poses for a ground-truth camera trajectory of a planar robot."""
     rng = np.random.default_rng(seed)
     xyyaw = planar_from_camera_poses(truth.poses, camera_height)
+    floor_z = float(truth.poses[0, 2, 3]) - camera_height
     noisy = noise.apply(truth.timestamps, xyyaw, rng)
     return Trajectory(truth.timestamps, camera_poses_from_planar(noisy, camera_height, floor_z), source="odometry")
 
@@ -46,7 +47,7 @@ def simulate(
     reader = SequenceReader(rendered)
     truth = reader.ground_truth
     assert truth is not None, "a rendered sequence always has ground truth"
-    odometry = noisy_odometry(truth, noise, seed, camera.height)
+    odometry = noisy_odometry(truth, noise, seed, camera.camera_height)
     meta = dict(reader.meta)
     meta.update(
         noise=noise.name,

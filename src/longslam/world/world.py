@@ -1,0 +1,19 @@
+"""A world: the mesh the camera sees, the ground-truth occupancy grid, and named places."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from longslam.gridmap import GridMap
+from longslam.world.layout import FloorPlan
+from longslam.world.mesh import WorldMesh
+
+
+@dataclass
+class World:
+    name: str
+    mesh: WorldMesh
+    occupancy: GridMap  # ground truth at 5 cm: 0 free, 100 occupied, -1 unknown
+    floor_z: float = 0.0  # height of the floor the robot drives on
+    places: dict[str, tuple[float, float]] = field(default_factory=dict)  # named (x, y) spots on the floor
+    plan: FloorPlan | None = None  # the floor plan, for worlds built from one
