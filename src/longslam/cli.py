@@ -57,7 +57,7 @@ def cmd_world(args: argparse.Namespace) -> None:
 def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.sim.noise import get_noise
     from longslam.sim.routes import get_route
-    from longslam.sim.simulate import simulate
+    from longslam.recording import simulate
 
     route, noise = get_route(args.route), get_noise(args.noise)
     out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite)

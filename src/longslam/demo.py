@@ -12,7 +12,7 @@ from longslam.pipeline import run_sequence_isolated
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
-from longslam.sim.simulate import simulate
+from longslam.recording import simulate
 from longslam.slam.registry import method_names
 from longslam.study.plots import plot_plan
 from longslam.world import get_world
@@ -68,5 +68,5 @@ def run_demo(
     world = get_world(route.world)
     plot = out / "trajectories.png"
     waypoints = route.resolve(world.places)
-    plot_plan(world.occupancy, plot, paths, waypoints=waypoints, title=f"route {route.name}, noise {noise.name}, seed {seed}")
+    plot_plan(world.occupancy, plot, paths, waypoints=waypoints, title=f"route {route.name}, noise {noise.name}, seed {seed}", zoom_margin=6.0)
     return rows, plot

@@ -36,6 +36,7 @@ import numpy as np
 
 import longslam
 from longslam.errors import InputError
+from longslam.textfile import read_text
 from longslam.frame import Frame, Intrinsics
 from longslam.io.trajectory_files import read_tum, write_tum
 from longslam.trajectory import Trajectory
@@ -436,12 +437,7 @@ def derive_sequence(
 
 def _read_list(path: Path) -> list[tuple[float, str]]:
     """A TUM image list: '# ...' comments, then 'timestamp filename' lines."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise InputError(f"{path} does not exist (a TUM sequence needs {path.name})") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"{path} cannot be read: {err}") from None
+    text = read_text(path, "image list", hint=f"a TUM sequence needs {path.name}")
     rows = []
     for number, line in enumerate(text.splitlines(), start=1):
         line = line.strip()

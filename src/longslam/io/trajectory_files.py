@@ -13,18 +13,14 @@ import numpy as np
 from longslam.errors import InputError, TrajectoryError
 from longslam.geometry import poses_from_tum, tum_from_poses
 from longslam.io.atomic import write_text_atomic
+from longslam.textfile import read_text
 from longslam.trajectory import Trajectory
 
 TUM, KITTI = "tum", "kitti"
 
 
 def _read_rows(path: Path) -> list[tuple[int, list[str]]]:
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise InputError(f"trajectory file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"trajectory file {path} cannot be read: {err}") from None
+    text = read_text(path, "trajectory file")
     rows = []
     for number, line in enumerate(text.splitlines(), start=1):
         line = line.strip()

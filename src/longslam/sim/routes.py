@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from longslam.errors import InputError
+from longslam.textfile import read_text
 from longslam.registry import Registry
 
 Waypoint = tuple[float, float] | str
@@ -72,12 +73,7 @@ def load_route_file(path: str | Path, world: str = "university") -> Route:
     """A route from a file: JSON {"world": ..., "waypoints": [[x, y] or "place", ...]}, or
     text with one waypoint a line (`x y`, or a place name); '#' starts a comment."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise InputError(f"route file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"route file {path} cannot be read: {err}") from None
+    text = read_text(path, "route file")
     waypoints: list[Waypoint] = []
     if path.suffix.lower() == ".json":
         try:

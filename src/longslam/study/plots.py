@@ -27,9 +27,17 @@ def plot_plan(
     trajectories: dict[str, np.ndarray] | None = None,
     waypoints: np.ndarray | None = None,
     title: str = "",
+    zoom_margin: float | None = None,
 ) -> None:
-    """Floor plan (ground-truth occupancy) with (N, 2) xy paths drawn over it, saved as an image."""
+    """Floor plan (ground-truth occupancy) with (N, 2) xy paths drawn over it, saved as an image.
+
+    With `zoom_margin`, the view is cropped to the paths plus that many metres around them.
+    """
     xmin, xmax, ymin, ymax = grid.extent
+    if zoom_margin is not None and trajectories:
+        points = np.concatenate([np.asarray(xy)[:, :2] for xy in trajectories.values()])
+        xmin, ymin = np.maximum(points.min(axis=0) - zoom_margin, (xmin, ymin))
+        xmax, ymax = np.minimum(points.max(axis=0) + zoom_margin, (xmax, ymax))
     fig, ax = plt.subplots(figsize=(12, 12 * (ymax - ymin) / (xmax - xmin) + 1.0))
     ax.imshow(_plan_image(grid), origin="lower", extent=grid.extent, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
     for i, (label, xy) in enumerate((trajectories or {}).items()):
@@ -41,6 +49,8 @@ def plot_plan(
         ax.plot(wp[:, 0], wp[:, 1], "o", color="tab:red", ms=6, label="waypoints")
         for k, (x, y) in enumerate(wp):
             ax.annotate(str(k), (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8, color="tab:red")
+    ax.set_xlim(xmin, xmax)
+    ax.set_ylim(ymin, ymax)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")

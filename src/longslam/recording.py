@@ -1,7 +1,9 @@
-"""Rendered routes cached on disk, so another noise level or seed never renders again.
+"""Recording sequences from the simulator: rendered routes cached on disk, and noisy odometry.
 
 Rendering is deterministic for a (world, route, camera, follower), so the frames are stored
-once, as a TUM RGB-D sequence without odometry, under a key made from those settings.
+once, as a TUM RGB-D sequence without odometry, under a key made from those settings. A
+sequence for a (noise level, seed) is that rendering plus its own odometry, drawn per frame by
+the noise model; its frames are hard links to the cached ones.
 """
 
 from __future__ import annotations
@@ -9,17 +11,24 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Iterator
 from dataclasses import asdict
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 import longslam
-from longslam.io.sequence import SequenceWriter
+from longslam.errors import InputError
+from longslam.frame import Frame
+from longslam.geometry import camera_poses_from_planar, planar_from_camera_poses
+from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
+from longslam.sim.noise import BiasNoise
 from longslam.sim.routes import Route
+from longslam.trajectory import Trajectory
 from longslam.world import get_world
 
 # Bump when rendering or driving changes in a way that makes cached frames stale.
@@ -83,3 +92,53 @@ def rendered_sequence(
             writer.add(float(truth.timestamps[i]), rgb, depth)
         writer.set_ground_truth(truth)
     return path
+
+
+def noisy_odometry(truth: Trajectory, noise: BiasNoise, seed: int, camera_height: float) -> Trajectory:
+    """Camera-in-world odometry poses for a ground-truth camera trajectory of a planar robot."""
+    rng = np.random.default_rng(seed)
+    xyyaw = planar_from_camera_poses(truth.poses, camera_height)
+    floor_z = float(truth.poses[0, 2, 3]) - camera_height
+    noisy = noise.apply(truth.timestamps, xyyaw, rng)
+    return Trajectory(truth.timestamps, camera_poses_from_planar(noisy, camera_height, floor_z), source="odometry")
+
+
+def simulate(
+    route: Route,
+    noise: BiasNoise,
+    seed: int,
+    out: str | Path,
+    camera: CameraSettings = CameraSettings(),
+    follower: FollowerSettings = FollowerSettings(),
+    overwrite: bool = False,
+    progress: bool = True,
+) -> Path:
+    """Write a sequence for (route, noise, seed) to `out`, rendering the route only if not cached."""
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise InputError(f"output {out} exists already; choose another path or pass --overwrite")
+    rendered = rendered_sequence(route, camera, follower, progress=progress)
+    reader = SequenceReader(rendered)
+    truth = reader.ground_truth
+    assert truth is not None, "a rendered sequence always has ground truth"
+    odometry = noisy_odometry(truth, noise, seed, camera.camera_height)
+    meta = dict(reader.meta)
+    meta.update(
+        noise=noise.name,
+        noise_linear_std=noise.linear_std,
+        noise_angular_std_deg=noise.angular_std_deg,
+        noise_redraw_period_s=noise.redraw_period,
+        seed=seed,
+        longslam_version=longslam.__version__,
+    )
+    derive_sequence(rendered, out, odometry, meta, overwrite=overwrite)
+    return out
+
+
+def frames_with_odometry(reader: SequenceReader, odometry: Trajectory) -> Iterator[Frame]:
+    """The reader's frames with their odometry replaced, for noise applied on the fly."""
+    if len(odometry) != len(reader):
+        raise InputError(f"odometry has {len(odometry)} poses but sequence {reader.path} has {len(reader)} frames")
+    for frame, pose in zip(reader, odometry.poses):
+        frame.odometry = pose
+        yield frame
