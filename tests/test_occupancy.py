@@ -1,0 +1,117 @@
+"""Occupancy from depth: obstacles in the 0.2-1.5 m band, free space by ray tracing, assembly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from longslam.errors import InputError
+from longslam.frame import Intrinsics
+from longslam.geometry import base_to_camera
+from longslam.gridmap import FREE, OCCUPIED, UNKNOWN
+from longslam.slam.occupancy import LocalGrid, assemble, local_grid
+
+CAMERA_HEIGHT = 1.25
+INTR = Intrinsics.from_fov(64, 48, 90)
+CAM_IN_BASE = base_to_camera(CAMERA_HEIGHT)
+
+
+def floor_depth(intr: Intrinsics = INTR) -> np.ndarray:
+    """Depth of the floor plane seen by a level camera CAMERA_HEIGHT above it (0 above the horizon)."""
+    v = np.arange(intr.height, dtype=np.float64)[:, None] + np.zeros((1, intr.width))
+    down = (v - intr.cy) / intr.fy  # camera-frame y per metre of depth; y points down
+    with np.errstate(divide="ignore"):
+        depth = np.where(down > 0, CAMERA_HEIGHT / np.where(down > 0, down, 1.0), 0.0)
+    return depth.astype(np.float32)
+
+
+def wall_depth(distance: float, intr: Intrinsics = INTR) -> np.ndarray:
+    """A wall facing the camera at `distance` (camera z = distance), floor where it is nearer."""
+    floor = floor_depth(intr)
+    depth = np.full(floor.shape, distance, dtype=np.float32)
+    nearer_floor = (floor > 0) & (floor < distance)
+    depth[nearer_floor] = floor[nearer_floor]
+    return depth
+
+
+def test_wall_gives_obstacles_at_its_distance_and_free_space_before_it():
+    grid = local_grid(wall_depth(2.0), INTR, CAM_IN_BASE)
+    assert len(grid.obstacles) > 0 and len(grid.free) > 0
+    obs = grid.obstacle_points()
+    assert np.all(np.abs(obs[:, 0] - 2.0) <= 0.05 + 1e-9)
+    # The wall spans the 90 degree view: y from about -2 to 2 m.
+    assert obs[:, 1].min() < -1.5 and obs[:, 1].max() > 1.5
+    free = grid.free_points()
+    assert free[:, 0].max() < 2.0
+    assert free[:, 0].min() < 0.5  # cleared from the robot outwards
+    # The corridor straight ahead is free all the way to the wall.
+    ahead = grid.free[grid.free[:, 1] == 0, 0]
+    assert set(range(0, 39)) <= set(ahead.tolist())
+    assert grid.obstacles.dtype == np.int16 and grid.free.dtype == np.int16
+    # Obstacle and free cells never overlap.
+    both = {tuple(c) for c in grid.obstacles.tolist()} & {tuple(c) for c in grid.free.tolist()}
+    assert not both
+
+
+def test_floor_only_gives_no_obstacles():
+    grid = local_grid(floor_depth(), INTR, CAM_IN_BASE)
+    assert len(grid.obstacles) == 0
+    assert len(grid.free) > 0
+    # Floor seen beyond range_max still clears space, but only up to range_max.
+    assert np.linalg.norm(grid.free_points(), axis=1).max() <= 5.0 + 0.05 * np.sqrt(2)
+
+
+def test_points_outside_height_band_are_not_obstacles():
+    # A wall 2 m ahead seen only through a narrow band of rows near the top of the image
+    # (above 1.5 m) must not produce obstacles.
+    depth = wall_depth(2.0)
+    heights = CAMERA_HEIGHT - (np.arange(INTR.height) - INTR.cy) / INTR.fy * 2.0
+    depth[heights <= 1.5, :] = 0.0
+    grid = local_grid(depth, INTR, CAM_IN_BASE, stride=1)
+    assert len(grid.obstacles) == 0
+
+
+def test_empty_depth_gives_empty_grid():
+    grid = local_grid(np.zeros((INTR.height, INTR.width), np.float32), INTR, CAM_IN_BASE)
+    assert grid.obstacles.shape == (0, 2) and grid.free.shape == (0, 2)
+    assert grid.nbytes == 0
+    gmap = assemble([grid], [(0.0, 0.0, 0.0)])
+    assert np.all(gmap.data == UNKNOWN)
+    assert np.all(assemble([], np.zeros((0, 3))).data == UNKNOWN)
+
+
+def test_assemble_places_wall_in_world():
+    # The same wall, world x = 2, seen from three places: 2 m before it, 1 m before it, and
+    # from the far side (robot at x = 4 facing back along -x).
+    views = [((0.0, 0.0, 0.0), 2.0), ((1.0, 0.0, 0.0), 1.0), ((4.0, 0.3, np.pi), 2.0)]
+    # stride 1: the test image is tiny, and rays to every other column would leave gaps.
+    grids = [local_grid(wall_depth(d), INTR, CAM_IN_BASE, stride=1) for _, d in views]
+    gmap = assemble(grids, np.array([p for p, _ in views]))
+    assert gmap.resolution == 0.05
+
+    rows, cols = np.nonzero(gmap.data == OCCUPIED)
+    occ = gmap.cell_to_world(np.column_stack([rows, cols]))
+    assert len(occ) > 20 and np.ptp(occ[:, 1]) > 3.0
+    assert np.all(np.abs(occ[:, 0] - 2.0) <= 0.1)
+
+    # Free space in front of and behind the wall, unknown far off to the side.
+    assert np.all(gmap.values_at([[0.52, 0.02], [1.52, 0.02], [3.02, 0.32]]) == FREE)
+    assert gmap.values_at([[0.52, 4.02]])[0] == UNKNOWN
+    assert gmap.values_at([[2.02, 0.0]])[0] == OCCUPIED
+
+
+def test_assemble_votes_between_views():
+    # A one-off obstacle seen once is outvoted by two views that saw the cell free.
+    blip = LocalGrid(np.array([[10, 0]], np.int16), np.zeros((0, 2), np.int16), 0.05)
+    clear = LocalGrid(np.zeros((0, 2), np.int16), np.array([[10, 0], [11, 0]], np.int16), 0.05)
+    gmap = assemble([blip, clear, clear], np.zeros((3, 3)))
+    assert gmap.values_at([[0.525, 0.025]])[0] == FREE
+    gmap = assemble([blip, blip, clear], np.zeros((3, 3)))
+    assert gmap.values_at([[0.525, 0.025]])[0] == OCCUPIED
+
+
+def test_bad_input_is_named():
+    with pytest.raises(InputError, match="does not match"):
+        local_grid(np.zeros((10, 10), np.float32), INTR, CAM_IN_BASE)
+    with pytest.raises(InputError, match="local grids"):
+        assemble([], np.zeros((1, 3)))

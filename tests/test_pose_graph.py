@@ -1,0 +1,151 @@
+"""PoseGraph2D: loop closures correct drift; wrong closures are muted, visible and removable."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from longslam.errors import InputError
+from longslam.geometry import planar_poses, wrap_angle
+from longslam.slam.pose_graph import (
+    PoseGraph2D,
+    compose_xyyaw,
+    pose_from_xyyaw,
+    relative_xyyaw,
+    xyyaw_from_pose,
+)
+
+ODO_SIGMAS = (0.05, 0.05, 0.01)
+LOOP_SIGMAS = (0.05, 0.05, 0.01)
+
+
+def square_route(side_steps: int = 10, step: float = 1.0) -> np.ndarray:
+    """Ground truth: a 10 m square driven counter-clockwise, ending where it started."""
+    poses = [(0.0, 0.0, 0.0)]
+    x = y = yaw = 0.0
+    for _ in range(4):
+        for i in range(side_steps):
+            x += step * np.cos(yaw)
+            y += step * np.sin(yaw)
+            if i == side_steps - 1:
+                yaw = float(wrap_angle(yaw + np.pi / 2))
+            poses.append((x, y, yaw))
+    return np.array(poses)
+
+
+def drifting_odometry(truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-step deltas with a 3 % scale error and a 0.02 rad/step heading bias, and their integral."""
+    deltas = relative_xyyaw(truth[:-1], truth[1:])
+    deltas[:, 0] *= 1.03
+    deltas[:, 2] += 0.02
+    poses = [truth[0]]
+    for d in deltas:
+        poses.append(compose_xyyaw(poses[-1], d))
+    return deltas, np.array(poses)
+
+
+def build_graph(truth: np.ndarray) -> tuple[PoseGraph2D, np.ndarray]:
+    deltas, odo = drifting_odometry(truth)
+    graph = PoseGraph2D()
+    for i, pose in enumerate(odo):
+        graph.add_node(i, pose)
+    for i, d in enumerate(deltas):
+        graph.add_odometry(i, i + 1, d, ODO_SIGMAS)
+    return graph, odo
+
+
+def as_array(result: dict, n: int) -> np.ndarray:
+    return np.array([result[i] for i in range(n)])
+
+
+def test_planar_helpers_round_trip():
+    a, b = np.array([1.0, -2.0, 0.7]), np.array([3.0, 0.5, -2.9])
+    delta = relative_xyyaw(a, b)
+    np.testing.assert_allclose(compose_xyyaw(a, delta), b, atol=1e-12)
+    expected = np.linalg.inv(pose_from_xyyaw(a)) @ pose_from_xyyaw(b)
+    np.testing.assert_allclose(xyyaw_from_pose(expected), delta, atol=1e-12)
+    many = np.array([a, b])
+    np.testing.assert_allclose(xyyaw_from_pose(planar_poses(many)), many, atol=1e-12)
+
+
+def test_correct_loop_closure_removes_drift():
+    truth = square_route()
+    graph, odo = build_graph(truth)
+    last = len(truth) - 1
+    graph.add_loop(last, 0, relative_xyyaw(truth[last], truth[0]), LOOP_SIGMAS, robust=False)
+    est = as_array(graph.optimize(), len(truth))
+
+    odo_err = np.linalg.norm(odo[last, :2] - truth[last, :2])
+    est_err = np.linalg.norm(est[last, :2] - truth[last, :2])
+    assert odo_err > 4.0
+    assert est_err < 0.05 * odo_err
+    # The whole trajectory improves, not only the closing node.
+    assert np.linalg.norm(est[:, :2] - truth[:, :2], axis=1).mean() < 0.5 * np.linalg.norm(
+        odo[:, :2] - truth[:, :2], axis=1
+    ).mean()
+    np.testing.assert_allclose(est[0], truth[0], atol=1e-6)  # first node held by the prior
+    (err,) = graph.edge_errors()
+    assert err.error < 3.0  # a consistent closure passes RTAB-Map's OptimizeMaxError test
+    assert graph.counts() == {"nodes": 41, "odometry_edges": 40, "loop_edges": 1}
+
+
+def test_wrong_robust_loop_barely_bends_graph_and_is_flagged():
+    truth = square_route()
+    graph, odo = build_graph(truth)
+    base = as_array(graph.optimize(), len(truth))
+    np.testing.assert_allclose(base, odo, atol=1e-6)  # odometry alone is already consistent
+
+    # Claims the far corner (10, 10) is the start: a 14 m lie.
+    wrong = graph.add_loop(20, 0, (0.0, 0.0, 0.0), LOOP_SIGMAS, robust=True)
+    bent = as_array(graph.optimize(), len(truth))
+    assert np.abs(bent[:, :2] - base[:, :2]).max() < 0.2
+    worst = graph.max_edge_error()
+    assert worst.edge_id == wrong and worst.error > 100.0
+
+    graph.remove_edge(wrong)
+    restored = as_array(graph.optimize(), len(truth))
+    np.testing.assert_allclose(restored, base, atol=1e-6)
+    assert graph.num_loops == 0 and graph.edge_errors() == []
+
+
+def test_wrong_plain_loop_rejected_by_max_error_then_restored():
+    truth = square_route()
+    graph, _ = build_graph(truth)
+    last = len(truth) - 1
+    graph.add_loop(last, 0, relative_xyyaw(truth[last], truth[0]), LOOP_SIGMAS, robust=False)
+    good = as_array(graph.optimize(), len(truth))
+
+    wrong = graph.add_loop(20, 0, (0.0, 0.0, 0.0), LOOP_SIGMAS, robust=False)
+    graph.optimize()
+    rejected = [e.edge_id for e in graph.edge_errors() if max(e.translation_error, e.rotation_error) > 3.0]
+    assert wrong in rejected
+    graph.remove_edge(wrong)
+    np.testing.assert_allclose(as_array(graph.optimize(), len(truth)), good, atol=1e-6)
+
+
+def test_optimize_is_deterministic():
+    truth = square_route()
+    results = []
+    for _ in range(2):
+        graph, _ = build_graph(truth)
+        graph.add_loop(40, 0, (0.0, 0.0, 0.0), LOOP_SIGMAS, robust=False)
+        graph.add_loop(20, 0, (0.0, 0.0, 0.0), LOOP_SIGMAS, robust=True)
+        results.append(as_array(graph.optimize(), len(truth)))
+    np.testing.assert_array_equal(results[0], results[1])
+
+
+def test_bad_input_is_named():
+    graph = PoseGraph2D()
+    graph.add_node(0, (0, 0, 0))
+    with pytest.raises(InputError, match="node 1"):
+        graph.add_odometry(0, 1, (1, 0, 0), ODO_SIGMAS)
+    graph.add_node(1, (1, 0, 0))
+    with pytest.raises(InputError, match="sigmas"):
+        graph.add_loop(0, 1, (1, 0, 0), (0.1, 0.0, 0.1))
+    graph.add_node(2, (2, 0, 0))
+    graph.add_odometry(0, 1, (1, 0, 0), ODO_SIGMAS)
+    with pytest.raises(InputError, match="not connected"):
+        graph.optimize()
+    with pytest.raises(InputError):
+        graph.remove_edge(99)
+    assert PoseGraph2D().optimize() == {}
