@@ -1,0 +1,312 @@
+"""Place recognition shared by the SLAM methods: an incremental bag of visual words and PnP
+verification of a loop-closure hypothesis.
+
+Follows RTAB-Map's design (see reference/anchors.md): the dictionary grows as the robot sees new
+texture (Kp/IncrementalDictionary), at most Kp/MaxFeatures = 500 words per image, candidates are
+ranked by a tf-idf similarity, and a hypothesis is accepted only if PnP RANSAC on the candidate's
+depth points finds Vis/MinInliers = 20 inliers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import scipy.sparse as sp
+
+from longslam.errors import InputError
+from longslam.frame import Intrinsics
+from longslam.geometry import invert
+from longslam.slam.features import DESCRIPTOR_BYTES, Features
+
+_MATCH_CHUNK = 1 << 17
+
+
+def hamming_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n, 32) x (m, 32) uint8 descriptors -> (n, m) Hamming distances (int32)."""
+    # XOR 64 bits at a time: 4 words per descriptor instead of 32 bytes.
+    a64 = np.ascontiguousarray(a, dtype=np.uint8).view(np.uint64)
+    b64 = np.ascontiguousarray(b, dtype=np.uint8).view(np.uint64)
+    x = np.bitwise_xor(a64[:, None, :], b64[None, :, :])
+    return np.bitwise_count(x).sum(axis=2, dtype=np.int32)
+
+
+def _check_descriptors(descriptors: np.ndarray) -> np.ndarray:
+    descriptors = np.asarray(descriptors)
+    if descriptors.size == 0:
+        return np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
+    if descriptors.ndim != 2 or descriptors.shape[1] != DESCRIPTOR_BYTES or descriptors.dtype != np.uint8:
+        raise InputError(
+            f"descriptors must be (N, {DESCRIPTOR_BYTES}) uint8, got {descriptors.shape} {descriptors.dtype}"
+        )
+    return np.ascontiguousarray(descriptors)
+
+
+class Vocabulary:
+    """Incremental visual-word dictionary with an inverted index over the nodes in working memory.
+
+    A descriptor joins the nearest word if it is within `max_distance` bits, otherwise it founds
+    a new word. Words are never deleted when nodes leave: a node brought back from long-term
+    memory must quantise to the same words it had.
+    """
+
+    def __init__(self, max_distance: int = 40, max_words_per_image: int = 500):
+        if not 0 <= max_distance <= 8 * DESCRIPTOR_BYTES:
+            raise InputError(f"max_distance must be in [0, 256] bits, got {max_distance}")
+        if max_words_per_image <= 0:
+            raise InputError(f"max_words_per_image must be positive, got {max_words_per_image}")
+        self.max_distance = int(max_distance)
+        self.max_words_per_image = int(max_words_per_image)
+        self._words = np.zeros((1024, DESCRIPTOR_BYTES), np.uint8)  # grown by doubling
+        self._n_words = 0
+        self._matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
+        # node id -> (unique word ids, counts): the node's bag of words.
+        self._bags: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._df = np.zeros(1024, np.int64)  # how many nodes in working memory hold each word
+        self._matrix: sp.csr_matrix | None = None  # nodes x words term frequencies, rebuilt lazily
+        self._row_ids: np.ndarray = np.zeros(0, np.int64)
+
+    # --- dictionary -------------------------------------------------------------------------
+    @property
+    def n_words(self) -> int:
+        return self._n_words
+
+    @property
+    def words(self) -> np.ndarray:
+        return self._words[: self._n_words]
+
+    @property
+    def nodes(self) -> list[int]:
+        return list(self._bags)
+
+    def __contains__(self, node_id: int) -> bool:
+        return node_id in self._bags
+
+    def __len__(self) -> int:
+        return len(self._bags)
+
+    @property
+    def nbytes(self) -> int:
+        bags = sum(w.nbytes + c.nbytes for w, c in self._bags.values())
+        return int(self._words[: self._n_words].nbytes + self._df[: self._n_words].nbytes + bags)
+
+    def _nearest(self, descriptors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest word and its distance for each descriptor (-1, 257 with an empty dictionary)."""
+        n = len(descriptors)
+        if self._n_words == 0 or n == 0:
+            return np.full(n, -1, np.int64), np.full(n, 257, np.int64)
+        word = np.full(n, -1, np.int64)
+        dist = np.full(n, 257, np.int64)
+        # BFMatcher refuses train sets of 2**18 rows or more, so a long route's dictionary is
+        # searched in chunks. Brute force is exact; an approximate index (FLANN LSH) would be
+        # the next step if dictionaries of millions of words become a bottleneck.
+        for start in range(0, self._n_words, _MATCH_CHUNK):
+            chunk = self._words[start : min(start + _MATCH_CHUNK, self._n_words)]
+            for m in self._matcher.match(descriptors, chunk):
+                d = int(round(m.distance))
+                if d < dist[m.queryIdx]:
+                    word[m.queryIdx] = start + m.trainIdx
+                    dist[m.queryIdx] = d
+        return word, dist
+
+    def _append_words(self, descriptors: np.ndarray) -> np.ndarray:
+        n = len(descriptors)
+        need = self._n_words + n
+        if need > len(self._words):
+            cap = max(need, 2 * len(self._words))
+            self._words = np.resize(self._words, (cap, DESCRIPTOR_BYTES))
+            df = np.zeros(cap, np.int64)
+            df[: len(self._df)] = self._df
+            self._df = df
+        ids = np.arange(self._n_words, need, dtype=np.int64)
+        self._words[self._n_words : need] = descriptors
+        self._n_words = need
+        return ids
+
+    def quantise(self, descriptors: np.ndarray, grow: bool = False) -> np.ndarray:
+        """Word id per descriptor (first `max_words_per_image` only); -1 where none is near enough.
+
+        With `grow`, descriptors far from every word found new words; descriptors of the same
+        image that are near each other share one new word, so a repeated pattern is not split
+        into several words that would each look rare.
+        """
+        descriptors = _check_descriptors(descriptors)[: self.max_words_per_image]
+        word, dist = self._nearest(descriptors)
+        far = dist > self.max_distance
+        word[far] = -1
+        if grow and far.any():
+            new = descriptors[far]
+            d = hamming_matrix(new, new)
+            label = np.full(len(new), -1, np.int64)
+            leaders = []
+            for i in range(len(new)):  # greedy leader clustering; n <= max_words_per_image
+                if label[i] >= 0:
+                    continue
+                members = (label < 0) & (d[i] <= self.max_distance)
+                label[members] = len(leaders)
+                leaders.append(i)
+            ids = self._append_words(new[leaders])
+            word[far] = ids[label]
+        return word
+
+    # --- inverted index ---------------------------------------------------------------------
+    def add(self, node_id: int, descriptors: np.ndarray) -> np.ndarray:
+        """Add a node's descriptors (strongest first) to the dictionary and the index.
+
+        Returns the word id of each kept descriptor. Re-adding a node replaces its bag.
+        """
+        if node_id in self._bags:
+            self.remove(node_id)
+        word = self.quantise(descriptors, grow=True)
+        ids, counts = np.unique(word[word >= 0], return_counts=True)
+        self._bags[node_id] = (ids, counts.astype(np.int64))
+        self._df[ids] += 1
+        self._matrix = None
+        return word
+
+    def remove(self, node_id: int) -> None:
+        """Take a node out of the index (it left working memory); its words stay in the dictionary."""
+        bag = self._bags.pop(node_id, None)
+        if bag is None:
+            return
+        self._df[bag[0]] -= 1
+        self._matrix = None
+
+    def _tf_matrix(self) -> sp.csr_matrix:
+        # Rebuilt only after add/remove; a query loop then costs sparse products only.
+        if self._matrix is None or self._matrix.shape[1] != self._n_words:
+            self._row_ids = np.fromiter(self._bags.keys(), np.int64, len(self._bags))
+            bags = list(self._bags.values())
+            lengths = np.array([len(w) for w, _ in bags], np.int64)
+            cols = np.concatenate([w for w, _ in bags]) if bags else np.zeros(0, np.int64)
+            counts = np.concatenate([c for _, c in bags]) if bags else np.zeros(0, np.int64)
+            rows = np.repeat(np.arange(len(bags)), lengths)
+            totals = np.array([c.sum() for _, c in bags], np.float64)
+            tf = counts / np.maximum(np.repeat(totals, lengths), 1.0)
+            self._matrix = sp.csr_matrix((tf, (rows, cols)), shape=(len(bags), self._n_words))
+        return self._matrix
+
+    def idf(self) -> np.ndarray:
+        """log(N / df) per word over the nodes in working memory (0 for words no node holds)."""
+        n = max(len(self._bags), 1)
+        df = self._df[: self._n_words]
+        return np.where(df > 0, np.log(n / np.maximum(df, 1)), 0.0)
+
+    def query(
+        self, descriptors: np.ndarray, candidates: list[int] | np.ndarray | None = None, top_k: int = 5
+    ) -> list[tuple[int, float]]:
+        """Nodes most similar to `descriptors`, best first, as (node_id, score).
+
+        The score is the cosine of tf-idf vectors, in [0, 1]: 1 for an identical bag, near 0 for
+        a place that shares only common words. Cosine rather than a raw dot product so that
+        nodes with many words do not win every query. The dictionary is not grown by a query.
+        """
+        if top_k <= 0 or not self._bags:
+            return []
+        word = self.quantise(descriptors, grow=False)
+        word = word[word >= 0]
+        if len(word) == 0:
+            return []
+        ids, counts = np.unique(word, return_counts=True)
+        idf = self.idf()
+        q = counts / counts.sum() * idf[ids]
+        q_norm = np.linalg.norm(q)
+        if q_norm == 0.0:  # every matched word is in every node: nothing discriminates
+            return []
+        tf = self._tf_matrix()
+        dots = tf[:, ids] @ (q * idf[ids])
+        norms = np.sqrt(tf.multiply(tf) @ (idf**2))
+        scores = np.where(norms > 0, dots / np.maximum(norms, 1e-300) / q_norm, 0.0)
+        rows = np.arange(len(self._row_ids))
+        if candidates is not None:
+            rows = rows[np.isin(self._row_ids, np.asarray(list(candidates), np.int64))]
+        rows = rows[scores[rows] > 0.0]
+        if len(rows) == 0:
+            return []
+        k = min(top_k, len(rows))
+        best = rows[np.argpartition(-scores[rows], k - 1)[:k]] if k < len(rows) else rows
+        best = best[np.lexsort((self._row_ids[best], -scores[best]))]  # ties: lowest node id first
+        return [(int(self._row_ids[r]), float(scores[r])) for r in best]
+
+
+# --- geometric verification ---------------------------------------------------------------------
+@dataclass
+class Verification:
+    accepted: bool
+    inliers: int
+    # Pose of the query camera in the candidate camera frame (4x4, maps query-camera coordinates
+    # to candidate-camera coordinates); None unless accepted.
+    transform: np.ndarray | None
+    reason: str
+    matches: int = 0
+
+
+def match_descriptors(a: np.ndarray, b: np.ndarray, ratio: float = 0.8) -> np.ndarray:
+    """(K, 2) index pairs (into a, into b) passing Lowe's ratio test, one per descriptor of a."""
+    if len(a) == 0 or len(b) < 2:
+        return np.zeros((0, 2), np.int64)
+    knn = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(a, b, k=2)
+    pairs = [(m[0].queryIdx, m[0].trainIdx) for m in knn if len(m) == 2 and m[0].distance < ratio * m[1].distance]
+    if not pairs:
+        return np.zeros((0, 2), np.int64)
+    pairs = np.array(pairs, np.int64)
+    # Keep one match per train descriptor: two query keypoints on one 3D point would bias PnP.
+    _, first = np.unique(pairs[:, 1], return_index=True)
+    return pairs[np.sort(first)]
+
+
+def verify(
+    query: Features,
+    candidate: Features,
+    intrinsics: Intrinsics,
+    min_inliers: int = 20,
+    ratio: float = 0.8,
+    reprojection_error: float = 3.0,
+    iterations: int = 200,
+) -> Verification:
+    """Check a loop-closure hypothesis with PnP RANSAC on the candidate's depth points.
+
+    solvePnPRansac returns (R, t) with x_query = R X_candidate + t, i.e. the candidate frame
+    expressed in the query camera; the returned `transform` is its inverse, the query camera's
+    pose in the candidate camera frame, so that pose_query_world = pose_candidate_world @ transform.
+    """
+    if len(query) == 0:
+        return Verification(False, 0, None, "query has no features")
+    if len(candidate) == 0:
+        return Verification(False, 0, None, "candidate has no features")
+    valid = np.flatnonzero(candidate.valid)
+    if len(valid) < min_inliers:
+        return Verification(False, 0, None, f"candidate has {len(valid)} points with depth, need {min_inliers}")
+    pairs = match_descriptors(query.descriptors, candidate.descriptors[valid], ratio)
+    n_matches = len(pairs)
+    if n_matches < max(min_inliers, 6):
+        return Verification(False, 0, None, f"{n_matches} descriptor matches, need {min_inliers}", n_matches)
+    object_points = candidate.points[valid[pairs[:, 1]]].astype(np.float64)
+    image_points = query.keypoints[pairs[:, 0]].astype(np.float64)
+    try:
+        ok, rvec, tvec, inliers = cv2.solvePnPRansac(
+            object_points, image_points, intrinsics.matrix, None,
+            iterationsCount=iterations, reprojectionError=reprojection_error, confidence=0.99,
+            flags=cv2.SOLVEPNP_SQPNP,
+        )
+    except cv2.error as err:
+        return Verification(False, 0, None, f"PnP failed: {err.err}", n_matches)
+    n_inliers = 0 if inliers is None else len(inliers)
+    if not ok or n_inliers == 0:
+        return Verification(False, 0, None, "PnP RANSAC found no pose", n_matches)
+    inl = inliers.ravel()
+    if n_inliers >= 4:
+        # RANSAC's pose comes from a minimal set; polishing on all inliers cuts its noise.
+        rvec, tvec = cv2.solvePnPRefineLM(object_points[inl], image_points[inl], intrinsics.matrix, None, rvec, tvec)
+    rot, _ = cv2.Rodrigues(rvec)
+    candidate_in_query = np.eye(4)
+    candidate_in_query[:3, :3] = rot
+    candidate_in_query[:3, 3] = np.asarray(tvec).ravel()
+    if not np.all(np.isfinite(candidate_in_query)):
+        return Verification(False, n_inliers, None, "PnP returned a non-finite pose", n_matches)
+    if n_inliers < min_inliers:
+        # No transform: a pose from too few inliers is as likely wrong as right.
+        return Verification(False, n_inliers, None, f"{n_inliers} inliers, need {min_inliers}", n_matches)
+    transform = invert(candidate_in_query)
+    return Verification(True, n_inliers, transform, f"{n_inliers} inliers of {n_matches} matches", n_matches)

@@ -1,0 +1,162 @@
+"""Features, the incremental bag of words and PnP verification on synthetic textured planes."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from longslam.frame import Intrinsics
+from longslam.slam.features import Features, extract
+from longslam.slam.place_recognition import Vocabulary, verify
+
+INTR = Intrinsics.from_fov(320, 240, 90.0)  # fx = fy = 160
+PLANE_Z = 2.0
+MARGIN = 60  # canvas border so shifted views never run off the texture
+
+
+def texture(seed: int) -> np.ndarray:
+    """A canvas of random shapes and text: distinctive corners for ORB."""
+    rng = np.random.default_rng(seed)
+    h, w = INTR.height + 2 * MARGIN, INTR.width + 2 * MARGIN
+    canvas = np.full((h, w, 3), 128, np.uint8)
+    for _ in range(60):
+        colour = tuple(int(c) for c in rng.integers(0, 256, 3))
+        kind = rng.integers(0, 3)
+        x, y = int(rng.integers(0, w)), int(rng.integers(0, h))
+        if kind == 0:
+            cv2.rectangle(canvas, (x, y), (x + int(rng.integers(5, 50)), y + int(rng.integers(5, 50))), colour, -1)
+        elif kind == 1:
+            cv2.circle(canvas, (x, y), int(rng.integers(3, 25)), colour, -1)
+        else:
+            text = "".join(chr(c) for c in rng.integers(65, 91, 4))
+            cv2.putText(canvas, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, float(rng.uniform(0.4, 1.2)), colour, 2)
+    return canvas
+
+
+def view(canvas: np.ndarray, tx: float = 0.0, ty: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Image and depth of the plane at PLANE_Z seen by a camera translated by (tx, ty) metres.
+
+    A camera moved by t sees a fronto-parallel plane shifted by -f t / Z pixels.
+    """
+    du, dv = INTR.fx * tx / PLANE_Z, INTR.fy * ty / PLANE_Z
+    m = np.array([[1.0, 0.0, -(MARGIN + du)], [0.0, 1.0, -(MARGIN + dv)]])
+    rgb = cv2.warpAffine(canvas, m, (INTR.width, INTR.height), flags=cv2.INTER_LINEAR)
+    depth = np.full((INTR.height, INTR.width), PLANE_Z, np.float32)
+    return rgb, depth
+
+
+@pytest.fixture(scope="module")
+def scenes() -> list[np.ndarray]:
+    return [texture(seed) for seed in range(12)]
+
+
+def feats(canvas: np.ndarray, tx: float = 0.0, ty: float = 0.0) -> Features:
+    rgb, depth = view(canvas, tx, ty)
+    return extract(rgb, depth, INTR)
+
+
+def test_features_have_points_on_the_plane(scenes):
+    f = feats(scenes[0])
+    assert len(f) > 200
+    assert f.keypoints.shape == (len(f), 2) and f.keypoints.dtype == np.float32
+    assert f.descriptors.shape == (len(f), 32) and f.descriptors.dtype == np.uint8
+    assert f.points.shape == (len(f), 3) and f.points.dtype == np.float32
+    assert f.valid.all()
+    np.testing.assert_allclose(f.points[:, 2], PLANE_Z, atol=1e-6)
+    # Back-projection must reproject to the keypoints.
+    uv = f.points[:, :2] / f.points[:, 2:] * [INTR.fx, INTR.fy] + [INTR.cx, INTR.cy]
+    np.testing.assert_allclose(uv, f.keypoints, atol=0.51)
+    assert f.nbytes == f.keypoints.nbytes + f.descriptors.nbytes + f.points.nbytes
+
+
+def test_missing_depth_gives_nan_points(scenes):
+    rgb, depth = view(scenes[0])
+    depth[:, : INTR.width // 2] = 0.0
+    f = extract(rgb, depth, INTR)
+    left = f.keypoints[:, 0] < INTR.width // 2 - 1
+    assert left.any() and (~left).any()
+    assert not f.valid[left].any()
+    assert f.valid[f.keypoints[:, 0] > INTR.width // 2 + 1].all()
+
+
+@pytest.mark.parametrize("tx, ty", [(0.10, 0.0), (-0.07, 0.04)])
+def test_verify_recovers_translation(scenes, tx, ty):
+    candidate = feats(scenes[0])
+    query = feats(scenes[0], tx, ty)
+    result = verify(query, candidate, INTR)
+    assert result.accepted, result.reason
+    assert result.inliers >= 20
+    assert result.transform.shape == (4, 4)
+    # Query camera pose in the candidate frame: translated by (tx, ty, 0), no rotation.
+    np.testing.assert_allclose(result.transform[:3, 3], [tx, ty, 0.0], atol=0.03)
+    np.testing.assert_allclose(result.transform[:3, :3], np.eye(3), atol=0.02)
+
+
+def test_verify_rejects_unrelated_places(scenes):
+    for other in range(1, 6):
+        result = verify(feats(scenes[other]), feats(scenes[0]), INTR)
+        assert not result.accepted
+        assert result.transform is None
+        assert result.reason
+
+
+def test_blank_image_gives_no_features_and_is_rejected(scenes):
+    blank = np.full((INTR.height, INTR.width, 3), 200, np.uint8)
+    depth = np.full((INTR.height, INTR.width), PLANE_Z, np.float32)
+    empty = extract(blank, depth, INTR)
+    assert len(empty) == 0 and empty.descriptors.shape == (0, 32)
+    result = verify(empty, feats(scenes[0]), INTR)
+    assert not result.accepted and result.transform is None and "no features" in result.reason
+    result = verify(feats(scenes[0]), empty, INTR)
+    assert not result.accepted and "no features" in result.reason
+    # No valid depth anywhere: also empty, without error.
+    rgb, _ = view(scenes[0])
+    assert len(extract(rgb, np.zeros_like(depth), INTR)) == 0
+
+
+def test_vocabulary_ranks_revisit_first(scenes):
+    vocab = Vocabulary()
+    for node, canvas in enumerate(scenes[:11]):
+        words = vocab.add(node, feats(canvas).descriptors)
+        assert len(words) <= vocab.max_words_per_image
+    assert len(vocab) == 11 and vocab.n_words > 0
+    revisit = feats(scenes[3], 0.08, -0.03).descriptors
+    ranked = vocab.query(revisit, top_k=5)
+    assert ranked[0][0] == 3
+    assert ranked[0][1] > 2.0 * ranked[1][1]
+    assert all(0.0 <= s <= 1.0 + 1e-9 for _, s in ranked)
+    # A place never seen scores low everywhere.
+    unseen = vocab.query(feats(scenes[11]).descriptors, top_k=1)
+    assert not unseen or unseen[0][1] < 0.5 * ranked[0][1]
+    # Candidate filter.
+    assert [n for n, _ in vocab.query(revisit, candidates=[1, 2, 4])] and all(
+        n in (1, 2, 4) for n, _ in vocab.query(revisit, candidates=[1, 2, 4])
+    )
+
+
+def test_vocabulary_remove_and_re_add(scenes):
+    vocab = Vocabulary()
+    for node, canvas in enumerate(scenes[:6]):
+        vocab.add(node, feats(canvas).descriptors)
+    revisit = feats(scenes[2], 0.05, 0.0).descriptors
+    assert vocab.query(revisit)[0][0] == 2
+    n_words = vocab.n_words
+    vocab.remove(2)
+    assert 2 not in vocab
+    assert all(n != 2 for n, _ in vocab.query(revisit, top_k=10))
+    assert vocab.n_words == n_words  # words stay for nodes that come back from long-term memory
+    vocab.remove(2)  # removing twice is harmless
+    vocab.add(2, feats(scenes[2]).descriptors)
+    assert vocab.n_words == n_words  # the same image quantises to the words it had
+    assert vocab.query(revisit)[0][0] == 2
+
+
+def test_vocabulary_caps_words_per_image(scenes):
+    vocab = Vocabulary(max_words_per_image=50)
+    f = feats(scenes[0])
+    assert len(f) > 50
+    words = vocab.add(0, f.descriptors)
+    assert len(words) == 50 and vocab.n_words <= 50
+    assert vocab.query(np.zeros((0, 32), np.uint8)) == []
+    assert Vocabulary().query(f.descriptors) == []
