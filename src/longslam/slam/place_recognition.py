@@ -156,14 +156,20 @@ class Vocabulary:
 
         Returns the word id of each kept descriptor. Re-adding a node replaces its bag.
         """
+        word = self.quantise(descriptors, grow=True)
+        self.add_words(node_id, word)
+        return word
+
+    def add_words(self, node_id: int, word: np.ndarray) -> None:
+        """Index a node by word ids already quantised (with `grow=True`), so a caller that
+        queries and then adds the same image searches the dictionary once, not twice."""
         if node_id in self._bags:
             self.remove(node_id)
-        word = self.quantise(descriptors, grow=True)
+        word = np.asarray(word, np.int64)
         ids, counts = np.unique(word[word >= 0], return_counts=True)
         self._bags[node_id] = (ids, counts.astype(np.int64))
         self._df[ids] += 1
         self._matrix = None
-        return word
 
     def remove(self, node_id: int) -> None:
         """Take a node out of the index (it left working memory); its words stay in the dictionary."""
@@ -204,7 +210,16 @@ class Vocabulary:
         """
         if top_k <= 0 or not self._bags:
             return []
-        word = self.quantise(descriptors, grow=False)
+        return self.query_words(self.quantise(descriptors, grow=False), candidates, top_k)
+
+    def query_words(
+        self, word: np.ndarray, candidates: list[int] | np.ndarray | None = None, top_k: int = 5
+    ) -> list[tuple[int, float]]:
+        """`query` for word ids already quantised. Words that no indexed node holds (new words
+        of this very image included) have no idf and do not count."""
+        if top_k <= 0 or not self._bags:
+            return []
+        word = np.asarray(word, np.int64)
         word = word[word >= 0]
         if len(word) == 0:
             return []

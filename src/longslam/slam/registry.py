@@ -26,7 +26,8 @@ _plugins_loaded = False
 
 def _load_builtins() -> None:
     # Imported here so that registering does not make every module import every method.
-    from longslam.slam import odometry  # noqa: F401
+    from longslam.slam import keyframe, odometry  # noqa: F401
+    from longslam.slam.submap import method as _submap  # noqa: F401
 
 
 def _load_plugins() -> None:

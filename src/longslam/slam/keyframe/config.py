@@ -1,0 +1,78 @@
+"""Parameters of the keyframe method, defaults after RTAB-Map 0.23 and the paper's set-up."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from longslam.errors import InputError
+
+
+@dataclass(frozen=True)
+class KeyframeConfig:
+    # Node creation (Rtabmap/DetectionRate, RGBD/LinearUpdate, RGBD/AngularUpdate).
+    detection_rate: float = 1.0  # Hz
+    linear_update: float = 0.1  # m moved since the last node
+    angular_update: float = 0.1  # rad turned since the last node
+    # Features: the paper used 2000 per image; Kp/MaxFeatures keeps 500 as visual words.
+    max_features: int = 2000
+    max_words: int = 500
+    # Hamming bits to join an existing word: ORB descriptors of one 3D point seen again mostly
+    # differ by under 64 bits, unrelated ones by about 128, so 64 lets revisits share words.
+    word_distance: int = 64
+    # Memory (Mem/STMSize, Rtabmap/MemoryThr, Rtabmap/MaxRetrieved).
+    stm_size: int = 10
+    wm_max_nodes: int = 150  # nodes searched for loop closure; 0 = unbounded
+    max_retrieved: int = 2
+    database: bool = True  # long-term memory in RUN/memory.db (needs an output folder)
+    # Loop closure: appearance hypotheses verified by PnP RANSAC (Vis/MinInliers).
+    loop_threshold: float = 0.15  # tf-idf cosine score a hypothesis must reach
+    loop_candidates: int = 2  # best hypotheses verified per node
+    min_inliers: int = 20
+    # Proximity detection (RGBD/ProximityBySpace, RGBD/LocalRadius).
+    proximity: bool = True
+    proximity_radius: float = 3.0  # m around the estimated pose
+    proximity_max_angle: float = 0.8  # rad: only nodes that looked the same way
+    proximity_candidates: int = 1
+    # RGBD/NeighborLinkRefining: consecutive nodes linked by PnP where it verifies, if the visual
+    # transform is within these bounds of the odometry (fraction of the step, or 1 m; rad).
+    neighbor_refining: bool = False  # measured: PnP links at 320x240 are noisier than wheel odometry
+    refine_max_offset: float = 0.3
+    refine_max_angle: float = 0.3
+    # Graph (RGBD/OptimizeMaxError): a new loop whose error exceeds this is rejected.
+    optimize_max_error: float = 3.0
+    odom_sigma_linear: float = 0.05  # odometry link std per metre travelled
+    # Wheels barely slip sideways: drift is forward scale and heading, so a link's lateral std is
+    # a fraction of its forward std, and the graph explains drift by turning rather than sliding.
+    odom_sigma_lateral: float = 0.2
+    odom_sigma_angular: float = 0.005  # odometry link yaw std per second (rad/s)
+    odom_sigma_min: float = 0.01  # floor of a link's std (m, rad)
+    loop_sigma_linear: float = 0.05  # m
+    loop_sigma_angular: float = 0.02  # rad
+    # Maps (Grid/CellSize, Grid/RangeMax, obstacle band from the paper).
+    grid_cell: float = 0.05
+    grid_range: float = 5.0
+    obstacle_min_height: float = 0.2
+    obstacle_max_height: float = 1.5
+    cloud_voxel: float = 0.05
+    cloud_stride: int = 8  # pixel stride of the depth points kept per node for the 3D map
+    # Bad input: a per-frame odometry step beyond these is a jump, not motion.
+    jump_distance: float = 1.0  # m in one frame
+    jump_angle: float = 0.8  # rad in one frame
+    # Spread each graph correction over the frames between two keyframes (False: every frame
+    # hangs on its own keyframe only, and corrections show as jumps at keyframes).
+    interpolate_corrections: bool = True
+    camera_height: float | None = None  # m above the floor; default: the first odometry pose's z
+
+    def validate(self) -> None:
+        positive = ("detection_rate", "max_features", "max_words", "min_inliers", "grid_cell", "grid_range",
+                    "odom_sigma_min", "loop_sigma_linear", "loop_sigma_angular", "optimize_max_error",
+                    "cloud_voxel", "cloud_stride", "jump_distance", "jump_angle", "loop_candidates")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise InputError(f"method 'keyframe': parameter {name} must be positive, got {getattr(self, name)}")
+        for name in (f.name for f in fields(self)):
+            value = getattr(self, name)
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
+                raise InputError(f"method 'keyframe': parameter {name} must not be negative, got {value}")
+        if self.obstacle_max_height <= self.obstacle_min_height:
+            raise InputError("method 'keyframe': obstacle_max_height must exceed obstacle_min_height")

@@ -1,0 +1,108 @@
+"""The keyframe method on a short rendered route that passes the same corridor twice."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from longslam.errors import InputError
+from longslam.eval.metrics import evaluate
+from longslam.frame import Frame
+from longslam.gridmap import OCCUPIED
+from longslam.io.sequence import SequenceReader
+from longslam.recording import simulate
+from longslam.sim.camera import CameraSettings
+from longslam.sim.noise import get_noise
+from longslam.sim.routes import Route
+from longslam.slam.base import MethodContext
+from longslam.slam.keyframe import KeyframeConfig, KeyframeMethod
+from longslam.slam.memory_db import MemoryDatabase
+from longslam.slam.registry import create_method
+from longslam.world import get_world
+
+CAMERA = CameraSettings(width=160, height=120)
+# Along the spine, back, and along it again: the second pass sees what the first saw.
+ROUTE = Route("twice", "university", ((18.0, 31.25), (34.0, 31.25), (18.0, 31.25), (34.0, 31.25)))
+
+
+@pytest.fixture(scope="module")
+def sequence(tmp_path_factory):
+    root = tmp_path_factory.mktemp("kf")
+    mp = pytest.MonkeyPatch()
+    mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
+    try:
+        path = simulate(ROUTE, get_noise("xlarge"), 2, root / "seq", camera=CAMERA, progress=False)
+    finally:
+        mp.undo()
+    return SequenceReader(path)
+
+
+def _run(reader, params=None, output_dir=None, frames=None):
+    method = create_method("keyframe", MethodContext(reader.intrinsics, reader.max_depth, output_dir), params or {})
+    for frame in frames if frames is not None else reader:
+        method.step(frame)
+    return method, method.finish()
+
+
+def test_loops_close_and_beat_odometry(sequence, tmp_path):
+    method, result = _run(sequence, output_dir=str(tmp_path))
+    stats = result.stats
+    assert len(result.trajectory) == len(result.online) == len(sequence)
+    assert stats["loops_accepted"] + stats["proximity_accepted"] >= 3
+    ours = evaluate(sequence.ground_truth, result.trajectory)["ate"]
+    odometry = evaluate(sequence.ground_truth, sequence.odometry)["ate"]
+    assert ours < 0.7 * odometry, (ours, odometry)
+    # The online estimate is what step returned; it is not the optimised one.
+    assert not np.allclose(result.online.poses, result.trajectory.poses)
+    # The grid's obstacles lie on the world's walls, and the corridor between them is free.
+    grid, truth = result.grid, get_world("university").occupancy
+    occupied = grid.cell_to_world(np.argwhere(grid.data == OCCUPIED))
+    assert len(occupied) > 200
+    near_wall = ndimage.distance_transform_edt(truth.data != OCCUPIED) * truth.resolution <= 0.3
+    rc = truth.world_to_cell(occupied)
+    assert near_wall[rc[:, 0], rc[:, 1]].mean() > 0.85
+    assert (grid.values_at(np.array([[x, 31.25] for x in np.arange(20, 32, 0.5)])) == 0).mean() > 0.8
+    assert result.cloud is not None and len(result.cloud) > 1000
+    assert stats["map_bytes"]["features"] > 0
+
+
+def test_long_term_memory_holds_nodes_and_reopens(sequence, tmp_path):
+    method, result = _run(sequence, {"wm_max_nodes": 4, "stm_size": 3}, output_dir=str(tmp_path))
+    stats = result.stats
+    assert stats["nodes_transferred"] > 0
+    assert stats["wm_nodes"] <= 4
+    with MemoryDatabase(tmp_path / "memory.db") as db:
+        assert db.node_ids() == list(range(stats["nodes"]))
+        assert len(db.links("odometry")) == stats["nodes"] - 1
+        node = db.get_node(0)
+        assert node.arrays["descriptors"].shape[1] == 32
+        assert db.statistics()["nodes"] == stats["nodes"]
+
+
+def test_bad_frames_are_counted_not_linked(sequence):
+    frames = list(sequence)[:80]
+    for i in (20, 21, 22):  # a sensor dropout: no depth
+        frames[i].depth = np.zeros_like(frames[i].depth)
+    for i in (40, 41, 42):  # a blank wall: no texture
+        frames[i].rgb = np.full_like(frames[i].rgb, 128)
+    jumped = frames[60].odometry.copy()
+    jumped[0, 3] += 25.0  # an odometry glitch of 25 m in one frame
+    frames[60] = Frame(frames[60].index, frames[60].timestamp, frames[60].rgb, frames[60].depth, jumped, frames[60].intrinsics)
+    method, result = _run(sequence, {"detection_rate": 10.0}, frames=frames)
+    stats = result.stats
+    assert stats["frames_no_depth"] >= 1 and stats["frames_no_features"] >= 1
+    assert stats["odometry_jumps"] == 2  # into the glitch and back out of it
+    # The glitch did not move the estimate: the trajectory stays within metres of the truth.
+    truth = sequence.ground_truth.subset(np.arange(80))
+    assert evaluate(truth, result.trajectory)["ape_max"] < 2.0
+
+
+def test_params_are_typed_and_checked(sequence):
+    context = MethodContext(sequence.intrinsics, sequence.max_depth)
+    method = KeyframeMethod(context, {"max_features": "500", "proximity": "false", "loop_threshold": 0.2})
+    assert method.config == KeyframeConfig(max_features=500, proximity=False, loop_threshold=0.2)
+    with pytest.raises(InputError, match="unknown parameter.*valid parameters: .*wm_max_nodes"):
+        KeyframeMethod(context, {"wm_max_node": 3})
+    with pytest.raises(InputError, match="max_features='many'"):
+        KeyframeMethod(context, {"max_features": "many"})
+    with pytest.raises(InputError, match="min_inliers must be positive"):
+        KeyframeMethod(context, {"min_inliers": 0})
