@@ -1,0 +1,121 @@
+"""Accuracy, memory and speed of SLAM methods against dead reckoning on the paper's routes.
+
+    python benchmarks/slam_methods.py --method keyframe [--seeds 3] [--skip-1km] [--param key=value ...]
+
+Sequences are simulated once per (route, noise, seed) into --work (frames shared through the
+render cache); each run is a separate process (clean peak memory). Prints:
+- paper-300m at small, large, xlarge: ATE, E_trans, E_rot, mean over the seeds, beside odometry;
+- paper-1km at large: ATE, the method's counters, peak RSS, RSS at 250/500/750/1000 m;
+- real-time factor (the method's own processing time; reading and rendering frames excluded).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from longslam.eval.metrics import evaluate
+from longslam.io.sequence import SequenceReader
+from longslam.io.trajectory_files import read_tum
+from longslam.pipeline import run_sequence_isolated
+from longslam.recording import simulate
+from longslam.sim.noise import get_noise
+from longslam.sim.routes import get_route
+
+COUNTERS = ("nodes", "submaps", "loops_accepted", "loops_rejected_verification", "loops_rejected_graph",
+            "proximity_accepted", "proximity_rejected_verification", "proximity_rejected_graph",
+            "registrations_accepted", "registrations_rejected", "loop_closures_accepted", "loop_closures_rejected",
+            "nodes_transferred", "nodes_retrieved", "vocabulary_words")
+
+
+def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
+    path = work / f"{route}-{noise}-{seed}"
+    if not path.exists():
+        simulate(get_route(route), get_noise(noise), seed, path, progress=False)
+    return path
+
+
+def run(work: Path, method: str, seq: Path, params: dict, tag: str) -> tuple[dict, dict]:
+    out = work / "runs" / f"{seq.name}-{method}{tag}"
+    figures = run_sequence_isolated(method, seq, out, params, overwrite=True, progress=False)
+    truth = SequenceReader(seq).ground_truth
+    scores = evaluate(truth, read_tum(out / "trajectory.txt"))
+    return scores, figures
+
+
+def rss_at_distances(figures: dict, truth, marks=(250, 500, 750, 1000)) -> list[str]:
+    distance = truth.distances()
+    samples = np.array(figures["rss_samples"], dtype=np.float64)
+    out = []
+    for mark in marks:
+        frame = int(np.searchsorted(distance, mark))
+        if frame >= len(distance):
+            out.append(f"{mark} m: (route shorter)")
+            continue
+        k = int(np.searchsorted(samples[:, 0], frame))
+        k = min(k, len(samples) - 1)
+        out.append(f"{mark} m: {samples[k, 1] / 1e6:.0f} MB")
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--method", required=True)
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--work", default="out/bench")
+    parser.add_argument("--skip-300m", action="store_true")
+    parser.add_argument("--skip-1km", action="store_true")
+    parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--tag", default="", help="suffix for run folders of a parameter variant")
+    args = parser.parse_args()
+    params = {}
+    for pair in args.param:
+        key, value = pair.split("=", 1)
+        try:
+            params[key] = json.loads(value)
+        except json.JSONDecodeError:
+            params[key] = value
+    work = Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    seeds = range(args.seeds)
+
+    if not args.skip_300m:
+        print(f"== paper-300m, mean over {args.seeds} seeds: {args.method} {params or ''} vs odometry")
+        print(f"{'noise':>7} | {'ATE':>13} | {'E_trans':>15} | {'E_rot deg/m':>15} | ATE ratio | RTF")
+        for noise in ("small", "large", "xlarge"):
+            rows = {"m": [], "o": []}
+            rtf = []
+            for seed in seeds:
+                seq = sequence(work, "paper-300m", noise, seed)
+                scores, figures = run(work, args.method, seq, params, args.tag)
+                rows["m"].append(scores)
+                rtf.append(figures["real_time_factor"])
+                rows["o"].append(evaluate(SequenceReader(seq).ground_truth, SequenceReader(seq).odometry))
+            mean = lambda who, key: float(np.mean([s[key] for s in rows[who]]))  # noqa: E731
+            print(
+                f"{noise:>7} | {mean('m', 'ate'):5.2f} / {mean('o', 'ate'):5.2f} | {mean('m', 'e_trans'):.4f}/{mean('o', 'e_trans'):.4f} | "
+                f"{mean('m', 'e_rot'):.3f} / {mean('o', 'e_rot'):.3f} | {mean('m', 'ate') / mean('o', 'ate'):9.2f} | {np.mean(rtf):.1f}"
+            )
+
+    if not args.skip_1km:
+        print(f"\n== paper-1km at large, {args.method} {params or ''}")
+        for seed in seeds:
+            seq = sequence(work, "paper-1km", "large", seed)
+            truth = SequenceReader(seq).ground_truth
+            scores, figures = run(work, args.method, seq, params, args.tag)
+            odom = evaluate(truth, SequenceReader(seq).odometry)
+            stats = figures["method_stats"]
+            counters = ", ".join(f"{k} {stats[k]}" for k in COUNTERS if k in stats)
+            print(f"seed {seed}: ATE {scores['ate']:.2f} m (odometry {odom['ate']:.2f}), E_trans {scores['e_trans']:.4f}, "
+                  f"E_rot {scores['e_rot']:.3f}; peak RSS {figures['peak_rss_bytes'] / 1e6:.0f} MB "
+                  f"(baseline {figures['baseline_rss_bytes'] / 1e6:.0f} MB); RTF {figures['real_time_factor']:.1f}")
+            print(f"   {counters}")
+            print(f"   RSS by distance: {'; '.join(rss_at_distances(figures, truth))}")
+            print(f"   map bytes: {stats.get('map_bytes')}")
+
+
+if __name__ == "__main__":
+    main()
