@@ -28,7 +28,7 @@ from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.memory_db import MemoryDatabase
 from longslam.slam.occupancy import LocalGrid, assemble, depth_points_in_base, local_grid
 from longslam.slam.params import config_from_params
-from longslam.slam.place_recognition import Vocabulary, verify
+from longslam.slam.place_recognition import Vocabulary, refine_3d, verify
 from longslam.slam.pose_graph import PoseGraph2D, compose_xyyaw, relative_xyyaw
 from longslam.slam.registry import METHODS
 from longslam.trajectory import Trajectory
@@ -186,7 +186,9 @@ class KeyframeMethod:
         if previous.features is None or len(previous.features) == 0 or len(node.features) == 0:
             return delta, sigmas
         check = verify(node.features, previous.features, self.intrinsics, cfg.min_inliers)
-        visual = self._planar_link(check.transform) if check.accepted else None
+        visual = None
+        if check.accepted:
+            visual = self._planar_link(refine_3d(node.features, previous.features, check.transform) if cfg.refine_3d else check.transform)
         if visual is None:
             self.counts["neighbor_links_odometry"] += 1
             return delta, sigmas
@@ -241,7 +243,10 @@ class KeyframeMethod:
         prefix = "loops" if kind == "loop" else "proximity"
         candidate = self.nodes[cand_id]
         check = verify(node.features, candidate.features, self.intrinsics, cfg.min_inliers)
-        delta = self._planar_link(check.transform) if check.accepted else None
+        delta = None
+        if check.accepted:
+            transform = refine_3d(node.features, candidate.features, check.transform) if cfg.refine_3d else check.transform
+            delta = self._planar_link(transform)
         if delta is None:
             self.counts[f"{prefix}_rejected_verification"] += 1
             return False
