@@ -124,6 +124,32 @@ def cmd_list(args: argparse.Namespace) -> None:
     print("methods:     ", ", ".join(method_names()))
 
 
+def cmd_study(args: argparse.Namespace) -> None:
+    from longslam.study.config import load_study
+    from longslam.study.runner import run_study
+
+    if args.jobs is not None and args.jobs < 1:
+        raise LongslamError(f"--jobs must be at least 1, got {args.jobs}")
+    config = load_study(args.file)
+    summary = run_study(
+        config, args.out, executor=args.executor, address=args.address, jobs=args.jobs,
+        retry_failed=args.retry_failed, report=not args.no_report,
+    )
+    print(
+        f"study {config.name}: {summary.planned} runs, {summary.skipped} done before, {summary.ran} run now "
+        f"({summary.failed} failed) in {summary.wall_time_s:.0f} s; results in {summary.database}"
+    )
+    if summary.report is not None:
+        print(f"report: {summary.report} and {summary.report.with_suffix('.md')}")
+
+
+def cmd_report(args: argparse.Namespace) -> None:
+    from longslam.study.report import write_report
+
+    page = write_report(args.dir)
+    print(f"wrote {page} and {page.with_suffix('.md')}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -168,6 +194,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     _camera_args(p)
     p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("study", help="run a study file (routes x noise levels x methods x seeds) and write its report")
+    p.add_argument("file", help="study file (TOML), e.g. studies/quick.toml")
+    p.add_argument("--out", required=True, help="study folder: results database, runs, report (resumes if it exists)")
+    p.add_argument("--executor", default="local", choices=("local", "ray"), help="local processes (default) or a Ray cluster")
+    p.add_argument("--address", help="Ray cluster address (e.g. ray://head:10001 or head:6379); default: start Ray locally")
+    p.add_argument("--jobs", type=int, help="runs at once (default: one per core, or the Ray cluster's CPUs)")
+    p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded with an error")
+    p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
+    p.set_defaults(func=cmd_study)
+
+    p = sub.add_parser("report", help="write report.md and report.html of a study folder")
+    p.add_argument("dir", help="study folder (holds results.sqlite)")
+    p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")
     p.set_defaults(func=cmd_list)

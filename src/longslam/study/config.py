@@ -1,0 +1,332 @@
+"""Study files: a TOML file naming the world, routes, noise levels, methods, seeds and camera.
+
+    name = "quick"                  # optional; default the file's stem
+    world = "university"            # optional; default university
+    routes = ["demo"]               # route names, or waypoint files relative to this file
+    noise = ["small", "large"]      # odometry noise levels
+    methods = "all"                 # every registered method, or a list: ["odometry", "keyframe"]
+    seeds = 2                       # a count (seeds 0..n-1) or a list: [0, 1]
+    align = "none"                  # alignment for APE/RPE and map quality: none, se3, sim3
+    map_tolerance_cells = 2         # map quality: occupied cells count as matched within this
+
+    [camera]                        # optional: width, height, fov, max_depth, camera_height
+    width = 320
+
+    [follower]                      # optional: the path follower's settings
+    linear_speed = 1.5
+
+    [params.keyframe]               # parameter overrides of a method in the list
+    max_features = 500
+
+    [variants.keyframe-small]       # an extra entry: a method under its own label and parameters
+    method = "keyframe"
+    params = { max_features = 200 }
+
+Every mistake is a `StudyConfigError` naming the file, the key and the valid values.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from longslam.errors import InputError, UnknownNameError
+from longslam.eval.align import ALIGN_MODES
+from longslam.sim.camera import CameraSettings
+from longslam.sim.follower import FollowerSettings
+from longslam.sim.noise import NOISE_LEVELS
+from longslam.sim.routes import ROUTES, Route, load_route_file
+
+TOP_KEYS = (
+    "name", "world", "routes", "noise", "methods", "seeds", "align", "map_tolerance_cells",
+    "camera", "follower", "params", "variants",
+)
+REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
+# Study-file camera keys -> CameraSettings fields (the names of the CLI's camera options).
+CAMERA_KEYS = {"width": "width", "height": "height", "fov": "hfov_deg", "max_depth": "max_depth", "camera_height": "camera_height"}
+FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
+VARIANT_KEYS = ("method", "params")
+
+
+class StudyConfigError(InputError):
+    """A study file that cannot be used; the message names the file, the key and what is valid."""
+
+
+@dataclass(frozen=True)
+class MethodEntry:
+    """One column of the study: a registered method under a label, with its parameters."""
+
+    label: str
+    method: str
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    name: str
+    world: str
+    routes: tuple[Route, ...]
+    noise: tuple[str, ...]
+    methods: tuple[MethodEntry, ...]
+    seeds: tuple[int, ...]
+    camera: CameraSettings = CameraSettings()
+    follower: FollowerSettings = FollowerSettings()
+    align: str = "none"
+    map_tolerance_cells: float = 2.0
+    source: str = ""  # the study file
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (stored in the results database)."""
+        return {
+            "name": self.name,
+            "world": self.world,
+            "routes": [{"name": r.name, "world": r.world, "waypoints": [w if isinstance(w, str) else list(w) for w in r.waypoints]} for r in self.routes],
+            "noise": list(self.noise),
+            "methods": [asdict(m) for m in self.methods],
+            "seeds": list(self.seeds),
+            "camera": asdict(self.camera),
+            "follower": asdict(self.follower),
+            "align": self.align,
+            "map_tolerance_cells": self.map_tolerance_cells,
+            "source": self.source,
+        }
+
+
+def _valid(values) -> str:
+    return ", ".join(str(v) for v in values)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: Any) -> bool:
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)) and math.isfinite(value)
+
+
+class _Reader:
+    def __init__(self, path: Path):
+        self.path = path
+
+    def error(self, key: str, message: str) -> StudyConfigError:
+        return StudyConfigError(f"study file {self.path}: {key}: {message}")
+
+    def string_list(self, data: dict, key: str, valid: list[str] | None, what: str) -> list[str]:
+        value = data[key]
+        if isinstance(value, str):
+            value = [value]
+        if not isinstance(value, list) or not value:
+            hint = f"; valid values: {_valid(valid)}" if valid else ""
+            raise self.error(key, f"expected a non-empty list of {what}, got {value!r}{hint}")
+        out = []
+        for i, item in enumerate(value):
+            if not isinstance(item, str):
+                raise self.error(f"{key}[{i}]", f"expected a {what} (a string), got {item!r}")
+            if valid is not None and item not in valid:
+                raise self.error(f"{key}[{i}]", f"unknown {what} {item!r}; valid values: {_valid(valid)}")
+            if item in out:
+                raise self.error(f"{key}[{i}]", f"{item!r} is listed twice")
+            out.append(item)
+        return out
+
+    def table(self, data: dict, key: str, valid_keys) -> dict:
+        value = data.get(key, {})
+        if not isinstance(value, dict):
+            raise self.error(key, f"expected a table ([{key}]), got {value!r}")
+        for sub in value:
+            if sub not in valid_keys:
+                raise self.error(f"{key}.{sub}", f"unknown key; valid keys: {_valid(valid_keys)}")
+        return value
+
+
+def load_study(path: str | Path, methods_available: list[str] | None = None) -> StudyConfig:
+    """Read and check a study file. `methods_available` defaults to the registered methods."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise StudyConfigError(f"study file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise StudyConfigError(f"study file {path} cannot be read: {err}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise StudyConfigError(f"study file {path} is not valid TOML: {err}") from None
+    if methods_available is None:
+        from longslam.slam.registry import method_names
+
+        methods_available = method_names()
+    return parse_study(data, path, methods_available)
+
+
+def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyConfig:
+    from longslam.world import WORLDS
+
+    r = _Reader(path)
+    for key in data:
+        if key not in TOP_KEYS:
+            raise r.error(key, f"unknown key; valid keys: {_valid(TOP_KEYS)}")
+    for key in REQUIRED_KEYS:
+        if key not in data:
+            raise r.error(key, f"missing; a study file needs {_valid(REQUIRED_KEYS)}")
+
+    name = data.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip():
+        raise r.error("name", f"expected a non-empty string, got {name!r}")
+
+    world = data.get("world", "university")
+    if world not in WORLDS:
+        raise r.error("world", f"unknown world {world!r}; valid values: {_valid(WORLDS.names())}")
+
+    routes = _routes(r, data, world, path)
+    noise = r.string_list(data, "noise", NOISE_LEVELS.names(), "noise level")
+    methods = _methods(r, data, methods_available)
+    seeds = _seeds(r, data["seeds"])
+
+    align = data.get("align", "none")
+    if align not in ALIGN_MODES:
+        raise r.error("align", f"unknown alignment {align!r}; valid values: {_valid(ALIGN_MODES)}")
+    tolerance = data.get("map_tolerance_cells", 2)
+    if not _is_number(tolerance) or tolerance < 0:
+        raise r.error("map_tolerance_cells", f"expected a number of cells >= 0, got {tolerance!r}")
+
+    camera_table = r.table(data, "camera", CAMERA_KEYS)
+    try:
+        camera = CameraSettings(**{CAMERA_KEYS[k]: v for k, v in camera_table.items()})
+    except InputError as err:
+        raise r.error("camera", str(err)) from None
+    follower_table = r.table(data, "follower", FOLLOWER_KEYS)
+    for key, value in follower_table.items():
+        if not _is_number(value):
+            raise r.error(f"follower.{key}", f"expected a number, got {value!r}")
+    try:
+        follower = FollowerSettings(**follower_table)
+    except InputError as err:
+        raise r.error("follower", str(err)) from None
+
+    return StudyConfig(
+        name=name, world=world, routes=tuple(routes), noise=tuple(noise), methods=tuple(methods),
+        seeds=tuple(seeds), camera=camera, follower=follower, align=align,
+        map_tolerance_cells=float(tolerance), source=str(path),
+    )
+
+
+def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
+    value = data["routes"]
+    valid = f"a route name ({_valid(ROUTES.names())}) or a waypoint file relative to the study file"
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value:
+        raise r.error("routes", f"expected a non-empty list; each entry {valid}")
+    routes: list[Route] = []
+    for i, item in enumerate(value):
+        key = f"routes[{i}]"
+        if not isinstance(item, str):
+            raise r.error(key, f"expected {valid}, got {item!r}")
+        if item in ROUTES:
+            route = ROUTES.get(item)
+        else:
+            file = Path(item) if Path(item).is_absolute() else path.parent / item
+            if not file.is_file():
+                raise r.error(key, f"{item!r} is neither a route nor a file; valid values: {valid}")
+            try:
+                route = load_route_file(file, world)
+            except InputError as err:
+                raise r.error(key, str(err)) from None
+        if route.world != world:
+            raise r.error(key, f"route {route.name!r} is in world {route.world!r}, the study in {world!r}")
+        if any(route.name == other.name for other in routes):
+            raise r.error(key, f"a route named {route.name!r} is listed twice (route files are named by their stem)")
+        routes.append(route)
+    return routes
+
+
+def _seeds(r: _Reader, value: Any) -> list[int]:
+    if _is_int(value):
+        if value < 1:
+            raise r.error("seeds", f"a count of seeds must be at least 1, got {value}")
+        return list(range(value))
+    if not isinstance(value, list) or not value or not all(_is_int(s) and s >= 0 for s in value):
+        raise r.error("seeds", f"expected a count (e.g. 5) or a non-empty list of integers >= 0 (e.g. [0, 1]), got {value!r}")
+    if len(set(value)) != len(value):
+        raise r.error("seeds", f"a seed is listed twice in {value!r}")
+    return list(value)
+
+
+def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
+    value = data["methods"]
+    if value == "all":
+        names = list(available)
+    else:
+        if isinstance(value, str):
+            value = [value]
+        if not isinstance(value, list):
+            raise r.error("methods", f'expected "all" or a list of method names; valid values: {_valid(available)}')
+        data = dict(data, methods=value)
+        names = r.string_list(data, "methods", available, "method") if value else []
+    params = r.table(data, "params", names)
+    entries = []
+    for name in names:
+        overrides = params.get(name, {})
+        if not isinstance(overrides, dict):
+            raise r.error(f"params.{name}", f"expected a table of parameters, got {overrides!r}")
+        entries.append(MethodEntry(name, name, dict(overrides)))
+    variants = r.table(data, "variants", _AnyKey())
+    for label, variant in variants.items():
+        key = f"variants.{label}"
+        if not isinstance(variant, dict):
+            raise r.error(key, f"expected a table with keys {_valid(VARIANT_KEYS)}")
+        for sub in variant:
+            if sub not in VARIANT_KEYS:
+                raise r.error(f"{key}.{sub}", f"unknown key; valid keys: {_valid(VARIANT_KEYS)}")
+        method = variant.get("method")
+        if method not in available:
+            raise r.error(f"{key}.method", f"unknown method {method!r}; valid values: {_valid(available)}")
+        if label in names or any(e.label == label for e in entries):
+            raise r.error(key, f"label {label!r} is already a method of this study; choose another label")
+        overrides = variant.get("params", {})
+        if not isinstance(overrides, dict):
+            raise r.error(f"{key}.params", f"expected a table of parameters, got {overrides!r}")
+        entries.append(MethodEntry(label, method, dict(overrides)))
+    if not entries:
+        raise r.error("methods", f"no method to run; valid values: \"all\" or a list of {_valid(available)}")
+    return entries
+
+
+class _AnyKey:
+    def __contains__(self, item: object) -> bool:
+        return True
+
+
+def check_method_params(config: StudyConfig) -> None:
+    """Create each method once with its parameters, so a bad parameter fails before any run.
+
+    Only `InputError`s (the methods' way to reject parameters) are turned into study errors;
+    anything else a method raises at creation is left for its runs to record.
+    """
+    import tempfile
+
+    from longslam.slam.base import MethodContext
+    from longslam.slam.registry import create_method
+
+    with tempfile.TemporaryDirectory(prefix="longslam-check-") as tmp:
+        context = MethodContext(config.camera.intrinsics, config.camera.max_depth, tmp)
+        for entry in config.methods:
+            key = f"variants.{entry.label}.params" if entry.label != entry.method else f"params.{entry.method}"
+            try:
+                method = create_method(entry.method, context, entry.params)
+            except UnknownNameError as err:
+                raise StudyConfigError(f"study file {config.source}: methods: {err}") from None
+            except InputError as err:
+                raise StudyConfigError(f"study file {config.source}: {key}: {err}") from None
+            except Exception:
+                continue
+            close = getattr(method, "close", None)
+            if callable(close):
+                try:
+                    close()
+                except Exception:
+                    pass

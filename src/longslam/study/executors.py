@@ -1,0 +1,269 @@
+"""Where runs execute: local processes (one fresh process per run), or a Ray cluster.
+
+An executor takes `Task`s and hands back `(task, record)` pairs as runs finish. Each run has a
+process of its own, so the peak memory measured in it is that run's alone, and a run that crashes
+(an exception, or its process killed or segfaulting) becomes an error record; the others go on.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import multiprocessing as mp
+import os
+import shutil
+import signal
+import sys
+from dataclasses import dataclass
+from multiprocessing.connection import wait as wait_for
+from pathlib import Path
+from typing import Any, Protocol
+
+from longslam.errors import LongslamError
+
+EXECUTORS = ("local", "ray")
+
+
+@dataclass(frozen=True)
+class Task:
+    spec: Any  # RunSpec
+    run_dir: Path  # the run's folder in the study folder
+    log_path: Path  # where a local run's stdout and stderr go
+    grid_path: Path  # the world's ground-truth occupancy grid (.npz)
+    observed_path: Path  # the route's mask of observed walls (.npy)
+
+
+class Executor(Protocol):
+    capacity: int
+
+    @property
+    def running(self) -> int: ...
+
+    def submit(self, task: Task) -> None: ...
+
+    def wait(self, timeout: float) -> list[tuple[Task, dict]]: ...
+
+    def close(self) -> None: ...
+
+
+# ----------------------------------------------------------------------------- local processes
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Ask Linux to kill this process when the study process dies (even by SIGKILL)."""
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL("libc.so.6", use_errno=True)
+            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except OSError:
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the request took effect
+        os._exit(1)
+
+
+def _local_child(task: Task, result_path: str, parent_pid: int) -> None:
+    _die_with_parent(parent_pid)
+    task.log_path.parent.mkdir(parents=True, exist_ok=True)
+    log = os.open(task.log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    os.dup2(log, 1)
+    os.dup2(log, 2)
+    from longslam.study.execute import error_record, execute_run, to_json
+
+    def load_truth():
+        import numpy as np
+
+        from longslam.gridmap import GridMap
+
+        return GridMap.load(task.grid_path), np.load(task.observed_path)
+
+    try:
+        record = execute_run(task.spec, task.run_dir, load_truth)
+    except BaseException as err:  # recorded; the study goes on
+        record = error_record(err)
+        print(record["traceback"], file=sys.stderr, flush=True)
+    tmp = f"{result_path}.tmp"
+    with open(tmp, "w") as handle:
+        handle.write(to_json(record))
+    os.replace(tmp, result_path)
+
+
+def _death_message(exitcode: int | None) -> str:
+    if exitcode is not None and exitcode < 0:
+        try:
+            name = signal.Signals(-exitcode).name
+        except ValueError:
+            name = f"signal {-exitcode}"
+        return f"the run's process was killed by {name}"
+    return f"the run's process exited with code {exitcode} without a result"
+
+
+class LocalExecutor:
+    """Up to `jobs` runs at once, each in a new process (spawned, so nothing is inherited)."""
+
+    def __init__(self, jobs: int | None = None):
+        self.capacity = max(1, int(jobs or os.cpu_count() or 1))
+        self._ctx = mp.get_context("spawn")
+        self._running: dict[int, tuple[Task, Any, str]] = {}
+
+    @property
+    def running(self) -> int:
+        return len(self._running)
+
+    def submit(self, task: Task) -> None:
+        task.run_dir.parent.mkdir(parents=True, exist_ok=True)
+        result_path = str(task.run_dir.parent / f".{task.run_dir.name}.result.json")
+        if os.path.exists(result_path):
+            os.unlink(result_path)
+        process = self._ctx.Process(target=_local_child, args=(task, result_path, os.getpid()), daemon=False)
+        process.start()
+        self._running[process.sentinel] = (task, process, result_path)
+
+    def wait(self, timeout: float) -> list[tuple[Task, dict]]:
+        if not self._running:
+            return []
+        done = []
+        for sentinel in wait_for(list(self._running), timeout=timeout):
+            task, process, result_path = self._running.pop(sentinel)
+            process.join()
+            try:
+                with open(result_path) as handle:
+                    record = json.load(handle)
+                os.unlink(result_path)
+            except (OSError, ValueError):
+                record = {"status": "error", "error": f"{_death_message(process.exitcode)}; see {task.log_path}"}
+                # The unfinished run folder of the dead process (see longslam.io.atomic).
+                partial = task.run_dir.with_name(f".{task.run_dir.name}.partial-{process.pid}")
+                if partial.exists():
+                    shutil.rmtree(partial, ignore_errors=True)
+            record.setdefault("log", str(task.log_path))
+            done.append((task, record))
+        return done
+
+    def close(self) -> None:
+        for task, process, result_path in self._running.values():
+            if process.is_alive():
+                process.kill()
+            process.join()
+            if os.path.exists(result_path):
+                os.unlink(result_path)
+        self._running.clear()
+
+
+# ----------------------------------------------------------------------------- Ray
+
+
+def _ray_run(spec: Any, truth_refs: list) -> tuple[dict, dict[str, bytes]]:
+    """A run on a Ray worker: in a temporary folder of that node; the files come back as bytes,
+    so the cluster needs no file system shared with the study folder."""
+    import tempfile
+
+    import ray
+
+    from longslam.study.execute import error_record, execute_run, to_json
+
+    def load_truth():
+        return ray.get(truth_refs[0]), ray.get(truth_refs[1])
+
+    with tempfile.TemporaryDirectory(prefix="longslam-run-") as tmp:
+        run_dir = Path(tmp) / "run"
+        try:
+            record = execute_run(spec, run_dir, load_truth)
+            files = {str(p.relative_to(run_dir)): p.read_bytes() for p in run_dir.rglob("*") if p.is_file()}
+        except BaseException as err:
+            record, files = error_record(err), {}
+    return json.loads(to_json(record)), files
+
+
+class RayExecutor:
+    """Runs as Ray tasks on an existing cluster (`address`), or on Ray already started in this
+    process (`ray.init()`), or on a local Ray that it starts. Each task runs in a new worker
+    process (max_calls=1) and is not retried: a crash is recorded like any failed run."""
+
+    def __init__(self, address: str | None = None, jobs: int | None = None):
+        try:
+            import ray
+        except ImportError:
+            raise LongslamError("the ray executor needs Ray: pip install 'longslam[ray]'") from None
+        self._ray = ray
+        self._started = False
+        if not ray.is_initialized():
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            self._started = address is None
+        cpus = int(ray.cluster_resources().get("CPU", 1))
+        self.capacity = max(1, int(jobs or cpus))
+        self._remote = ray.remote(num_cpus=1, max_calls=1, max_retries=0)(_ray_run)
+        self._truth_refs: dict[tuple[str, str], list] = {}
+        self._running: dict[Any, Task] = {}
+
+    @property
+    def running(self) -> int:
+        return len(self._running)
+
+    def _truth(self, task: Task) -> list:
+        key = (str(task.grid_path), str(task.observed_path))
+        if key not in self._truth_refs:
+            import numpy as np
+
+            from longslam.gridmap import GridMap
+
+            self._truth_refs[key] = [self._ray.put(GridMap.load(task.grid_path)), self._ray.put(np.load(task.observed_path))]
+        return self._truth_refs[key]
+
+    def submit(self, task: Task) -> None:
+        ref = self._remote.remote(task.spec, self._truth(task))
+        self._running[ref] = task
+
+    def wait(self, timeout: float) -> list[tuple[Task, dict]]:
+        if not self._running:
+            return []
+        ready, _ = self._ray.wait(list(self._running), num_returns=1, timeout=timeout)
+        if ready:
+            more, _ = self._ray.wait([r for r in self._running if r not in ready], num_returns=len(self._running) - len(ready), timeout=0)
+            ready += more
+        done = []
+        for ref in ready:
+            task = self._running.pop(ref)
+            try:
+                record, files = self._ray.get(ref)
+            except Exception as err:  # the worker died, or Ray could not run the task
+                record, files = {"status": "error", "error": f"Ray task failed: {type(err).__name__}: {err}"}, {}
+            if record.get("status") == "ok":
+                _write_files(task.run_dir, files)
+            done.append((task, record))
+        return done
+
+    def close(self) -> None:
+        for ref in list(self._running):
+            try:
+                self._ray.cancel(ref, force=True)
+            except Exception:
+                pass
+        self._running.clear()
+        if self._started:
+            self._ray.shutdown()
+
+
+def _write_files(run_dir: Path, files: dict[str, bytes]) -> None:
+    from longslam.io.atomic import atomic_path
+
+    if run_dir.exists():
+        shutil.rmtree(run_dir)
+    run_dir.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(run_dir) as tmp:
+        tmp.mkdir()
+        for name, data in files.items():
+            path = tmp / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(data)
+
+
+def make_executor(kind: str, address: str | None = None, jobs: int | None = None) -> Executor:
+    if kind == "local":
+        if address:
+            raise LongslamError("--address is for the ray executor; the local executor runs on this machine")
+        return LocalExecutor(jobs)
+    if kind == "ray":
+        return RayExecutor(address, jobs)
+    from longslam.errors import UnknownNameError
+
+    raise UnknownNameError("executor", kind, EXECUTORS)

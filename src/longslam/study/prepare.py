@@ -1,0 +1,153 @@
+"""What a study needs before its runs: each route rendered once, and the ground truth kept in DIR.
+
+The rendered frames live in the rendering cache (`longslam.recording`); the study folder keeps
+what the evaluation and the report need without the cache: per route its ground-truth camera
+trajectory, waypoints and the mask of walls the camera could see, and per world its ground-truth
+occupancy grid.
+
+    DIR/worlds/<world>.npz               ground-truth occupancy (GridMap)
+    DIR/routes/<route>/groundtruth.txt   true camera trajectory (TUM)
+    DIR/routes/<route>/route.json        waypoints (x, y), length, frames
+    DIR/routes/<route>/observed.npy      occupied cells the camera could see (for map recall)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from longslam.eval.map_quality import observed_walls
+from longslam.gridmap import GridMap
+from longslam.io.atomic import atomic_path, write_text_atomic
+from longslam.io.trajectory_files import read_tum, write_tum
+from longslam.recording import cache_key, cache_root, rendered_sequence
+from longslam.sim.camera import CameraSettings
+from longslam.sim.drive import camera_trajectory, drive_route
+from longslam.sim.follower import FollowerSettings
+from longslam.sim.routes import Route
+from longslam.trajectory import Trajectory
+
+
+@contextlib.contextmanager
+def _file_lock(path: Path) -> Iterator[None]:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def render_once(
+    route: Route,
+    camera: CameraSettings,
+    follower: FollowerSettings,
+    progress: bool = False,
+) -> Path:
+    """`rendered_sequence` under a lock in the cache, so that processes on one machine that
+    need the same route at once render it once (the others wait and reuse it)."""
+    root = cache_root()
+    lock = root / f".{cache_key(route, camera, follower)}.lock"
+    with _file_lock(lock):
+        return rendered_sequence(route, camera, follower, root=root, progress=progress)
+
+
+@dataclass(frozen=True)
+class RouteData:
+    """A route's ground truth as kept in the study folder."""
+
+    name: str
+    truth: Trajectory
+    waypoints: np.ndarray  # (K, 2) x, y
+    length_m: float
+    observed: np.ndarray  # bool mask over the world's occupancy grid
+
+
+def world_grid_path(out: Path, world: str) -> Path:
+    return Path(out) / "worlds" / f"{world}.npz"
+
+
+def route_dir(out: Path, route: str) -> Path:
+    return Path(out) / "routes" / route
+
+
+def prepare_route(
+    out: Path, route: Route, camera: CameraSettings, follower: FollowerSettings
+) -> None:
+    """Write the route's ground truth and its world's occupancy into the study folder (once)."""
+    from longslam.world import get_world
+
+    folder = route_dir(out, route.name)
+    grid_path = world_grid_path(out, route.world)
+    info_path = folder / "route.json"
+    settings = {"camera": asdict(camera), "follower": asdict(follower)}
+    if info_path.is_file() and grid_path.is_file():
+        info = json.loads(info_path.read_text())
+        if info.get("settings") == json.loads(json.dumps(settings)) and info.get("waypoints_given") == _waypoints_json(route):
+            return
+    world = get_world(route.world)
+    if not grid_path.is_file():
+        grid_path.parent.mkdir(parents=True, exist_ok=True)
+        world.occupancy.save(grid_path)
+    driven = drive_route(world, route, follower)
+    truth = camera_trajectory(driven.timestamps, driven.xyyaw, camera.camera_height, world.floor_z, source="ground truth")
+    folder.mkdir(parents=True, exist_ok=True)
+    write_tum(folder / "groundtruth.txt", truth)
+    observed = observed_walls(world.occupancy, driven.xyyaw, camera.hfov_deg, camera.max_depth)
+    with atomic_path(folder / "observed.npy") as tmp:
+        with open(tmp, "wb") as handle:
+            np.save(handle, observed)
+    info = {
+        "route": route.name,
+        "world": route.world,
+        "waypoints_given": _waypoints_json(route),
+        "waypoints": [list(map(float, wp)) for wp in route.resolve(world.places)],
+        "length_m": driven.length,
+        "frames": len(truth),
+        "settings": settings,
+    }
+    write_text_atomic(info_path, json.dumps(info, indent=2) + "\n")
+
+
+def _waypoints_json(route: Route) -> list:
+    return [w if isinstance(w, str) else list(map(float, w)) for w in route.waypoints]
+
+
+def load_route_data(out: Path, route: str) -> RouteData:
+    folder = route_dir(out, route)
+    info = json.loads((folder / "route.json").read_text())
+    return RouteData(
+        name=route,
+        truth=read_tum(folder / "groundtruth.txt"),
+        waypoints=np.asarray(info["waypoints"], dtype=np.float64).reshape(-1, 2),
+        length_m=float(info["length_m"]),
+        observed=np.load(folder / "observed.npy"),
+    )
+
+
+def load_world_grid(out: Path, world: str) -> GridMap:
+    return GridMap.load(world_grid_path(out, world))
+
+
+def clean_partials(folder: Path) -> int:
+    """Remove temporary folders left by runs that were killed; returns how many."""
+    import shutil
+
+    removed = 0
+    if folder.is_dir():
+        for path in folder.rglob(".*.partial-*"):
+            if path.is_dir():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    os.unlink(path)
+            removed += 1
+    return removed

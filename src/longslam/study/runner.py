@@ -1,0 +1,125 @@
+"""Run a study: every (route, noise level, method, seed), in parallel, resumable.
+
+    DIR/results.sqlite    one row per finished run (see `longslam.study.database`)
+    DIR/runs/<route>/<noise>/<method>/seed-<n>/   trajectory.txt, online.txt, stats.json, grid.npz...
+    DIR/logs/...          each local run's stdout and stderr
+    DIR/report.md, DIR/report.html
+
+Runs already in the database with the same configuration are skipped, so a study that was
+stopped (or killed) continues where it was; a run whose configuration changed is done again.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+from tqdm import tqdm
+
+from longslam.study.config import StudyConfig, check_method_params
+from longslam.study.database import DB_NAME, ResultsDB
+from longslam.study.executors import Task, make_executor
+from longslam.study.prepare import clean_partials, prepare_route, render_once, route_dir, world_grid_path
+from longslam.study.spec import RunSpec, plan_runs
+
+
+@dataclass
+class StudySummary:
+    planned: int  # runs in the study
+    skipped: int  # already in the database
+    ran: int  # done by this call
+    failed: int  # of those, recorded with an error
+    wall_time_s: float
+    database: Path
+    report: Path | None
+
+
+def _task(out: Path, spec: RunSpec) -> Task:
+    return Task(
+        spec=spec,
+        run_dir=out / "runs" / spec.key,
+        log_path=out / "logs" / f"{spec.key}.log",
+        grid_path=world_grid_path(out, spec.world),
+        observed_path=route_dir(out, spec.route) / "observed.npy",
+    )
+
+
+def runs_to_do(specs: list[RunSpec], finished: dict[str, tuple[str, str]], retry_failed: bool = False) -> list[RunSpec]:
+    """The planned runs that are not yet in the database with the same configuration."""
+    todo = []
+    for spec in specs:
+        done = finished.get(spec.key)
+        if done is None or done[0] != spec.config_hash or (retry_failed and done[1] != "ok"):
+            todo.append(spec)
+    return todo
+
+
+def run_study(
+    config: StudyConfig,
+    out: str | Path,
+    executor: str = "local",
+    address: str | None = None,
+    jobs: int | None = None,
+    retry_failed: bool = False,
+    report: bool = True,
+    progress: bool = True,
+) -> StudySummary:
+    """Run every run of `config` not yet in `out`'s database, then write the report."""
+    start = time.perf_counter()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    check_method_params(config)
+    specs = plan_runs(config)
+    say = tqdm.write if progress else (lambda *a, **k: None)
+
+    with ResultsDB(out / DB_NAME) as db:
+        db.set_study(config.to_dict())
+        todo = runs_to_do(specs, db.finished(), retry_failed)
+        skipped = len(specs) - len(todo)
+        if skipped:
+            say(f"{skipped} of {len(specs)} runs are in {out / DB_NAME} already; {len(todo)} to do")
+
+        needed = {spec.route for spec in todo}
+        for route in config.routes:
+            prepare_route(out, route, config.camera, config.follower)
+            # The local processes share this machine's rendering cache: render each route here,
+            # once, before they start. Ray workers render on their own nodes, under a lock.
+            if executor == "local" and route.name in needed:
+                render_once(route, config.camera, config.follower, progress=progress)
+        clean_partials(out / "runs")
+
+        failed = ran = 0
+        if todo:
+            pool = make_executor(executor, address, jobs)
+            pending = deque(todo)
+            started: dict[str, float] = {}
+            bar = tqdm(total=len(specs), initial=skipped, unit="run", desc=f"study {config.name}",
+                       disable=not progress, dynamic_ncols=True, smoothing=0.0)
+            try:
+                while pending or pool.running:
+                    while pending and pool.running < pool.capacity:
+                        spec = pending.popleft()
+                        started[spec.key] = time.perf_counter()
+                        pool.submit(_task(out, spec))
+                    for task, record in pool.wait(timeout=0.5):
+                        record["elapsed_s"] = time.perf_counter() - started.pop(task.spec.key)
+                        run_dir = str(task.run_dir.relative_to(out)) if record.get("status") == "ok" else None
+                        db.record(task.spec, record, run_dir, executor)
+                        ran += 1
+                        if record.get("status") != "ok":
+                            failed += 1
+                            say(f"run {task.spec.key} failed: {record.get('error')}")
+                        bar.update(1)
+                    bar.set_postfix_str(f"running {pool.running}, left {len(pending)}, failed {failed}", refresh=True)
+            finally:
+                pool.close()
+                bar.close()
+
+    report_path = None
+    if report:
+        from longslam.study.report import write_report
+
+        report_path = write_report(out)
+    return StudySummary(len(specs), skipped, ran, failed, time.perf_counter() - start, out / DB_NAME, report_path)

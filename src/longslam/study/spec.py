@@ -1,0 +1,86 @@
+"""The runs of a study: one per (route, noise level, method, seed), as plain picklable data."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from longslam.sim.camera import CameraSettings
+from longslam.sim.follower import FollowerSettings
+from longslam.sim.routes import Route
+from longslam.study.config import StudyConfig
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything a worker needs to do one run, on this machine or another."""
+
+    study: str
+    world: str
+    route: str
+    waypoints: tuple  # the route's waypoints: (x, y) or place names
+    noise: str
+    method: str  # the label in the study (a method name, or a variant's label)
+    method_name: str  # the registered method
+    params: dict[str, Any] = field(default_factory=dict)
+    seed: int = 0
+    camera: dict[str, Any] = field(default_factory=dict)  # CameraSettings fields
+    follower: dict[str, Any] = field(default_factory=dict)  # FollowerSettings fields
+    align: str = "none"
+    map_tolerance_cells: float = 2.0
+
+    @property
+    def key(self) -> str:
+        """Unique name of the run within a study; also its folder under `runs/`."""
+        return f"{self.route}/{self.noise}/{self.method}/seed-{self.seed}"
+
+    @property
+    def config_hash(self) -> str:
+        """Changes whenever anything that affects the run's result changes."""
+        described = self.describe()
+        described.pop("study")  # renaming a study does not change its runs
+        text = json.dumps(described, sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def describe(self) -> dict[str, Any]:
+        data = asdict(self)
+        data["waypoints"] = [w if isinstance(w, str) else list(w) for w in self.waypoints]
+        return data
+
+    def route_object(self) -> Route:
+        return Route(self.route, self.world, tuple(w if isinstance(w, str) else tuple(w) for w in self.waypoints))
+
+    def camera_settings(self) -> CameraSettings:
+        return CameraSettings(**self.camera)
+
+    def follower_settings(self) -> FollowerSettings:
+        return FollowerSettings(**self.follower)
+
+
+def plan_runs(config: StudyConfig) -> list[RunSpec]:
+    """Every run of the study, seed by seed: a study stopped early has whole seeds done."""
+    runs = []
+    for seed in config.seeds:
+        for route in config.routes:
+            for noise in config.noise:
+                for entry in config.methods:
+                    runs.append(
+                        RunSpec(
+                            study=config.name,
+                            world=config.world,
+                            route=route.name,
+                            waypoints=tuple(route.waypoints),
+                            noise=noise,
+                            method=entry.label,
+                            method_name=entry.method,
+                            params=dict(entry.params),
+                            seed=seed,
+                            camera=asdict(config.camera),
+                            follower=asdict(config.follower),
+                            align=config.align,
+                            map_tolerance_cells=config.map_tolerance_cells,
+                        )
+                    )
+    return runs

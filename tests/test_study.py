@@ -1,0 +1,299 @@
+"""Studies end to end on a tiny route with a tiny camera: the database, crashes, the report,
+killing and resuming, the Ray executor and the report in a real browser."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import sqlite3
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from longslam.cli import main
+from longslam.slam import registry
+from longslam.study.config import load_study
+from longslam.study.database import DB_NAME
+from longslam.study.report import Cell, StudyResults, accuracy_table, format_mean_std, memory_table
+from longslam.study.runner import run_study
+
+ROUTE = "20 31.25\n28 31.25\n"  # 8 m along the spine: about 55 frames
+
+PLUGIN = '''
+"""Test methods registered through the `longslam.methods` entry point, like a user's own."""
+import os
+import signal
+
+import numpy as np
+
+from longslam.geometry import base_to_camera, planar_from_camera_poses
+from longslam.slam.base import Result
+from longslam.slam.occupancy import assemble, local_grid
+from longslam.trajectory import Trajectory
+
+
+class Gridded:
+    """Dead reckoning plus an occupancy grid from every 5th depth image."""
+
+    name = "gridded"
+
+    def __init__(self, context, params):
+        self.stamps, self.poses, self.grids = [], [], []
+
+    def step(self, frame):
+        pose = np.array(frame.odometry, dtype=np.float64)
+        self.stamps.append(frame.timestamp)
+        self.poses.append(pose)
+        if frame.index % 5 == 0:
+            self.grids.append((len(self.poses) - 1, local_grid(frame.depth, frame.intrinsics, base_to_camera(1.25))))
+        return pose
+
+    def finish(self):
+        trajectory = Trajectory(np.array(self.stamps), np.array(self.poses))
+        xyyaw = planar_from_camera_poses(trajectory.poses, 1.25)
+        grid = assemble([g for _, g in self.grids], xyyaw[[i for i, _ in self.grids]])
+        return Result(trajectory, trajectory, grid=grid, stats={"local_grids": len(self.grids)})
+
+
+class Crashy(Gridded):
+    def step(self, frame):
+        if frame.index == 5:
+            raise RuntimeError("crashy fails on purpose at frame 5")
+        return super().step(frame)
+
+
+class Dies(Gridded):
+    def step(self, frame):
+        if frame.index == 5:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return super().step(frame)
+'''
+
+
+@pytest.fixture(scope="module")
+def env(tmp_path_factory):
+    """A rendering cache of its own, a tiny route, and a plugin of test methods on the path."""
+    root = tmp_path_factory.mktemp("study")
+    plugins = root / "plugins"
+    (plugins / "longslam_test_plugin-0.1.dist-info").mkdir(parents=True)
+    (plugins / "longslam_test_plugin.py").write_text(PLUGIN)
+    (plugins / "longslam_test_plugin-0.1.dist-info" / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: longslam-test-plugin\nVersion: 0.1\n"
+    )
+    (plugins / "longslam_test_plugin-0.1.dist-info" / "entry_points.txt").write_text(
+        "[longslam.methods]\ngridded = longslam_test_plugin:Gridded\n"
+        "crashy = longslam_test_plugin:Crashy\ndies = longslam_test_plugin:Dies\n"
+    )
+    (root / "tiny.txt").write_text(ROUTE)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
+        mp.syspath_prepend(str(plugins))  # spawned children get the parent's sys.path
+        mp.setenv("PYTHONPATH", os.pathsep.join([str(plugins), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
+        # Load the entry points again with the plugin on the path, into a copy of the registry
+        # (the built-in methods first: their modules register once, on first import).
+        registry.method_names()
+        mp.setattr(registry.METHODS, "_items", dict(registry.METHODS._items))
+        mp.setattr(registry, "_plugins_loaded", False)
+        assert {"gridded", "crashy", "dies"} <= set(registry.method_names())
+        yield root
+
+
+def _study(root: Path, name: str, methods: list[str], noise: list[str], seeds: list[int]) -> Path:
+    path = root / f"{name}.toml"
+    path.write_text(textwrap.dedent(f"""
+        name = "{name}"
+        routes = ["tiny.txt"]
+        noise = {json.dumps(noise)}
+        methods = {json.dumps(methods)}
+        seeds = {json.dumps(seeds)}
+        [camera]
+        width = 64
+        height = 48
+    """))
+    return path
+
+
+def _rows(out: Path) -> list[dict]:
+    with sqlite3.connect(out / DB_NAME) as conn:
+        conn.row_factory = sqlite3.Row
+        return [dict(r) for r in conn.execute("SELECT * FROM runs")]
+
+
+@pytest.fixture(scope="module")
+def study(env):
+    """One study: two good methods (one with a grid), one that raises, one whose process dies."""
+    config = load_study(_study(env, "main", ["odometry", "gridded", "crashy", "dies"], ["large"], [0, 1]))
+    out = env / "main-out"
+    summary = run_study(config, out, jobs=2, progress=False)
+    return out, summary
+
+
+def test_a_study_writes_one_row_per_run_and_records_crashes(study):
+    out, summary = study
+    assert (summary.planned, summary.skipped, summary.ran, summary.failed) == (8, 0, 8, 4)
+    rows = {r["key"]: r for r in _rows(out)}
+    assert len(rows) == 8
+    for seed in (0, 1):
+        ok = rows[f"tiny/large/odometry/seed-{seed}"]
+        assert ok["status"] == "ok" and ok["error"] is None
+        assert 0 < ok["ate"] < 1 and 0 < ok["e_trans"] < 0.2 and ok["peak_rss_bytes"] > 50e6
+        assert ok["frames"] > 40 and ok["elapsed_s"] > 0 and ok["config_hash"]
+        assert json.loads(ok["params"]) == {} and json.loads(ok["camera"])["width"] == 64
+        assert (out / ok["trajectory_path"]).is_file() and (out / ok["stats_path"]).is_file()
+        assert ok["grid_path"] is None and ok["map_precision"] is None  # no grid: no map quality
+        error_curve, memory_curve = json.loads(ok["error_curve"]), json.loads(ok["memory_curve"])
+        assert error_curve[0] == [0.0, pytest.approx(0.0, abs=1e-6)] and 7.5 < error_curve[-1][0] < 8.5
+        assert memory_curve[0][0] == 0.0 and memory_curve[-1][0] > 7.5 and memory_curve[-1][1] > 50e6
+
+        gridded = rows[f"tiny/large/gridded/seed-{seed}"]
+        assert gridded["status"] == "ok" and (out / gridded["grid_path"]).is_file()
+        assert 0.8 < gridded["map_precision"] <= 1.0 and 0.3 < gridded["map_recall"] <= 1.0
+
+        crashed = rows[f"tiny/large/crashy/seed-{seed}"]
+        assert crashed["status"] == "error" and "crashy fails on purpose at frame 5" in crashed["error"]
+        assert "RuntimeError" in crashed["traceback"] and crashed["ate"] is None
+        died = rows[f"tiny/large/dies/seed-{seed}"]
+        assert died["status"] == "error" and "SIGKILL" in died["error"]
+    assert not list((out / "runs").rglob(".*partial*"))
+
+
+def test_the_report_has_both_tables_and_the_papers_numbers(study):
+    out, _ = study
+    markdown = (out / "report.md").read_text()
+    page = (out / "report.html").read_text()
+    for text in (markdown, page):
+        assert "Table 1: accuracy" in text and "Table 2: peak memory" in text and "Table 3: map quality" in text
+        assert "Muravyev" in text and "RTAB-Map" in text and "Voxgraph" in text
+        assert "0.017 ± 0.002" in text and "8.6" in text  # the paper's numbers, Tables 1 and 2
+        assert "crashy fails on purpose" in text
+    table1 = markdown.split("### Table 1")[1].split("###")[0]
+    assert re.search(r"\| odometry \| E_trans \| \*\*[0-9.]+ ± [0-9.]+\*\* \|", table1)
+    for name in ("trajectories-tiny-large", "ate-tiny", "memory-tiny", "maps-tiny-large"):
+        assert (out / "report_files" / f"{name}.png").is_file() and f"report_files/{name}.png" in markdown
+    assert page.count('<img src="data:image/png;base64,') == 4 and "report_files/" not in page
+    # `longslam report` writes it again from the database alone.
+    (out / "report.html").unlink()
+    assert main(["report", str(out)]) == 0
+    assert (out / "report.html").is_file()
+
+
+def test_the_papers_numbers_stand_beside_ours_on_the_papers_routes():
+    runs = [
+        {"method": "odometry", "route": "paper-300m", "noise": "small", "seed": s, "status": "ok",
+         "ate": 0.1 + 0.2 * s, "e_trans": 0.01, "e_rot": 0.02, "peak_rss_bytes": 2e8}
+        for s in range(2)
+    ]
+    results = StudyResults(Path("."), {}, runs, runs, ["paper-300m"], ["small"], ["odometry"])
+    table = accuracy_table(results)
+    labels = [f"{m} {k}" for m, k in table.row_labels]
+    assert labels[:3] == ["odometry E_trans", "odometry E_rot [deg/m]", "odometry ATE [m]"]
+    assert "RTAB-Map (paper) ATE [m]" in labels and "Voxgraph (paper) E_trans" in labels
+    cells = dict(zip(labels, (row[0] for row in table.rows)))
+    assert cells["odometry ATE [m]"].text == "0.200 ± 0.14" and cells["odometry ATE [m]"].best
+    assert cells["RTAB-Map (paper) ATE [m]"].text == "0.99 ± 0.087" and not cells["RTAB-Map (paper) ATE [m]"].best
+    assert cells["odometry E_trans"].best and not cells["Voxgraph (paper) E_trans"].best
+    memory = memory_table(results)
+    assert [row[0].text for row in memory.rows] == ["0.200 ± 0", "3.6", "0.52"]
+    assert isinstance(memory.rows[0][0], Cell) and memory.rows[0][0].best
+    assert format_mean_std([]) == "–" and format_mean_std([0.25]) == "0.250"
+
+
+def test_a_killed_study_resumes_and_runs_everything_exactly_once(env):
+    file = _study(env, "resume", ["odometry"], ["none", "large"], [0, 1])
+    out = env / "resume-out"
+    command = [sys.executable, "-m", "longslam.cli", "study", str(file), "--out", str(out), "--jobs", "1", "--no-report"]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 90
+    landed = 0
+    while time.monotonic() < deadline and process.poll() is None:
+        if (out / DB_NAME).is_file():
+            try:
+                landed = len(_rows(out))
+            except sqlite3.OperationalError:  # the table is not created yet
+                landed = 0
+            if landed:
+                break
+        time.sleep(0.05)
+    assert landed >= 1, process.stderr.read().decode() if process.poll() is not None else "no run landed in time"
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    before = {r["key"]: r["finished_at"] for r in _rows(out)}
+    assert 1 <= len(before) < 4, "the study was not killed part-way"
+
+    summary = run_study(load_study(file), out, jobs=2, report=False, progress=False)
+    assert (summary.planned, summary.skipped, summary.ran, summary.failed) == (4, len(before), 4 - len(before), 0)
+    rows = _rows(out)
+    assert sorted(r["key"] for r in rows) == sorted(
+        f"tiny/{n}/odometry/seed-{s}" for n in ("none", "large") for s in (0, 1)
+    )
+    assert all(r["status"] == "ok" for r in rows)
+    assert {k: r["finished_at"] for r in rows for k in [r["key"]] if k in before} == before  # not run again
+    assert not list((out / "runs").rglob(".*partial*"))
+    with sqlite3.connect(out / DB_NAME) as conn:
+        assert conn.execute("SELECT COUNT(*), COUNT(DISTINCT key) FROM runs").fetchone() == (4, 4)
+    # Started again with nothing left to do, it does nothing.
+    again = run_study(load_study(file), out, report=False, progress=False)
+    assert (again.skipped, again.ran) == (4, 0)
+
+
+def test_ray_executor_against_a_local_ray(env):
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        config = load_study(_study(env, "ray", ["odometry"], ["large"], [0, 1]))
+        out = env / "ray-out"
+        summary = run_study(config, out, executor="ray", progress=False, report=False)
+    finally:
+        ray.shutdown()
+    assert (summary.ran, summary.failed) == (2, 0)
+    rows = _rows(out)
+    assert len(rows) == 2 and all(r["status"] == "ok" and r["executor"] == "ray" for r in rows)
+    for row in rows:
+        assert (out / row["trajectory_path"]).is_file() and row["ate"] > 0 and row["peak_rss_bytes"] > 0
+
+
+def _chromium() -> str | None:
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+CHECK = """<script>
+window.addEventListener("load", () => {
+  const images = Array.from(document.images);
+  const loaded = images.filter((img) => img.complete && img.naturalWidth > 0).length;
+  const tables = Array.from(document.querySelectorAll("table.results")).map(
+    (t) => ({title: t.dataset.title, rows: t.querySelectorAll("tbody tr").length, height: t.offsetHeight}));
+  const marker = document.createElement("pre");
+  marker.id = "check";
+  marker.textContent = JSON.stringify({images: images.length, loaded: loaded, tables: tables});
+  document.body.appendChild(marker);
+});
+</script></body>"""
+
+
+@pytest.mark.skipif(_chromium() is None, reason="chromium is not installed (apt-get install chromium)")
+def test_report_page_in_a_headless_browser(study, tmp_path):
+    out, _ = study
+    page = tmp_path / "report.html"
+    page.write_text((out / "report.html").read_text().replace("</body>", CHECK))
+    command = [
+        _chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
+        "--virtual-time-budget=10000", "--dump-dom", page.as_uri(),
+    ]
+    dom = subprocess.run(command, capture_output=True, text=True, timeout=120).stdout
+    found = re.search(r'<pre id="check">(.*?)</pre>', dom)
+    assert found, f"the page did not load: {dom[:500]}"
+    check = json.loads(found.group(1).replace("&quot;", '"'))
+    assert check["images"] == 4 and check["loaded"] == 4  # every figure decoded and shown
+    titles = [t["title"] for t in check["tables"]]
+    assert titles[:3] == ["Table 1: accuracy", "Table 2: peak memory", "Table 3: map quality"]
+    assert "The paper's Table 1 as published" in titles and "The paper's Table 2 as published" in titles
+    for table in check["tables"]:
+        assert table["rows"] >= 2 and table["height"] > 20, table  # laid out on the page
