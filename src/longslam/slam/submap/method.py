@@ -1,0 +1,355 @@
+"""The `submap` method: Voxgraph's design, TSDF submaps in a pose graph.
+
+- Every frame's depth is integrated into the active submap's TSDF at the frame's odometry pose
+  relative to the submap's origin (the robot's floor pose at the submap's first frame).
+- Every `submap_interval` seconds of frame time the active submap is finished and a new one
+  starts. A finished submap keeps its compacted TSDF (int8 distances), a sample of its
+  iso-surface points for registration and its bounding box; nothing else.
+- The pose graph's nodes are the submap origins (x, y, yaw on the floor). Edges: odometry between
+  consecutive submaps; registration between the new finished submap and every finished submap
+  whose bounding box overlaps it (its surface points aligned in the other's distance field, the
+  result checked before it enters the graph); optionally loop closures from visual place
+  recognition (the `place_recognition` module shared with the keyframe method). GTSAM optimises
+  it, with a robust kernel on registration and loop edges, whenever a submap is finished.
+- A frame's pose: its pose in its submap (from odometry) composed onto the submap's optimised
+  origin. `step` returns it with the estimate of the moment; `finish` recomputes every frame with
+  the final estimates.
+- The global map: the optimised submaps fused into one TSDF, its iso-surface points as the
+  result's cloud (the pipeline writes it as map.ply), a marching-cubes mesh (mesh.ply in the run
+  folder), and a 2D grid sliced between 0.2 and 1.5 m above the floor.
+- Poses are planar, (x, y, yaw) with z the floor's: Voxgraph's (x, y, z, yaw) on a robot that
+  drives on one floor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from longslam.errors import InputError
+from longslam.frame import Frame
+from longslam.geometry import invert, planar_from_camera_poses, planar_pose
+from longslam.slam.base import MethodContext, Result
+from longslam.slam.pose_graph import compose_xyyaw, relative_xyyaw
+from longslam.slam.registry import METHODS
+from longslam.slam.submap.config import SubmapConfig
+from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
+from longslam.slam.submap.graph import LOOP, ODOMETRY, REGISTRATION, SubmapGraph
+from longslam.slam.submap.registration import RegistrationSettings, register
+from longslam.slam.submap.tsdf import TSDF
+from longslam.trajectory import Trajectory
+
+MIN_VERTICAL_NORMAL = 0.7  # |normal z| above this: floor or ceiling, useless for x, y, yaw
+
+
+@dataclass
+class Submap:
+    index: int
+    start_time: float
+    tsdf: TSDF
+    frames: int = 0
+    finished: bool = False
+    points: np.ndarray | None = None  # (N, 3) float32 iso-surface sample for registration
+    box: tuple[np.ndarray, np.ndarray] | None = None  # 2D (min, max) corners in the submap frame
+
+
+@dataclass
+class _Keyframe:  # a frame kept for place recognition (loop closure only)
+    submap: int
+    time: float
+    in_submap: np.ndarray  # (4, 4) camera pose in its submap's frame
+    features: Any
+
+
+@dataclass
+class _Counts:
+    frames: int = 0
+    frames_without_depth: int = 0
+    registrations_accepted: int = 0
+    registrations_rejected: int = 0
+    submaps_too_few_points: int = 0
+    loop_closures_accepted: int = 0
+    loop_closures_rejected: int = 0
+    loop_candidates: int = 0
+    rejection_reasons: dict[str, int] = field(default_factory=dict)
+
+
+class SubmapMethod:
+    name = "submap"
+
+    def __init__(self, context: MethodContext, params: dict[str, Any]):
+        self.config = SubmapConfig.from_params(params)
+        self.context = context
+        c = self.config
+        self.registration_settings = RegistrationSettings(
+            min_points=c.registration_min_points, max_rms=c.registration_max_rms,
+            max_translation=c.registration_max_correction, effective_points=c.registration_effective_points,
+        )
+        self.graph = SubmapGraph(c.robust_kernel, c.robust_k)
+        self.submaps: list[Submap] = []
+        self.counts = _Counts()
+        self._camera_height: float | None = None
+        self._floor_z = 0.0
+        self._last_odometry: np.ndarray | None = None
+        self._pose_in_active = np.eye(4)  # camera pose of the latest frame in the active submap
+        self._max_depth = c.max_ray_length if context.max_depth is None else min(c.max_ray_length, context.max_depth)
+        # Per frame: stamp, submap index, camera pose in the submap (12 floats), online pose.
+        self._stamps: list[float] = []
+        self._frame_submap: list[int] = []
+        self._in_submap: list[np.ndarray] = []
+        self._online: list[np.ndarray] = []
+        self._tried_pairs: set[tuple[int, int]] = set()
+        # Loop closure (place recognition shared with the keyframe method).
+        self._keyframes: list[_Keyframe] = []
+        self._vocabulary = None
+        self._last_keyframe_time = -np.inf
+        if c.loop_closure:
+            from longslam.slam.place_recognition import Vocabulary
+
+            self._vocabulary = Vocabulary(max_words_per_image=c.loop_max_features)
+
+    # --- geometry helpers --------------------------------------------------------------------
+    def _origin_pose(self, xyyaw: np.ndarray) -> np.ndarray:
+        return planar_pose(float(xyyaw[0]), float(xyyaw[1]), float(xyyaw[2]), self._floor_z)
+
+    def _world_pose(self, submap: int, in_submap: np.ndarray) -> np.ndarray:
+        return self._origin_pose(self.graph.estimate(submap)) @ in_submap
+
+    # --- frames ------------------------------------------------------------------------------
+    def step(self, frame: Frame) -> np.ndarray:
+        if frame.odometry is None:
+            raise InputError(
+                f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the 'submap' method "
+                f"needs a sequence with odometry.txt"
+            )
+        odometry = np.asarray(frame.odometry, dtype=np.float64)
+        if self._camera_height is None:
+            # The floor is z = 0 and the odometry starts at the true first pose, so its z is the
+            # camera height (unless the user gave one).
+            self._camera_height = self.config.camera_height or float(odometry[2, 3])
+            self._floor_z = float(odometry[2, 3]) - self._camera_height
+        active = self.submaps[-1] if self.submaps else None
+        if active is None:
+            base = planar_from_camera_poses(odometry[None], self._camera_height)[0]
+            active = self._start_submap(frame.timestamp, base)
+            in_submap = invert(self._origin_pose(base)) @ odometry
+        else:
+            # The odometry's motion since the last frame, applied to the last pose.
+            in_submap = self._pose_in_active @ (invert(self._last_odometry) @ odometry)
+            if frame.timestamp - active.start_time >= self.config.submap_interval:
+                # The new submap's origin: the robot's floor pose now, in the old submap's frame.
+                delta = planar_from_camera_poses(in_submap[None], self._camera_height)[0]
+                active = self._start_submap(frame.timestamp, delta)
+                in_submap = invert(planar_pose(*delta)) @ in_submap
+        self._last_odometry = odometry
+        depth = np.asarray(frame.depth)
+        updates = 0
+        if depth.ndim == 2 and depth.shape == (frame.intrinsics.height, frame.intrinsics.width):
+            updates = active.tsdf.integrate_depth(
+                depth, frame.intrinsics, in_submap, self._max_depth, self.config.integration_stride
+            )
+        if updates == 0:
+            self.counts.frames_without_depth += 1
+        active.frames += 1
+        self.counts.frames += 1
+        if self._vocabulary is not None and updates and frame.timestamp - self._last_keyframe_time >= self.config.loop_keyframe_interval:
+            self._last_keyframe_time = frame.timestamp
+            self._loop_closure(frame, active, in_submap)
+        self._pose_in_active = in_submap
+        pose = self._world_pose(active.index, in_submap)
+        self._stamps.append(float(frame.timestamp))
+        self._frame_submap.append(active.index)
+        self._in_submap.append(in_submap[:3].copy())
+        self._online.append(pose)
+        return pose
+
+    def _start_submap(self, time: float, origin: np.ndarray) -> Submap:
+        """Start a submap at `origin`: the world pose (x, y, yaw) for the first submap, the pose in
+        the previous submap's frame for the others (that is the odometry constraint)."""
+        c = self.config
+        index = len(self.submaps)
+        if self.submaps:
+            previous = self.submaps[-1]
+            self._finish_submap(previous)
+            self.graph.add_node(index, compose_xyyaw(self.graph.estimate(previous.index), origin))
+            info = np.diag([c.odometry_sigma_xy**-2, c.odometry_sigma_xy**-2, c.odometry_sigma_yaw**-2])
+            self.graph.add_edge(previous.index, index, origin, info, ODOMETRY)
+        else:
+            self.graph.add_node(index, origin)
+        submap = Submap(index, time, TSDF(c.voxel_size, c.truncation))
+        self.submaps.append(submap)
+        return submap
+
+    # --- finishing a submap: compact, sample, register, optimise --------------------------------
+    def _finish_submap(self, submap: Submap) -> None:
+        if submap.finished:
+            return
+        c = self.config
+        points, normals = submap.tsdf.surface_points()
+        bounds = submap.tsdf.bounds()
+        submap.tsdf.compact()
+        submap.finished = True
+        if bounds is not None:
+            submap.box = (bounds[0][:2].astype(np.float64), bounds[1][:2].astype(np.float64))
+        upright = np.abs(normals[:, 2]) < MIN_VERTICAL_NORMAL if len(normals) else np.zeros(0, bool)
+        candidates = points[upright]
+        n = min(int(np.ceil(len(candidates) * c.registration_sampling_ratio)), c.registration_max_points)
+        n = max(n, min(len(candidates), c.registration_min_points))  # a small submap keeps what it has
+        rng = np.random.default_rng(submap.index)
+        submap.points = candidates[np.sort(rng.choice(len(candidates), n, replace=False))] if n else np.zeros((0, 3), np.float32)
+        if len(submap.points) < c.registration_min_points:
+            self.counts.submaps_too_few_points += 1
+        elif c.registration:
+            self._register_submap(submap)
+        self.graph.optimize()
+
+    def _world_box(self, submap: Submap) -> tuple[np.ndarray, np.ndarray] | None:
+        if submap.box is None:
+            return None
+        lo, hi = submap.box
+        corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]], [hi[0], hi[1]]])
+        x, y, yaw = self.graph.estimate(submap.index)
+        c, s = np.cos(yaw), np.sin(yaw)
+        world = np.column_stack([x + c * corners[:, 0] - s * corners[:, 1], y + s * corners[:, 0] + c * corners[:, 1]])
+        return world.min(axis=0), world.max(axis=0)
+
+    def _register_submap(self, reading: Submap) -> None:
+        box = self._world_box(reading)
+        if box is None:
+            return
+        for reference in self.submaps:
+            if reference.index == reading.index or not reference.finished or reference.box is None:
+                continue
+            if len(reference.points) < self.config.registration_min_points:
+                continue
+            other = self._world_box(reference)
+            overlap = np.minimum(box[1], other[1]) - np.maximum(box[0], other[0])
+            if np.any(overlap <= 0) or overlap.prod() < self.config.registration_min_overlap_area:
+                continue
+            pair = (reference.index, reading.index)
+            if pair in self._tried_pairs:
+                continue
+            self._tried_pairs.add(pair)
+            initial = relative_xyyaw(self.graph.estimate(reference.index), self.graph.estimate(reading.index))
+            result = register(reference.tsdf, reading.points, initial, self.registration_settings)
+            if result.accepted:
+                self.counts.registrations_accepted += 1
+                self.graph.add_edge(reference.index, reading.index, result.relative, result.information, REGISTRATION, robust=True)
+            else:
+                self.counts.registrations_rejected += 1
+                key = _reason_key(result.reason)
+                self.counts.rejection_reasons[key] = self.counts.rejection_reasons.get(key, 0) + 1
+
+    # --- loop closure ------------------------------------------------------------------------------
+    def _loop_closure(self, frame: Frame, active: Submap, in_submap: np.ndarray) -> None:
+        from longslam.slam import features as feature_module
+        from longslam.slam.place_recognition import verify
+
+        c = self.config
+        feats = feature_module.extract(frame.rgb, frame.depth, frame.intrinsics, max_features=c.loop_max_features)
+        if len(feats) == 0:
+            return
+        old = [i for i, k in enumerate(self._keyframes) if frame.timestamp - k.time >= c.loop_min_age and k.submap < active.index - 1]
+        if old:
+            hits = self._vocabulary.query(feats.descriptors, candidates=old, top_k=1)
+            if hits and hits[0][1] >= c.loop_min_score:
+                self.counts.loop_candidates += 1
+                candidate = self._keyframes[hits[0][0]]
+                check = verify(feats, candidate.features, frame.intrinsics, min_inliers=c.loop_min_inliers)
+                if check.accepted:
+                    self._add_loop(candidate, check.transform, active, in_submap)
+                else:
+                    self.counts.loop_closures_rejected += 1
+        node = len(self._keyframes)
+        self._keyframes.append(_Keyframe(active.index, frame.timestamp, in_submap.copy(), feats))
+        self._vocabulary.add(node, feats.descriptors)
+
+    def _add_loop(self, candidate: _Keyframe, query_in_candidate: np.ndarray, active: Submap, in_submap: np.ndarray) -> None:
+        c = self.config
+        # Pose of the active submap's origin in the candidate submap's frame.
+        origin = candidate.in_submap @ query_in_candidate @ invert(in_submap)
+        delta = np.array([origin[0, 3], origin[1, 3], np.arctan2(origin[1, 0], origin[0, 0])])
+        info = np.diag([c.loop_sigma_xy**-2, c.loop_sigma_xy**-2, c.loop_sigma_yaw**-2])
+        edge = self.graph.add_edge(candidate.submap, active.index, delta, info, LOOP, robust=False)
+        self.graph.optimize()
+        if self.graph.edge_error(edge) > c.loop_max_error:
+            self.graph.remove_edge(edge)
+            self.graph.optimize()
+            self.counts.loop_closures_rejected += 1
+        else:
+            self.counts.loop_closures_accepted += 1
+
+    # --- the end ---------------------------------------------------------------------------------
+    def map_bytes(self) -> dict[str, int]:
+        finished = [s for s in self.submaps if s.finished]
+        active = [s for s in self.submaps if not s.finished]
+        out = {
+            "submap_tsdfs_finished": int(sum(s.tsdf.nbytes for s in finished)),
+            "submap_tsdf_active": int(sum(s.tsdf.nbytes for s in active)),
+            "registration_points": int(sum(s.points.nbytes for s in finished if s.points is not None)),
+            "frame_poses": int(len(self._in_submap) * (12 * 8 + 8 + 8)),
+        }
+        if self._vocabulary is not None:
+            out["loop_keyframes"] = int(sum(k.features.nbytes for k in self._keyframes))
+            out["vocabulary"] = int(self._vocabulary.nbytes)
+        return out
+
+    def finish(self) -> Result:
+        if not self._stamps:
+            raise InputError("the submap method received no frames")
+        bytes_before = self.map_bytes()
+        self._finish_submap(self.submaps[-1])
+        c = self.config
+        stamps = np.array(self._stamps)
+        in_submap = np.tile(np.eye(4), (len(stamps), 1, 1))
+        in_submap[:, :3] = np.array(self._in_submap)
+        origins = np.array([self._origin_pose(self.graph.estimate(s.index)) for s in self.submaps])
+        poses = origins[np.array(self._frame_submap)] @ in_submap
+        trajectory = Trajectory(stamps, poses, source="submap")
+        online = Trajectory(stamps, np.array(self._online), source="submap online")
+        fused = fuse_submaps([(s.tsdf, origins[s.index]) for s in self.submaps], c.voxel_size, c.truncation)
+        cloud, _ = fused.surface_points(with_normals=False)
+        grid = grid_from_tsdf(fused, cloud, self._floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)
+        mesh_path = None
+        if c.write_mesh and self.context.output_dir:
+            mesh_path = write_mesh(fused, Path(self.context.output_dir) / "mesh.ply")
+        counts = self.counts
+        stats = {
+            "frames": counts.frames,
+            "submaps": len(self.submaps),
+            "frames_without_depth": counts.frames_without_depth,
+            "submaps_too_few_points": counts.submaps_too_few_points,
+            "registrations_accepted": counts.registrations_accepted,
+            "registrations_rejected": counts.registrations_rejected,
+            "registration_rejection_reasons": dict(counts.rejection_reasons),
+            "loop_closures_accepted": counts.loop_closures_accepted,
+            "loop_closures_rejected": counts.loop_closures_rejected,
+            "loop_candidates": counts.loop_candidates,
+            "graph_edges": {k: self.graph.count(k) for k in (ODOMETRY, REGISTRATION, LOOP)},
+            "optimisations": self.graph.optimisations,
+            "camera_height": self._camera_height,
+            "map_bytes": self.map_bytes(),
+            "map_bytes_before_finish": bytes_before,
+            "fused_map_bytes": fused.nbytes,
+            "fused_blocks": fused.num_blocks,
+            "mesh": mesh_path.name if mesh_path else None,  # in the run folder
+            "config": c.to_dict(),
+        }
+        return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=stats)
+
+
+def _reason_key(reason: str) -> str:
+    for key in ("overlap", "RMS", "converge", "correction", "surface points", "singular", "non-finite"):
+        if key in reason:
+            return key.lower().replace(" ", "_")
+    return "other"
+
+
+def make_submap_method(context: MethodContext, params: dict[str, Any]) -> SubmapMethod:
+    return SubmapMethod(context, params)
+
+
+METHODS.register("submap", make_submap_method)

@@ -1,0 +1,198 @@
+"""The submap method: sparse TSDF, SDF registration, the method on small simulated sequences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from longslam.errors import InputError
+from longslam.eval.metrics import ate
+from longslam.frame import Frame, Intrinsics
+from longslam.geometry import camera_poses_from_planar, planar_pose
+from longslam.io.sequence import SequenceReader
+from longslam.recording import simulate
+from longslam.sim.camera import CameraSettings, RGBDCamera
+from longslam.sim.noise import get_noise
+from longslam.sim.routes import Route
+from longslam.slam.base import MethodContext
+from longslam.slam.registry import METHODS
+from longslam.slam.submap.config import SubmapConfig
+from longslam.slam.submap.method import SubmapMethod
+from longslam.slam.submap.registration import register
+from longslam.slam.submap.tsdf import BLOCK, TSDF
+from longslam.world import get_world
+
+SMALL = CameraSettings(width=80, height=60)
+HALL_LOOP = Route("hall-loop", "university", ("hall_entry", "hall_ne", "hall_se", "hall_sw", "hall_nw", "hall_ne"))
+
+
+@pytest.fixture(scope="module")
+def hall_sequences(tmp_path_factory):
+    """The hall loop with a small camera, at no noise and at large noise (rendered once)."""
+    root = tmp_path_factory.mktemp("submap")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
+        exact = simulate(HALL_LOOP, get_noise("none"), 0, root / "none", camera=SMALL, progress=False)
+        noisy = simulate(HALL_LOOP, get_noise("large"), 1, root / "large", camera=SMALL, progress=False)
+    return SequenceReader(exact), SequenceReader(noisy)
+
+
+def run(reader: SequenceReader, frames=None, **params):
+    method = SubmapMethod(MethodContext(reader.intrinsics, reader.max_depth, None), params)
+    poses = [method.step(f) for f in (frames if frames is not None else reader)]
+    return method, poses, method.finish()
+
+
+# --- TSDF -------------------------------------------------------------------------------------------
+def test_tsdf_of_a_plane_crosses_zero_at_the_plane():
+    intr = Intrinsics.from_fov(64, 48, 90.0)
+    depth = np.full((48, 64), 3.0, np.float32)
+    tsdf = TSDF(0.2, 0.8)
+    tsdf.integrate_depth(depth, intr, np.eye(4))
+    z = np.linspace(2.4, 3.6, 61)
+    value, grad, valid = tsdf.interpolate(np.column_stack([np.zeros_like(z), np.zeros_like(z), z]))
+    assert valid.all()
+    crossing = z[np.argmin(np.abs(value))]
+    assert abs(crossing - 3.0) < 0.03
+    assert value[0] > 0.5 and value[-1] < -0.4  # in front positive, behind negative
+    np.testing.assert_allclose(grad[len(z) // 2], [0.0, 0.0, -1.0], atol=0.05)
+    points, normals = tsdf.surface_points()
+    assert len(points) > 50
+    assert np.median(np.abs(points[:, 2] - 3.0)) < 0.02 and np.abs(points[:, 2] - 3.0).max() < 0.1  # edges of the view
+    # Compacting keeps the field within the int8 step.
+    before, _, _ = tsdf.interpolate(np.array([[0.1, 0.1, 2.9]]))
+    tsdf.compact()
+    after, _, _ = tsdf.interpolate(np.array([[0.1, 0.1, 2.9]]))
+    assert abs(after[0] - before[0]) < 0.01
+
+
+def test_integration_allocates_only_touched_blocks():
+    intr = Intrinsics.from_fov(64, 48, 90.0)
+    depth = np.zeros((48, 64), np.float32)
+    depth[:, :32] = 3.0  # only the left half sees a wall
+    tsdf = TSDF(0.2, 0.8)
+    assert tsdf.integrate_depth(depth, intr, np.eye(4)) > 0
+    side = BLOCK * 0.2
+    blocks = tsdf.block_indices
+    # Every block intersects the truncation band around the wall (z in [2.2, 3.8]) on the left.
+    assert np.all(blocks[:, 2] * side <= 3.8) and np.all((blocks[:, 2] + 1) * side >= 2.2)
+    assert np.all(blocks[:, 0] * side <= 0.01)  # nothing right of the optical axis (x > 0)
+    assert tsdf.num_blocks <= 8
+    assert tsdf.integrate_depth(np.zeros((48, 64), np.float32), intr, np.eye(4)) == 0
+    assert tsdf.num_blocks == len(blocks)
+
+
+# --- registration -------------------------------------------------------------------------------------
+def _hall_submap() -> TSDF:
+    """A TSDF of the hall seen while turning on the spot (small camera), in the frame of the
+    robot's pose there."""
+    world = get_world("university")
+    camera = RGBDCamera(world.mesh, SMALL)
+    x, y = world.places["hall_center"]
+    yaws = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
+    world_poses = camera_poses_from_planar(np.column_stack([np.full(24, x), np.full(24, y), yaws]), 1.25)
+    to_submap = np.linalg.inv(planar_pose(x, y, 0.0))
+    tsdf = TSDF(0.2, 0.8)
+    for pose in world_poses:
+        _, depth = camera.render(pose)
+        tsdf.integrate_depth(depth, SMALL.intrinsics, to_submap @ pose, max_depth=8.0)
+    return tsdf
+
+
+def test_registration_recovers_a_small_offset_and_rejects_no_overlap():
+    tsdf = _hall_submap()
+    points, normals = tsdf.surface_points()
+    upright = points[np.abs(normals[:, 2]) < 0.7].astype(np.float64)
+    sample = upright[np.random.default_rng(0).choice(len(upright), 800, replace=False)]
+    true = np.array([0.25, -0.15, np.radians(3.0)])
+    inverse = np.linalg.inv(planar_pose(*true))
+    reading = sample @ inverse[:3, :3].T + inverse[:3, 3]  # B's points: A's surface seen from B
+    result = register(tsdf, reading, np.zeros(3))
+    assert result.accepted, result.reason
+    np.testing.assert_allclose(result.relative[:2], true[:2], atol=0.03)
+    assert abs(result.relative[2] - true[2]) < np.radians(0.3)
+    assert result.rms < 0.05
+    assert np.all(np.linalg.eigvalsh(result.information) > 0)
+    far = register(tsdf, reading + np.array([200.0, 0.0, 0.0]), np.zeros(3))
+    assert not far.accepted and "overlap" in far.reason
+    too_few = register(tsdf, reading[:10], np.zeros(3))
+    assert not too_few.accepted
+
+
+# --- the method -----------------------------------------------------------------------------------------
+def test_method_gives_a_pose_per_frame_a_grid_and_stats(hall_sequences, tmp_path):
+    _, noisy = hall_sequences
+    context = MethodContext(noisy.intrinsics, noisy.max_depth, str(tmp_path))
+    method = METHODS.get("submap")(context, {"submap_interval": 10})
+    frames = list(noisy)
+    online = [method.step(f) for f in frames]
+    result = method.finish()
+    assert len(result.trajectory) == len(frames) == len(result.online)
+    np.testing.assert_allclose(result.online.poses, np.array(online))
+    np.testing.assert_allclose(result.trajectory.timestamps, noisy.ground_truth.timestamps)
+    stats = result.stats
+    assert stats["submaps"] == len(method.submaps) >= 4
+    assert stats["frames_without_depth"] == 0
+    assert stats["registrations_accepted"] + stats["registrations_rejected"] > 0
+    assert set(stats["map_bytes"]) >= {"submap_tsdfs_finished", "registration_points"}
+    assert stats["map_bytes"]["submap_tsdfs_finished"] > 0
+    assert result.grid is not None and (result.grid.data == 100).sum() > 100 and (result.grid.data == 0).sum() > 100
+    assert result.cloud.shape[1] == 3 and len(result.cloud) > 1000
+    assert (tmp_path / "mesh.ply").exists()
+    # Finished submaps keep compacted voxels only.
+    assert all(s.tsdf.compacted for s in method.submaps)
+
+
+def test_without_noise_the_trajectory_is_the_odometry(hall_sequences):
+    exact, _ = hall_sequences
+    _, _, result = run(exact, registration=False)
+    np.testing.assert_allclose(result.trajectory.poses, exact.odometry.poses, atol=1e-9)
+
+
+def test_registration_lowers_the_error_on_a_loop(hall_sequences):
+    # Short submaps: over 20 s the odometry's scale bias bends a submap by up to a metre, which
+    # no rigid registration can undo; over 5 s the submaps are rigid enough to pull the loop in.
+    _, noisy = hall_sequences
+    _, _, with_registration = run(noisy, submap_interval=5)
+    _, _, without = run(noisy, submap_interval=5, registration=False)
+    odometry_ate = ate(noisy.ground_truth, noisy.odometry)
+    assert ate(noisy.ground_truth, without.trajectory) == pytest.approx(odometry_ate, rel=1e-6)
+    assert with_registration.stats["registrations_accepted"] > 0
+    assert ate(noisy.ground_truth, with_registration.trajectory) < 0.8 * odometry_ate
+
+
+def test_frames_without_depth_are_counted_and_skipped(hall_sequences):
+    _, noisy = hall_sequences
+    frames = list(noisy)[:120]
+    for f in frames[30:60]:
+        f.depth = np.zeros_like(f.depth)
+    frames[60].depth = np.full_like(frames[60].depth, np.nan)
+    method, poses, result = run(noisy, frames, submap_interval=3.0)
+    assert result.stats["frames_without_depth"] == 31
+    assert len(result.trajectory) == len(poses) == 120
+    assert np.all(np.isfinite(result.trajectory.poses))
+    # A submap made only of blank frames has no surface to register: counted, no constraint.
+    assert result.stats["submaps_too_few_points"] >= 1
+    blank = [s.index for s in method.submaps if len(s.points) < 100]
+    edges = [e for e in method.graph.edges if e.kind == "registration"]
+    assert blank and not any(e.a in blank or e.b in blank for e in edges)
+
+
+def test_bad_parameters_are_input_errors():
+    context = MethodContext(Intrinsics.from_fov(64, 48, 90.0), 8.0)
+    with pytest.raises(InputError, match="valid: .*voxel_size"):
+        SubmapMethod(context, {"voxel": 0.1})
+    with pytest.raises(InputError, match="truncation"):
+        SubmapMethod(context, {"voxel_size": 1.0})
+    with pytest.raises(InputError, match="number"):
+        SubmapMethod(context, {"truncation": "wide"})
+    with pytest.raises(InputError, match="true or false"):
+        SubmapMethod(context, {"loop_closure": "maybe"})
+    with pytest.raises(InputError, match="positive"):
+        SubmapMethod(context, {"submap_interval": -1})
+    config = SubmapConfig.from_params({"voxel_size": "0.1", "loop_closure": "true", "registration_min_points": 50.0})
+    assert (config.voxel_size, config.loop_closure, config.registration_min_points) == (0.1, True, 50)
+    method = SubmapMethod(context, {})
+    frame = Frame(0, 0.0, np.zeros((48, 64, 3), np.uint8), np.zeros((48, 64), np.float32), None, context.intrinsics)
+    with pytest.raises(InputError, match="odometry"):
+        method.step(frame)
