@@ -11,6 +11,7 @@ import multiprocessing as mp
 import time
 from collections.abc import Iterable
 from pathlib import Path
+from queue import Empty
 from typing import Any
 
 import numpy as np
@@ -149,7 +150,20 @@ def run_sequence_isolated(*args: Any, **kwargs: Any) -> dict[str, Any]:
     queue = ctx.Queue()
     proc = ctx.Process(target=_child, args=(queue, args, kwargs))
     proc.start()
-    status, payload = queue.get()
+    # Poll rather than block: a child killed outright (out of memory, a signal) never reports.
+    while True:
+        try:
+            status, payload = queue.get(timeout=1.0)
+            break
+        except Empty:
+            if proc.is_alive():
+                continue
+            try:  # it may have reported just before it ended
+                status, payload = queue.get(timeout=1.0)
+                break
+            except Empty:
+                proc.join()
+                raise RuntimeError(f"run failed in its process: it died with exit code {proc.exitcode} before reporting") from None
     proc.join()
     if status != "ok":
         raise RuntimeError(f"run failed in its process: {payload}")
