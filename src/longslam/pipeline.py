@@ -21,6 +21,7 @@ from longslam.errors import InputError
 from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
 from longslam.frame import Frame
 from longslam.io.atomic import atomic_path
+from longslam.jsonable import json_default
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import write_tum
 from longslam.slam.base import MethodContext, Result
@@ -100,15 +101,7 @@ def write_result(out: Path, result: Result, figures: dict[str, Any]) -> None:
 
         cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(result.cloud, dtype=np.float64)))
         o3d.io.write_point_cloud(str(out / "map.ply"), cloud)
-    (out / "stats.json").write_text(json.dumps(figures, indent=2, default=_json_default) + "\n")
-
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+    (out / "stats.json").write_text(json.dumps(figures, indent=2, default=json_default) + "\n")
 
 
 def run_sequence(

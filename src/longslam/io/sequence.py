@@ -36,6 +36,7 @@ import numpy as np
 
 import longslam
 from longslam.errors import InputError
+from longslam.jsonable import json_default
 from longslam.textfile import read_text
 from longslam.frame import Frame, Intrinsics
 from longslam.io.trajectory_files import read_tum, write_tum
@@ -62,23 +63,13 @@ def _stamp_text(t: float) -> str:
     return f"{t:.{STAMP_DECIMALS}f}"
 
 
-def _json_default(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
-
-
 def _meta_json(meta: dict) -> str:
     if not isinstance(meta, dict):
         raise InputError(f"sequence meta must be a dict, got {type(meta).__name__}")
     meta = dict(meta)
     meta.setdefault("longslam_version", longslam.__version__)
     try:
-        return json.dumps(meta, indent=2, sort_keys=True, default=_json_default) + "\n"
+        return json.dumps(meta, indent=2, sort_keys=True, default=json_default) + "\n"
     except (TypeError, ValueError) as err:
         raise InputError(f"sequence meta cannot be written as JSON: {err}") from None
 

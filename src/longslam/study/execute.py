@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from longslam.jsonable import json_default
 from longslam.eval.align import alignment
 from longslam.eval.map_quality import map_quality
 from longslam.eval.metrics import ape_errors, ate, evaluate
@@ -39,13 +40,11 @@ TruthLoader = Callable[[], tuple[GridMap, np.ndarray]]
 
 
 def _json_default(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    return repr(value)
+    # A record must always be written, so anything else is kept as its repr.
+    try:
+        return json_default(value)
+    except TypeError:
+        return repr(value)
 
 
 def to_json(record: dict[str, Any]) -> str:
