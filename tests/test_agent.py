@@ -48,7 +48,7 @@ def test_waypoint_inside_a_wall_is_refused(nav):
 
 @pytest.mark.parametrize(
     "name,count,length,tolerance",
-    [("demo", 8, 60.0, 0.1), ("paper-300m", 12, 300.0, 0.05), ("paper-1km", 25, 1000.0, 0.05)],
+    [("demo", 7, 60.0, 0.1), ("paper-300m", 12, 300.0, 0.05), ("paper-1km", 25, 1000.0, 0.05)],
 )
 def test_named_routes_have_the_papers_lengths(nav, plan, name, count, length, tolerance):
     driven, waypoints = _drive(nav, plan, name)

@@ -28,6 +28,10 @@ class KeyframeConfig:
     loop_threshold: float = 0.15  # tf-idf cosine score a hypothesis must reach
     loop_candidates: int = 2  # best hypotheses verified per node
     min_inliers: int = 20
+    # Only points this high above the floor anchor a transform: repeating floor tiles and ceiling
+    # panels let PnP lock onto a copy one tile away (seen on the demo route: a 1.3 m wrong loop).
+    anchor_min_height: float = 0.15
+    anchor_max_height: float = 2.6
     # Polish each verified transform on 3D-3D matches (depth on both sides), as RTAB-Map's
     # Vis/EstimationType 0; measured on paper-300m: the worst loop error falls from 0.46 m to 0.09 m.
     refine_3d: bool = True

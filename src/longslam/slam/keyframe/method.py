@@ -145,6 +145,7 @@ class KeyframeMethod:
         features = extract(frame.rgb, depth, self.intrinsics, cfg.max_features) if has_depth else Features.empty()
         if has_depth and len(features) == 0:
             self.counts["frames_no_features"] += 1
+        features = self._drop_floor_and_ceiling_points(features)
         grid = local_grid(depth, self.intrinsics, self._camera_in_base, cfg.grid_cell, cfg.grid_range,
                           cfg.obstacle_min_height, cfg.obstacle_max_height)
         points = depth_points_in_base(depth, self.intrinsics, self._camera_in_base, cfg.cloud_stride).astype(np.float32)
@@ -199,6 +200,21 @@ class KeyframeMethod:
             return delta, sigmas
         self.counts["neighbor_links_refined"] += 1
         return visual, np.array([cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular])
+
+    def _drop_floor_and_ceiling_points(self, features: Features) -> Features:
+        """Keep 3D points only between `anchor_min_height` and `anchor_max_height` above the floor.
+
+        Floor tiles and ceiling panels repeat every half metre or so: PnP anchored on them can
+        lock onto a copy one or two tiles away, a wrong loop that the graph check may not catch.
+        Those keypoints still count as visual words; they just do not anchor a transform.
+        """
+        if not len(features):
+            return features
+        points = features.points.astype(np.float64)
+        height = points @ self._camera_in_base[2, :3] + self._camera_in_base[2, 3]
+        keep = (height >= self.config.anchor_min_height) & (height <= self.config.anchor_max_height)
+        anchored = np.where(keep[:, None], features.points, np.float32(np.nan)).astype(np.float32)
+        return Features(features.keypoints, features.descriptors, anchored)
 
     def _odometry_sigmas(self, delta: np.ndarray, dt: float) -> np.ndarray:
         cfg = self.config
