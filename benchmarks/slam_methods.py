@@ -52,12 +52,15 @@ def rss_at_distances(figures: dict, truth, marks=(250, 500, 750, 1000)) -> list[
     out = []
     for mark in marks:
         frame = int(np.searchsorted(distance, mark))
+        label = f"{mark} m"
         if frame >= len(distance):
-            out.append(f"{mark} m: (route shorter)")
-            continue
-        k = int(np.searchsorted(samples[:, 0], frame))
-        k = min(k, len(samples) - 1)
-        out.append(f"{mark} m: {samples[k, 1] / 1e6:.0f} MB")
+            if mark > 1.05 * distance[-1]:
+                out.append(f"{mark} m: (route shorter)")
+                continue
+            # A route within 5 % of the mark (paper-1km is 992 m): report its end, before finish().
+            frame, label = len(distance) - 1, f"{distance[-1]:.0f} m (end)"
+        k = min(int(np.searchsorted(samples[:, 0], frame)), len(samples) - 2)
+        out.append(f"{label}: {samples[k, 1] / 1e6:.0f} MB")
     return out
 
 
