@@ -7,7 +7,7 @@ import pytest
 
 from longslam.cli import main
 from longslam.errors import InputError, UnknownNameError
-from longslam.frame import Intrinsics
+from longslam.frame import Frame, Intrinsics
 from longslam.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceWriter
 from longslam.io.trajectory_files import read_tum, write_kitti, write_tum
@@ -102,3 +102,12 @@ def test_cli_reports_bad_names_and_files(tmp_path, capsys):
     bad.write_text("0 nan 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 1\n")
     assert main(["evaluate", str(bad), str(bad)]) == 2
     assert "NaN" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["odometry", "keyframe", "submap"])
+def test_methods_fed_by_odometry_refuse_frames_without_it(name):
+    intrinsics = Intrinsics.from_fov(16, 12, 90.0)
+    method = create_method(name, MethodContext(intrinsics, 8.0))
+    frame = Frame(7, 0.7, np.zeros((12, 16, 3), np.uint8), np.ones((12, 16), np.float32), None, intrinsics)
+    with pytest.raises(InputError, match=rf"frame 7 \(t=0.700000\) has no odometry pose; the '{name}' method"):
+        method.step(frame)

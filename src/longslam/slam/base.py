@@ -7,6 +7,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from longslam.errors import InputError
 from longslam.frame import Frame, Intrinsics
 from longslam.gridmap import GridMap
 from longslam.trajectory import Trajectory
@@ -42,3 +43,14 @@ class MethodContext:
     intrinsics: Intrinsics
     max_depth: float | None
     output_dir: str | None = None  # where a method may keep files (e.g. a database)
+
+
+def frame_odometry(frame: Frame, method: str) -> np.ndarray:
+    """The frame's odometry pose as float64, or a clear error for methods fed by odometry
+    (real TUM sequences come without it)."""
+    if frame.odometry is None:
+        raise InputError(
+            f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the {method!r} method "
+            f"needs a sequence with odometry.txt"
+        )
+    return np.array(frame.odometry, dtype=np.float64)

@@ -8,7 +8,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.slam.base import MethodContext, Result
+from longslam.slam.base import MethodContext, Result, frame_odometry
 from longslam.slam.registry import METHODS
 from longslam.trajectory import Trajectory
 
@@ -23,12 +23,7 @@ class OdometryMethod:
         self._poses: list[np.ndarray] = []
 
     def step(self, frame: Frame) -> np.ndarray:
-        if frame.odometry is None:
-            raise InputError(
-                f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the 'odometry' method "
-                f"needs a sequence with odometry.txt"
-            )
-        pose = np.array(frame.odometry, dtype=np.float64)
+        pose = frame_odometry(frame, self.name)
         self._stamps.append(frame.timestamp)
         self._poses.append(pose)
         return pose

@@ -22,7 +22,7 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import base_to_camera, camera_poses_from_planar, invert, planar_from_camera_poses, wrap_angle
-from longslam.slam.base import MethodContext, Result
+from longslam.slam.base import MethodContext, Result, frame_odometry
 from longslam.slam.features import Features, extract
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.memory_db import MemoryDatabase
@@ -92,9 +92,7 @@ class KeyframeMethod:
 
     # --- per frame ---------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
-        if frame.odometry is None:
-            raise InputError(f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry; the keyframe method is fed by odometry")
-        odom = self._corrected_odometry(np.asarray(frame.odometry, dtype=np.float64))
+        odom = self._corrected_odometry(frame_odometry(frame, self.name))
         self.counts["frames"] += 1
         if self._is_new_node(frame.timestamp, odom):
             self._add_node(frame, odom)

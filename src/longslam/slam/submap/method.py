@@ -32,7 +32,7 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import invert, planar_from_camera_poses, planar_pose
-from longslam.slam.base import MethodContext, Result
+from longslam.slam.base import MethodContext, Result, frame_odometry
 from longslam.slam.pose_graph import compose_xyyaw, relative_xyyaw
 from longslam.slam.registry import METHODS
 from longslam.slam.submap.config import SubmapConfig
@@ -120,12 +120,7 @@ class SubmapMethod:
 
     # --- frames ------------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
-        if frame.odometry is None:
-            raise InputError(
-                f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the 'submap' method "
-                f"needs a sequence with odometry.txt"
-            )
-        odometry = np.asarray(frame.odometry, dtype=np.float64)
+        odometry = frame_odometry(frame, "submap")
         if self._camera_height is None:
             # The floor is z = 0 and the odometry starts at the true first pose, so its z is the
             # camera height (unless the user gave one).
