@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing as mp
+import shutil
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -124,8 +125,6 @@ def run_sequence(
         figures["sequence"] = str(Path(sequence).resolve())
         write_result(tmp, result, figures)
         if out.exists():
-            import shutil
-
             shutil.rmtree(out)
     return figures
 

@@ -169,7 +169,7 @@ class KeyframeMethod:
         # One dictionary search per node: the words serve the query and then the index. The node
         # joins the index after its own query, so it never matches itself.
         words = self.vocabulary.quantise(features.descriptors, grow=True)
-        if len(features.valid) and features.valid.sum() >= cfg.min_inliers:
+        if features.valid.sum() >= cfg.min_inliers:
             self._detect_loops(node, words)
         self.vocabulary.add_words(node_id, words)
         self.stm.append(node_id)
