@@ -1,0 +1,236 @@
+"""The front end shared by the SLAM methods: per-frame planar motion from wheels and depth.
+
+    fe = FrontEnd(intrinsics, FrontEndConfig())
+    for frame in sequence:
+        x, y, yaw = fe.step(frame)            # online, robot base on the floor
+    fe.add_loop(i, j, delta_xyyaw, info)      # frame j in frame i's frame, 3x3 information (body)
+    final = fe.final_trajectory()             # (N, 3), a smoother over every frame
+
+Modes:
+- "fused" (default): wheel steps with their biases estimated, corrected by scan-to-map
+  registration of the depth band 0.2-1.5 m above the floor. Without wheel odometry in the
+  frames it runs on the scans alone with a constant-velocity prediction, and says so in `stats`.
+- "wheel": the wheel odometry alone, with steps no robot makes in one frame (jumps) replaced by
+  no motion; the paper's configuration, and exactly what the keyframe method did before.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, fields, is_dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from longslam.errors import InputError
+from longslam.frame import Frame, Intrinsics
+from longslam.geometry import base_to_camera, camera_poses_from_planar, planar_from_camera_poses, wrap_angle
+from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
+from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
+from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
+from longslam.slam.frontend.smoother import (BiasFilter, FullSmoother, MotionNoise, SmootherConfig, WheelStep,
+                                             compose, relative)
+
+MODES = ("fused", "wheel")
+# Below this forward step (m) the robot is turning in place: the wheels' forward bias is not added.
+TRANSLATING_STEP = 1e-4
+
+
+@dataclass(frozen=True)
+class FrontEndConfig:
+    mode: str = "fused"
+    camera_height: float | None = None  # m; default: the first odometry pose's z, else 1.25
+    default_camera_height: float = 1.25
+    jump_distance: float = 1.0  # m in one frame: a bigger odometry step is a jump, not motion
+    jump_angle: float = 0.8  # rad in one frame
+    use_bias: bool = True  # estimate the wheels' forward and heading biases
+    scan_anchor_lag: int = 20  # frames: a scan factor links a frame to the one this many before
+    max_correction: float = 0.5  # m: a registration moving the prediction further is refused
+    max_correction_angle: float = 0.1  # rad
+    insert_distance: float = 0.05  # m moved (or insert_angle turned) before a scan joins the map
+    insert_angle: float = 0.03  # rad
+    scan: ScanConfig = field(default_factory=ScanConfig)
+    local_map: LocalMapConfig = field(default_factory=LocalMapConfig)
+    registration: RegistrationConfig = field(default_factory=RegistrationConfig)
+    noise: MotionNoise = field(default_factory=MotionNoise)
+    smoother: SmootherConfig = field(default_factory=SmootherConfig)
+
+    def validate(self) -> None:
+        if self.mode not in MODES:
+            raise InputError(f"front end: mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if not (self.jump_distance > 0 and self.jump_angle > 0):
+            raise InputError("front end: jump_distance and jump_angle must be positive")
+        if self.scan_anchor_lag < 1:
+            raise InputError("front end: scan_anchor_lag must be at least 1")
+
+    def with_flat(self, params: dict[str, Any]) -> "FrontEndConfig":
+        """A copy with `params` applied; nested fields as 'registration.sigma' style keys."""
+        top: dict[str, Any] = {}
+        nested: dict[str, dict[str, Any]] = {}
+        names = {f.name for f in fields(self)}
+        for key, value in params.items():
+            head, _, tail = key.partition(".")
+            if head not in names:
+                raise InputError(f"front end: unknown parameter {key!r}; valid: {', '.join(sorted(names))}")
+            if tail:
+                nested.setdefault(head, {})[tail] = value
+            else:
+                top[head] = value
+        for head, values in nested.items():
+            sub = getattr(self, head)
+            if not is_dataclass(sub):
+                raise InputError(f"front end: {head!r} has no sub-parameters")
+            top[head] = replace(sub, **values)
+        out = replace(self, **top)
+        out.validate()
+        return out
+
+
+class FrontEnd:
+    def __init__(self, intrinsics: Intrinsics, config: FrontEndConfig | None = None):
+        self.config = config or FrontEndConfig()
+        self.config.validate()
+        self.intrinsics = intrinsics
+        self.camera_height: float | None = None
+        self.floor_z = 0.0
+        self._extract: ScanExtractor | None = None
+        self._filter: BiasFilter | None = None
+        self._map = LocalMap(self.config.local_map)
+        self._smoother = FullSmoother(self.config.noise, self.config.smoother, use_bias=self.config.use_bias)
+        self._raw_prev: np.ndarray | None = None
+        self._odom: np.ndarray | None = None  # jump-corrected wheel odometry of the latest frame
+        self._has_wheels: bool | None = None
+        self._online: list[np.ndarray] = []
+        self._odom_list: list[np.ndarray] = []
+        self._last_insert: np.ndarray | None = None
+        self._time = 0.0
+        self.counts = {"frames": 0, "odometry_jumps": 0, "scans_registered": 0, "scans_refused": 0,
+                       "scans_unmatched": 0, "scan_points": 0, "loops": 0}
+
+    # --- per frame ---------------------------------------------------------------------------
+    def step(self, frame: Frame) -> np.ndarray:
+        """Planar (x, y, yaw) of the robot base for this frame, online."""
+        t0 = time.perf_counter()
+        k = len(self._online)
+        if self._has_wheels is None:
+            self._has_wheels = frame.odometry is not None
+            self._start(frame)
+        elif (frame.odometry is not None) != self._has_wheels:
+            raise InputError(f"frame {frame.index}: odometry present in some frames and not in others")
+        wheel = self._wheel_step(frame) if self._has_wheels else None
+        if self.config.mode == "wheel":
+            pose = self._odom.copy()
+            self._smoother.add_frame(pose, wheel, self._wheel_sigmas(wheel), None, None, None)
+        else:
+            pose = self._fused_step(k, frame, wheel)
+        self._online.append(pose)
+        self.counts["frames"] += 1
+        self._time += time.perf_counter() - t0
+        return pose.copy()
+
+    def _start(self, frame: Frame) -> None:
+        cfg = self.config
+        if frame.odometry is not None:
+            z = float(np.asarray(frame.odometry)[2, 3])
+            self.camera_height = cfg.camera_height or z
+            self.floor_z = z - self.camera_height
+        else:
+            self.camera_height = cfg.camera_height or cfg.default_camera_height
+            self.floor_z = 0.0
+        self._extract = ScanExtractor(self.intrinsics, base_to_camera(self.camera_height), cfg.scan)
+        if frame.odometry is None:
+            self._odom = np.zeros(3)  # a sequence without odometry starts at the origin
+        self._filter = BiasFilter(np.zeros(3), cfg.noise, use_bias=cfg.use_bias and bool(self._has_wheels))
+
+    def _wheel_step(self, frame: Frame) -> WheelStep | None:
+        raw = planar_from_camera_poses(np.asarray(frame.odometry, dtype=np.float64)[None], self.camera_height)[0]
+        if self._odom is None:
+            self._raw_prev, self._odom = raw, raw
+            self._filter.state[:3] = raw
+            return None
+        delta = relative(self._raw_prev, raw)
+        self._raw_prev = raw
+        if np.hypot(delta[0], delta[1]) > self.config.jump_distance or abs(delta[2]) > self.config.jump_angle:
+            self.counts["odometry_jumps"] += 1
+            delta = np.zeros(3)
+        self._odom = compose(self._odom, delta)
+        return WheelStep(float(delta[0]), float(delta[1]), float(delta[2]), abs(delta[0]) > TRANSLATING_STEP)
+
+    def _wheel_sigmas(self, wheel: WheelStep | None) -> np.ndarray | None:
+        if wheel is None:
+            return None
+        n = self.config.noise
+        return np.array([n.forward_min + n.forward_rel * abs(wheel.forward), n.lateral, n.yaw_min + n.yaw_rel * abs(wheel.yaw)])
+
+    def _fused_step(self, k: int, frame: Frame, wheel: WheelStep | None) -> np.ndarray:
+        cfg = self.config
+        flt = self._filter
+        cv_step = None
+        if wheel is not None:
+            flt.predict_wheel(wheel)
+        elif k > 0:
+            # No wheels: the last step again (constant velocity), loosely.
+            cv_step = relative(self._online[-2], self._online[-1]) if k > 1 else np.zeros(3)
+            flt.predict_constant_velocity(cv_step)
+        predicted = flt.pose
+        scan = self._extract(frame.depth)
+        self.counts["scan_points"] += len(scan)
+        scan_factor = None
+        if self._map.tree is not None:
+            reg = register(scan, predicted, self._map, flt.pose_information(), cfg.registration)
+            if not reg.ok:
+                self.counts["scans_unmatched"] += 1
+            else:
+                d = reg.pose - predicted
+                if np.hypot(d[0], d[1]) > cfg.max_correction or abs(wrap_angle(d[2])) > cfg.max_correction_angle:
+                    self.counts["scans_refused"] += 1
+                else:
+                    self.counts["scans_registered"] += 1
+                    flt.update_pose(reg.pose, reg.hessian)
+                    anchor = max(0, k - cfg.scan_anchor_lag)
+                    if anchor < k:
+                        scan_factor = (anchor, relative(self._online[anchor], reg.pose),
+                                       information_in_body(reg.hessian, reg.pose[2]))
+        pose = flt.pose
+        last = self._last_insert
+        if len(scan) and (last is None or np.hypot(*(pose[:2] - last[:2])) >= cfg.insert_distance
+                          or abs(wrap_angle(pose[2] - last[2])) >= cfg.insert_angle):
+            self._map.insert(pose, scan)
+            self._last_insert = pose
+        self._smoother.add_frame(pose, wheel, self._wheel_sigmas(wheel), cv_step, scan_factor,
+                                 flt.bias if wheel is not None else None)
+        return pose
+
+    # --- loops and the end ---------------------------------------------------------------------
+    def add_loop(self, frame_i: int, frame_j: int, delta_xyyaw: np.ndarray, information: np.ndarray) -> None:
+        """A constraint: frame j's base pose in frame i's base frame, with 3x3 information in
+        GTSAM's Pose2 tangent (body dx, dy, dyaw)."""
+        n = len(self._online)
+        if not (0 <= frame_i < n and 0 <= frame_j < n):
+            raise InputError(f"front end: loop between frames {frame_i} and {frame_j}, but {n} frames seen")
+        self._smoother.add_loop(frame_i, frame_j, delta_xyyaw, information)
+        self.counts["loops"] += 1
+
+    def online_trajectory(self) -> np.ndarray:
+        return np.array(self._online).reshape(-1, 3)
+
+    def final_trajectory(self) -> np.ndarray:
+        """(N, 3) planar poses of every frame from the smoother over all frames. In wheel mode
+        without loops this is the online trajectory itself."""
+        if self.config.mode == "wheel" and not self._smoother.loops:
+            return self.online_trajectory()
+        return self._smoother.solve()
+
+    def camera_poses(self, xyyaw: np.ndarray) -> np.ndarray:
+        return camera_poses_from_planar(np.asarray(xyyaw).reshape(-1, 3), self.camera_height, self.floor_z)
+
+    @property
+    def stats(self) -> dict[str, Any]:
+        out: dict[str, Any] = dict(self.counts)
+        out["mode"] = self.config.mode
+        out["odometry_source"] = ("wheels" if self._has_wheels else
+                                  "none: scan registration with a constant-velocity prediction")
+        out["ms_per_frame"] = 1000.0 * self._time / max(self.counts["frames"], 1)
+        if self._filter is not None and self._has_wheels and self.config.mode == "fused":
+            out["bias_final"] = [float(b) for b in self._filter.bias]
+        return out

@@ -1,0 +1,97 @@
+"""Point-to-line registration of a 2D scan against the local map, with an optional pose prior.
+
+Gauss-Newton over the robot's planar pose (x, y, yaw) with Huber weights. The scan term's
+Hessian J^T W J / sigma^2 is returned as the information of the result: along a straight
+corridor every line normal points across it, so the Hessian has (near) zero along the corridor
+and a smoother fusing it takes that direction from the other factors.
+
+Pose convention: world point = R(yaw) p + (x, y), yaw perturbed about the robot's position.
+`information_in_body` converts the Hessian to GTSAM's Pose2 tangent (body-frame translation).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from longslam.geometry import wrap_angle
+from longslam.slam.frontend.local_map import LocalMap
+
+
+@dataclass(frozen=True)
+class RegistrationConfig:
+    iterations: int = 10
+    max_match_distance: float = 0.3  # m between a scan point and its nearest map point
+    huber: float = 0.05  # m
+    sigma: float = 0.03  # m, point-to-line noise of one scan point
+    # Neighbouring 5 cm cells of one wall are not independent views: the Hessian is divided by
+    # this so the smoother does not take a 200-point scan as 200 independent measurements.
+    correlation: float = 10.0
+    min_matches: int = 15
+    tolerance: float = 1e-4  # step norm that ends the iterations
+
+
+@dataclass
+class RegistrationResult:
+    pose: np.ndarray  # (3,) x, y, yaw
+    hessian: np.ndarray  # (3, 3) information of the scan term alone, world x, y and yaw
+    matches: int
+    rmse: float  # m, point-to-line, matched points
+    ok: bool
+
+
+def register(scan_xy: np.ndarray, guess: np.ndarray, local_map: LocalMap,
+             prior_information: np.ndarray | None = None, config: RegistrationConfig | None = None) -> RegistrationResult:
+    """Align base-frame `scan_xy` (N, 2) to `local_map`, starting at (and pulled towards,
+    with `prior_information`) the planar pose `guess`."""
+    cfg = config or RegistrationConfig()
+    guess = np.asarray(guess, dtype=np.float64)
+    pose = guess.copy()
+    empty = RegistrationResult(pose, np.zeros((3, 3)), 0, float("nan"), False)
+    if local_map.tree is None or len(scan_xy) < cfg.min_matches:
+        return empty
+    prior = np.zeros((3, 3)) if prior_information is None else np.asarray(prior_information, dtype=np.float64)
+    hessian = np.zeros((3, 3))
+    matches, rmse = 0, float("nan")
+    for _ in range(cfg.iterations):
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        rotated = scan_xy @ np.array([[c, s], [-s, c]])
+        world = rotated + pose[:2]
+        dist, idx = local_map.tree.query(world, k=1, distance_upper_bound=cfg.max_match_distance)
+        hit = np.isfinite(dist)
+        matches = int(hit.sum())
+        if matches < cfg.min_matches:
+            return empty
+        n = local_map.normals[idx[hit]]
+        q = local_map.points[idx[hit]]
+        rot = rotated[hit]
+        r = np.einsum("ij,ij->i", n, world[hit] - q)
+        # d(world)/d(yaw) = perpendicular of the rotated point.
+        j = np.column_stack([n[:, 0], n[:, 1], n[:, 0] * -rot[:, 1] + n[:, 1] * rot[:, 0]])
+        a = np.abs(r)
+        w = np.where(a <= cfg.huber, 1.0, cfg.huber / np.maximum(a, 1e-12))
+        scale = 1.0 / (cfg.sigma ** 2 * cfg.correlation)
+        hessian = (j * w[:, None]).T @ j * scale
+        gradient = (j * (w * r)[:, None]).sum(axis=0) * scale
+        diff = pose - guess
+        diff[2] = wrap_angle(diff[2])
+        lhs = hessian + prior
+        rhs = -(gradient + prior @ diff)
+        try:
+            delta = np.linalg.solve(lhs + 1e-9 * np.eye(3), rhs)
+        except np.linalg.LinAlgError:
+            return empty
+        pose = pose + delta
+        pose[2] = float(wrap_angle(pose[2]))
+        rmse = float(np.sqrt(np.mean(r * r)))
+        if np.linalg.norm(delta) < cfg.tolerance:
+            break
+    return RegistrationResult(pose, hessian, matches, rmse, True)
+
+
+def information_in_body(hessian_world: np.ndarray, yaw: float) -> np.ndarray:
+    """World (x, y, yaw) information -> GTSAM Pose2 tangent (body dx, dy, dyaw) information."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    a = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return a.T @ hessian_world @ a

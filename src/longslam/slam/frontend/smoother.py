@@ -1,0 +1,261 @@
+"""The two estimators of the front end over planar poses (x, y, yaw).
+
+`BiasFilter` runs online, one frame at a time: an extended Kalman filter over the pose and the
+two wheel biases of the noise model (metres per frame added to the forward step while the
+robot translates; radians per frame added to the heading change), which is the fixed-lag
+smoother of lag one. Its pose feeds the local map and is what `step` returns.
+
+`FullSmoother` runs at the end, over every frame, with GTSAM: the same wheel factors (lateral
+step held tight, the biases as slowly varying states, one per block of frames), the scan-to-map
+factors (information = the registration's Hessian), and the loop closures a method adds. The
+final trajectory comes from it, so a loop correction spreads as smooth curvature.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+
+from longslam.geometry import wrap_angle
+
+X = gtsam.symbol_shorthand.X
+B = gtsam.symbol_shorthand.B
+
+
+@dataclass(frozen=True)
+class MotionNoise:
+    """Per-frame noise of the wheel step and of its biases (stds)."""
+
+    forward_min: float = 0.003  # m
+    forward_rel: float = 0.01  # fraction of the forward step
+    lateral: float = 0.001  # m: wheels do not slip sideways
+    yaw_min: float = 0.0005  # rad
+    yaw_rel: float = 0.01  # fraction of the heading change
+    # Bias random walks per frame: the biases hold for seconds, so they move little per frame,
+    # yet fast enough to follow a new value within a few seconds.
+    bias_forward_walk: float = 0.0008  # m/frame per frame
+    bias_yaw_walk: float = 0.00003  # rad/frame per frame
+    bias_forward_init: float = 0.01  # m/frame
+    bias_yaw_init: float = 0.0005  # rad/frame
+    # Without wheels: a constant-velocity prediction, loose in every direction.
+    cv_forward: float = 0.05  # m
+    cv_lateral: float = 0.02  # m
+    cv_yaw: float = 0.03  # rad
+
+
+@dataclass
+class WheelStep:
+    forward: float
+    lateral: float
+    yaw: float
+    moving: bool
+
+
+def _rot(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+def compose(pose: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    out = np.empty(3)
+    out[:2] = pose[:2] + _rot(pose[2]) @ delta[:2]
+    out[2] = wrap_angle(pose[2] + delta[2])
+    return out
+
+
+def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """b expressed in a's frame."""
+    out = np.empty(3)
+    out[:2] = _rot(a[2]).T @ (b[:2] - a[:2])
+    out[2] = wrap_angle(b[2] - a[2])
+    return out
+
+
+class BiasFilter:
+    """EKF over [x, y, yaw, forward bias, yaw bias]."""
+
+    def __init__(self, pose: np.ndarray, noise: MotionNoise, use_bias: bool = True):
+        self.noise = noise
+        self.use_bias = use_bias
+        self.state = np.zeros(5)
+        self.state[:3] = pose
+        self.cov = np.diag([1e-8, 1e-8, 1e-10, noise.bias_forward_init ** 2, noise.bias_yaw_init ** 2])
+
+    @property
+    def pose(self) -> np.ndarray:
+        return self.state[:3].copy()
+
+    @property
+    def bias(self) -> np.ndarray:
+        return self.state[3:].copy()
+
+    def predict_wheel(self, step: WheelStep) -> None:
+        n = self.noise
+        mv = 1.0 if step.moving else 0.0
+        b = self.state[3:] if self.use_bias else np.zeros(2)
+        f, l, dth = step.forward - b[0] * mv, step.lateral, step.yaw - b[1]
+        sigmas = np.array([n.forward_min + n.forward_rel * abs(f), n.lateral, n.yaw_min + n.yaw_rel * abs(dth)])
+        jac_bias = np.array([[-mv, 0.0], [0.0, 0.0], [0.0, -1.0]]) if self.use_bias else np.zeros((3, 2))
+        walk = np.array([n.bias_forward_walk, n.bias_yaw_walk]) if self.use_bias else np.zeros(2)
+        self._predict(np.array([f, l, dth]), sigmas, jac_bias, walk)
+
+    def predict_constant_velocity(self, step: np.ndarray) -> None:
+        n = self.noise
+        self._predict(np.asarray(step, dtype=np.float64), np.array([n.cv_forward, n.cv_lateral, n.cv_yaw]),
+                      np.zeros((3, 2)), np.zeros(2))
+
+    def _predict(self, delta: np.ndarray, sigmas: np.ndarray, jac_bias: np.ndarray, walk: np.ndarray) -> None:
+        th = self.state[2]
+        c, s = np.cos(th), np.sin(th)
+        g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # body step -> world
+        f_mat = np.eye(5)
+        f_mat[0, 2] = -s * delta[0] - c * delta[1]
+        f_mat[1, 2] = c * delta[0] - s * delta[1]
+        f_mat[:3, 3:] = g @ jac_bias
+        q = np.zeros((5, 5))
+        q[:3, :3] = g @ np.diag(sigmas ** 2) @ g.T
+        q[3:, 3:] = np.diag(walk ** 2)
+        self.state[:3] = compose(self.state[:3], delta)
+        self.cov = f_mat @ self.cov @ f_mat.T + q
+
+    def pose_information(self) -> np.ndarray:
+        """Information of the marginal pose (world x, y, yaw): the prior of the registration."""
+        return np.linalg.inv(self.cov[:3, :3])
+
+    def update_pose(self, joint_pose: np.ndarray, scan_hessian: np.ndarray) -> None:
+        """Fuse a scan-to-map result solved jointly with this filter's pose prior.
+
+        The joint optimum z of prior (x, P) and scan term (H) satisfies
+        P^-1 (z - x) + H (z - z_scan) = 0, so H (z_scan - x) = (H + P^-1)(z - x): the scan's
+        information vector is known even where H is singular (along a corridor).
+        """
+        d = np.asarray(joint_pose, dtype=np.float64) - self.state[:3]
+        d[2] = wrap_angle(d[2])
+        info_vec = (scan_hessian + self.pose_information()) @ d
+        lam = np.linalg.inv(self.cov)
+        lam[:3, :3] += scan_hessian
+        cov = np.linalg.inv(lam)
+        cov = 0.5 * (cov + cov.T)
+        self.state += cov[:, :3] @ info_vec
+        self.state[2] = wrap_angle(self.state[2])
+        self.cov = cov
+
+
+def _gaussian(information: np.ndarray) -> gtsam.noiseModel.Base:
+    info = 0.5 * (information + information.T) + 1e-6 * np.eye(len(information))
+    return gtsam.noiseModel.Gaussian.Information(info)
+
+
+def _wheel_error(step: WheelStep, this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list | None) -> np.ndarray:
+    keys = this.keys()
+    x1, x2 = values.atPose2(keys[0]), values.atPose2(keys[1])
+    bias = values.atPoint2(keys[2]) if len(keys) > 2 else np.zeros(2)
+    mv = 1.0 if step.moving else 0.0
+    th = step.yaw - bias[1]
+    pred = gtsam.Pose2(step.forward - bias[0] * mv, step.lateral, th)
+    h1, h2 = np.zeros((3, 3), order="F"), np.zeros((3, 3), order="F")
+    delta = x1.between(x2, h1, h2)
+    hp, hd = np.zeros((3, 3), order="F"), np.zeros((3, 3), order="F")
+    err = pred.between(delta, hp, hd)
+    e = gtsam.Pose2.Logmap(err)
+    if jacobians is not None:
+        # Logmap's Jacobian is the identity to first order at the small errors met here.
+        jacobians[0] = hd @ h1
+        jacobians[1] = hd @ h2
+        if len(keys) > 2:
+            c, s = np.cos(th), np.sin(th)
+            dpred_dbias = np.array([[-mv * c, 0.0], [mv * s, 0.0], [0.0, -1.0]])
+            jacobians[2] = hp @ dpred_dbias
+    return e
+
+
+@dataclass
+class SmootherConfig:
+    bias_block: int = 10  # frames sharing one bias state
+    iterations: int = 50
+
+
+@dataclass
+class _Record:
+    wheel: WheelStep | None
+    wheel_sigmas: np.ndarray | None
+    cv_step: np.ndarray | None  # constant-velocity prediction used without wheels
+    scan: tuple[int, np.ndarray, np.ndarray] | None  # anchor frame, relative measurement, body information
+
+
+class FullSmoother:
+    """Batch smoother over every frame (GTSAM Levenberg-Marquardt)."""
+
+    def __init__(self, noise: MotionNoise, config: SmootherConfig | None = None, use_bias: bool = True):
+        self.noise = noise
+        self.config = config or SmootherConfig()
+        self.use_bias = use_bias
+        self.initial: list[np.ndarray] = []
+        self.records: list[_Record] = []
+        self.loops: list[tuple[int, int, np.ndarray, np.ndarray]] = []
+        self.bias_init: dict[int, np.ndarray] = {}
+
+    def add_frame(self, online_pose: np.ndarray, wheel: WheelStep | None, wheel_sigmas: np.ndarray | None,
+                  cv_step: np.ndarray | None, scan: tuple[int, np.ndarray, np.ndarray] | None,
+                  bias: np.ndarray | None) -> None:
+        k = len(self.initial)
+        self.initial.append(np.asarray(online_pose, dtype=np.float64).copy())
+        self.records.append(_Record(wheel, wheel_sigmas, cv_step, scan))
+        block = k // self.config.bias_block
+        if bias is not None and block not in self.bias_init:
+            self.bias_init[block] = np.asarray(bias, dtype=np.float64).copy()
+
+    def add_loop(self, i: int, j: int, delta: np.ndarray, information: np.ndarray) -> None:
+        self.loops.append((int(i), int(j), np.asarray(delta, dtype=np.float64), np.asarray(information, dtype=np.float64)))
+
+    def solve(self) -> np.ndarray:
+        n = len(self.initial)
+        if n == 0:
+            return np.zeros((0, 3))
+        nz = self.noise
+        graph = gtsam.NonlinearFactorGraph()
+        values = gtsam.Values()
+        for k, p in enumerate(self.initial):
+            values.insert(X(k), gtsam.Pose2(*p))
+        graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(*self.initial[0]), gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-4, 1e-4, 1e-5]))))
+        blocks_used: set[int] = set()
+        for k in range(1, n):
+            rec = self.records[k]
+            if rec.wheel is not None:
+                model = gtsam.noiseModel.Diagonal.Sigmas(rec.wheel_sigmas)
+                keys = [X(k - 1), X(k)]
+                if self.use_bias:
+                    block = (k - 1) // self.config.bias_block
+                    keys.append(B(block))
+                    blocks_used.add(block)
+                step = rec.wheel
+                graph.add(gtsam.CustomFactor(model, keys, lambda this, v, h, step=step: _wheel_error(step, this, v, h)))
+            elif rec.cv_step is not None:
+                model = gtsam.noiseModel.Diagonal.Sigmas(np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]))
+                graph.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), gtsam.Pose2(*rec.cv_step), model))
+            if rec.scan is not None:
+                anchor, meas, info = rec.scan
+                graph.add(gtsam.BetweenFactorPose2(X(anchor), X(k), gtsam.Pose2(*meas), _gaussian(info)))
+        if blocks_used:
+            blocks = sorted(blocks_used)
+            last = np.zeros(2)
+            for b in range(blocks[0], blocks[-1] + 1):
+                last = self.bias_init.get(b, last)
+                values.insert(B(b), gtsam.Point2(*last))
+            graph.add(gtsam.PriorFactorPoint2(B(blocks[0]), gtsam.Point2(0.0, 0.0),
+                                              gtsam.noiseModel.Diagonal.Sigmas(np.array([nz.bias_forward_init, nz.bias_yaw_init]))))
+            walk = np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
+            for b in range(blocks[0], blocks[-1]):
+                graph.add(gtsam.BetweenFactorPoint2(B(b), B(b + 1), gtsam.Point2(0.0, 0.0), gtsam.noiseModel.Diagonal.Sigmas(walk)))
+        for i, j, delta, info in self.loops:
+            graph.add(gtsam.BetweenFactorPose2(X(i), X(j), gtsam.Pose2(*delta), _gaussian(info)))
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(self.config.iterations)
+        result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+        out = np.empty((n, 3))
+        for k in range(n):
+            p = result.atPose2(X(k))
+            out[k] = (p.x(), p.y(), p.theta())
+        return out
