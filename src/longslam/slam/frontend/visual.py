@@ -1,0 +1,107 @@
+"""Frame-to-frame planar motion from image texture: tracked corners with depth on both ends.
+
+In a straight corridor the depth band sees two parallel walls and nothing along the way, but
+the floor, doors and posters carry texture. Corners are tracked with pyramidal Lucas-Kanade
+(forward-backward checked), lifted to 3D with each frame's depth, and the planar rigid motion
+of the robot base is fitted (2D Kabsch) to the pairs that agree with a predicted step. The
+caller gates the result against the wheels: an RGB-D step is only trusted when it is near them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from longslam.frame import Intrinsics
+
+
+@dataclass(frozen=True)
+class VisualConfig:
+    max_corners: int = 150
+    quality: float = 0.01
+    min_distance: int = 7  # px between corners
+    window: int = 11  # px, LK window
+    levels: int = 2
+    max_range: float = 4.0  # m: farther points move by under a pixel per step
+    max_fb_error: float = 0.5  # px, forward-backward tracking disagreement
+    inlier: float = 0.03  # m, a pair agreeing with the fitted step
+    first_inlier: float = 0.08  # m, around the predicted step
+    min_inliers: int = 20
+
+
+@dataclass
+class VisualStep:
+    step: np.ndarray  # (3,) current base pose in the previous base frame
+    inliers: int
+    rms: float  # m
+
+
+def _kabsch_2d(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R, t minimising |R src + t - dst|."""
+    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    h = (src - cs).T @ (dst - cd)
+    angle = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.array([[c, -s], [s, c]])
+    return rot, cd - rot @ cs
+
+
+class VisualOdometry:
+    def __init__(self, intrinsics: Intrinsics, camera_in_base: np.ndarray, config: VisualConfig | None = None):
+        self.config = config or VisualConfig()
+        self.k = intrinsics
+        self.pose = np.asarray(camera_in_base, dtype=np.float64)
+        self._prev: tuple[np.ndarray, np.ndarray] | None = None  # gray, depth
+
+    def _lift(self, pts: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel positions -> base-frame xy (N, 2) and a validity mask."""
+        h, w = depth.shape
+        u = np.clip(np.rint(pts[:, 0]).astype(np.int64), 0, w - 1)
+        v = np.clip(np.rint(pts[:, 1]).astype(np.int64), 0, h - 1)
+        z = depth[v, u].astype(np.float64)
+        ok = np.isfinite(z) & (z > 0) & (z <= self.config.max_range)
+        cam = np.column_stack([(pts[:, 0] - self.k.cx) / self.k.fx * z, (pts[:, 1] - self.k.cy) / self.k.fy * z, z])
+        base = cam @ self.pose[:3, :3].T + self.pose[:3, 3]
+        return base[:, :2], ok
+
+    def __call__(self, rgb: np.ndarray, depth: np.ndarray, predicted: np.ndarray,
+                 first_inlier: float | None = None) -> VisualStep | None:
+        """The step from the previous frame to this one, fitted around `predicted` (x, y, yaw);
+        pairs within `first_inlier` metres of the prediction start the fit."""
+        cfg = self.config
+        gray = cv2.cvtColor(np.asarray(rgb), cv2.COLOR_RGB2GRAY)
+        depth = np.asarray(depth, dtype=np.float32)
+        prev, self._prev = self._prev, (gray, depth)
+        if prev is None:
+            return None
+        g0, d0 = prev
+        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, cfg.min_distance)
+        if p0 is None or len(p0) < cfg.min_inliers:
+            return None
+        lk = dict(winSize=(cfg.window, cfg.window), maxLevel=cfg.levels)
+        p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, p0, None, **lk)
+        back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, None, **lk)
+        fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)
+        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
+        a, ok0 = self._lift(p0.reshape(-1, 2), d0)
+        b, ok1 = self._lift(p1.reshape(-1, 2), depth)
+        good &= ok0 & ok1
+        if good.sum() < cfg.min_inliers:
+            return None
+        a, b = a[good], b[good]  # a = R b + t for the step (R, t) of the current base in the previous
+        c, s = np.cos(predicted[2]), np.sin(predicted[2])
+        rot, t = np.array([[c, -s], [s, c]]), np.asarray(predicted[:2], dtype=np.float64)
+        threshold = cfg.first_inlier if first_inlier is None else first_inlier
+        inl = np.zeros(len(a), dtype=bool)
+        for _ in range(3):
+            res = np.linalg.norm(b @ rot.T + t - a, axis=1)
+            inl = res < threshold
+            if inl.sum() < cfg.min_inliers:
+                return None
+            rot, t = _kabsch_2d(b[inl], a[inl])
+            threshold = cfg.inlier
+        res = np.linalg.norm(b[inl] @ rot.T + t - a[inl], axis=1)
+        step = np.array([t[0], t[1], np.arctan2(rot[1, 0], rot[0, 0])])
+        return VisualStep(step, int(inl.sum()), float(np.sqrt(np.mean(res ** 2))))
