@@ -64,6 +64,8 @@ class FrontEndConfig:
     # scatter (0.002 rad) made the heading error grow (0.34 -> 0.75 deg mean, ATE 0.17 -> 0.45 m
     # online): the tracked step is not free of a heading bias. The wheels and scans hold heading.
     visual_sigma_yaw: float = 0.05  # rad per step
+    # Without wheels the visual step is the motion itself: its measured per-step scatter.
+    visual_sigmas_no_wheels: tuple[float, float, float] = (0.004, 0.005, 0.002)  # m, m, rad
     scan: ScanConfig = field(default_factory=ScanConfig)
     visual_tracking: VisualConfig = field(default_factory=VisualConfig)
     local_map: LocalMapConfig = field(default_factory=LocalMapConfig)
@@ -191,7 +193,7 @@ class FrontEnd:
             bias = flt.bias if cfg.use_bias else np.zeros(2)
             expected = np.array([wheel.forward - (bias[0] if wheel.moving else 0.0), wheel.lateral, wheel.yaw - bias[1]])
             flt.predict_wheel(wheel)
-            visual = self._visual_step(frame, expected, cfg.visual_gate_distance, cfg.visual_gate_angle, None)
+            visual = self._visual_step(frame, expected, cfg.visual_gate_distance, cfg.visual_gate_angle)
             if visual is not None and cfg.use_bias:
                 raw = np.array([wheel.forward, wheel.yaw])
                 n = cfg.noise
@@ -203,7 +205,8 @@ class FrontEnd:
             # velocity), loosely.
             cv = relative(self._online[-2], self._online[-1]) if k > 1 else np.zeros(3)
             visual = self._visual_step(frame, cv, cfg.visual_gate_distance_no_wheels, cfg.visual_gate_angle_no_wheels,
-                                       cfg.visual_gate_distance_no_wheels)
+                                       ransac=True)
+            vis_sigmas = np.asarray(cfg.visual_sigmas_no_wheels, dtype=np.float64)
             if visual is not None:
                 flt.predict_step(visual, vis_sigmas)
             else:
@@ -242,10 +245,11 @@ class FrontEnd:
         return pose
 
     def _visual_step(self, frame: Frame, expected: np.ndarray, gate_distance: float, gate_angle: float,
-                     first_inlier: float | None) -> np.ndarray | None:
+                     ransac: bool = False) -> np.ndarray | None:
+        """The gated RGB-D step; with `ransac`, fitted without starting from `expected`."""
         if self._visual is None:
             return None
-        res = self._visual(frame.rgb, frame.depth, expected, first_inlier)
+        res = self._visual(frame.rgb, frame.depth, None if ransac else expected)
         if res is None:
             self.counts["visual_failed"] += 1
             return None
@@ -284,7 +288,7 @@ class FrontEnd:
         out: dict[str, Any] = dict(self.counts)
         out["mode"] = self.config.mode
         out["odometry_source"] = ("wheels" if self._has_wheels else
-                                  "none: scan registration with a constant-velocity prediction")
+                                  "none: visual steps and scan registration (constant velocity where tracking fails)")
         out["ms_per_frame"] = 1000.0 * self._time / max(self.counts["frames"], 1)
         if self._filter is not None and self._has_wheels and self.config.mode == "fused":
             out["bias_final"] = [float(b) for b in self._filter.bias]

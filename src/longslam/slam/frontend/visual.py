@@ -49,8 +49,10 @@ def _kabsch_2d(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 class VisualOdometry:
-    def __init__(self, intrinsics: Intrinsics, camera_in_base: np.ndarray, config: VisualConfig | None = None):
+    def __init__(self, intrinsics: Intrinsics, camera_in_base: np.ndarray, config: VisualConfig | None = None,
+                 seed: int = 0):
         self.config = config or VisualConfig()
+        self.rng = np.random.default_rng(seed)
         self.k = intrinsics
         self.pose = np.asarray(camera_in_base, dtype=np.float64)
         self._prev: tuple[np.ndarray, np.ndarray] | None = None  # gray, depth
@@ -66,10 +68,11 @@ class VisualOdometry:
         base = cam @ self.pose[:3, :3].T + self.pose[:3, 3]
         return base[:, :2], ok
 
-    def __call__(self, rgb: np.ndarray, depth: np.ndarray, predicted: np.ndarray,
+    def __call__(self, rgb: np.ndarray, depth: np.ndarray, predicted: np.ndarray | None,
                  first_inlier: float | None = None) -> VisualStep | None:
         """The step from the previous frame to this one, fitted around `predicted` (x, y, yaw);
-        pairs within `first_inlier` metres of the prediction start the fit."""
+        pairs within `first_inlier` metres of the prediction start the fit. Without a
+        prediction (no wheels), a two-point RANSAC finds the starting step."""
         cfg = self.config
         gray = cv2.cvtColor(np.asarray(rgb), cv2.COLOR_RGB2GRAY)
         depth = np.asarray(depth, dtype=np.float32)
@@ -77,7 +80,10 @@ class VisualOdometry:
         if prev is None:
             return None
         g0, d0 = prev
-        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, cfg.min_distance)
+        # Corners only where depth is near: in a hall most corners are on a ceiling or walls
+        # beyond max_range, and they would crowd out the floor texture that fixes the step.
+        mask = ((d0 > 0) & (d0 <= cfg.max_range)).astype(np.uint8)
+        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, cfg.min_distance, mask=mask)
         if p0 is None or len(p0) < cfg.min_inliers:
             return None
         lk = dict(winSize=(cfg.window, cfg.window), maxLevel=cfg.levels)
@@ -91,6 +97,9 @@ class VisualOdometry:
         if good.sum() < cfg.min_inliers:
             return None
         a, b = a[good], b[good]  # a = R b + t for the step (R, t) of the current base in the previous
+        if predicted is None:
+            predicted = self._ransac(a, b)
+            first_inlier = cfg.inlier
         c, s = np.cos(predicted[2]), np.sin(predicted[2])
         rot, t = np.array([[c, -s], [s, c]]), np.asarray(predicted[:2], dtype=np.float64)
         threshold = cfg.first_inlier if first_inlier is None else first_inlier
@@ -105,3 +114,17 @@ class VisualOdometry:
         res = np.linalg.norm(b[inl] @ rot.T + t - a[inl], axis=1)
         step = np.array([t[0], t[1], np.arctan2(rot[1, 0], rot[0, 0])])
         return VisualStep(step, int(inl.sum()), float(np.sqrt(np.mean(res ** 2))))
+
+    def _ransac(self, a: np.ndarray, b: np.ndarray, hypotheses: int = 64) -> np.ndarray:
+        """Best planar step (x, y, yaw) with a = R b + t over random pairs of pairs, all at once."""
+        i = self.rng.integers(0, len(a), size=(hypotheses, 2))
+        da, db = a[i[:, 1]] - a[i[:, 0]], b[i[:, 1]] - b[i[:, 0]]
+        angle = np.arctan2(da[:, 1], da[:, 0]) - np.arctan2(db[:, 1], db[:, 0])
+        c, s = np.cos(angle), np.sin(angle)
+        b0 = b[i[:, 0]]
+        t = a[i[:, 0]] - np.column_stack([c * b0[:, 0] - s * b0[:, 1], s * b0[:, 0] + c * b0[:, 1]])
+        px = c[:, None] * b[None, :, 0] - s[:, None] * b[None, :, 1] + t[:, :1]
+        py = s[:, None] * b[None, :, 0] + c[:, None] * b[None, :, 1] + t[:, 1:]
+        inliers = ((px - a[None, :, 0]) ** 2 + (py - a[None, :, 1]) ** 2 < self.config.inlier ** 2).sum(axis=1)
+        best = int(np.argmax(inliers))
+        return np.array([t[best, 0], t[best, 1], angle[best]])
