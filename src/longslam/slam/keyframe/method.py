@@ -21,7 +21,16 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.geometry import base_to_camera, camera_poses_from_planar, invert, planar_from_camera_poses, wrap_angle
+from longslam.geometry import (
+    CameraMount,
+    PlanarOdometry,
+    compose_xyyaw,
+    invert,
+    pose_from_xyyaw,
+    relative_xyyaw,
+    wrap_angle,
+    xyyaw_of_transform,
+)
 from longslam.slam.base import MethodContext, Result, frame_odometry
 from longslam.slam.features import Features, extract
 from longslam.slam.keyframe.config import KeyframeConfig
@@ -29,7 +38,7 @@ from longslam.slam.memory_db import MemoryDatabase
 from longslam.slam.occupancy import LocalGrid, assemble, depth_points_in_base, local_grid
 from longslam.slam.params import config_from_params
 from longslam.slam.place_recognition import Vocabulary, refine_3d, verify
-from longslam.slam.pose_graph import PoseGraph2D, compose_xyyaw, relative_xyyaw
+from longslam.slam.graph import PoseGraph
 from longslam.slam.registry import METHODS
 from longslam.trajectory import Trajectory
 
@@ -66,16 +75,13 @@ class KeyframeMethod:
         self.db_path = Path(folder) / "memory.db"
         self.db = MemoryDatabase(self.db_path)
         self.vocabulary = Vocabulary(self.config.word_distance, self.config.max_words)
-        self.graph = PoseGraph2D()
+        self.graph = PoseGraph()
         self.nodes: dict[int, Node] = {}
         self.estimates: dict[int, np.ndarray] = {}
         self.stm: deque[int] = deque()
         self.wm: set[int] = set()
-        self._camera_in_base: np.ndarray | None = None
-        self._floor_z = 0.0
-        self._camera_height = 0.0
-        self._raw_prev: np.ndarray | None = None
-        self._odom: np.ndarray | None = None  # corrected odometry of the latest frame
+        self._mount: CameraMount | None = None
+        self._odometry: PlanarOdometry | None = None
         self._last_node: Node | None = None
         self._frame_stamps: list[float] = []
         self._frame_node: list[int] = []
@@ -98,7 +104,7 @@ class KeyframeMethod:
             self._add_node(frame, odom)
         node = self._last_node
         xyyaw = compose_xyyaw(self.estimates[node.id], relative_xyyaw(node.odom, odom))
-        pose = camera_poses_from_planar(xyyaw[None], self._camera_height, self._floor_z)[0]
+        pose = self._mount.to_camera(xyyaw[None])[0]
         self._frame_stamps.append(frame.timestamp)
         self._frame_node.append(node.id)
         self._frame_odom.append(odom)
@@ -107,21 +113,13 @@ class KeyframeMethod:
 
     def _corrected_odometry(self, camera_pose: np.ndarray) -> np.ndarray:
         """Planar odometry with jumps (a step no robot makes in one frame) replaced by no motion."""
-        if self._camera_in_base is None:
-            self._camera_height = self.config.camera_height or float(camera_pose[2, 3])
-            self._floor_z = float(camera_pose[2, 3]) - self._camera_height
-            self._camera_in_base = base_to_camera(self._camera_height)
-        raw = planar_from_camera_poses(camera_pose[None], self._camera_height)[0]
-        if self._odom is None:
-            self._raw_prev, self._odom = raw, raw
-            return raw
-        delta = relative_xyyaw(self._raw_prev, raw)
-        self._raw_prev = raw
-        if np.hypot(delta[0], delta[1]) > self.config.jump_distance or abs(delta[2]) > self.config.jump_angle:
-            self.counts["odometry_jumps"] += 1
-            delta = np.zeros(3)
-        self._odom = compose_xyyaw(self._odom, delta)
-        return self._odom
+        if self._odometry is None:
+            self._mount = CameraMount.from_first_pose(camera_pose, self.config.camera_height)
+            self._camera_in_base = self._mount.camera_in_base
+            self._odometry = PlanarOdometry(self._mount, self.config.jump_distance, self.config.jump_angle)
+        pose = self._odometry.update(camera_pose)
+        self.counts["odometry_jumps"] = self._odometry.jumps
+        return pose
 
     def _is_new_node(self, stamp: float, odom: np.ndarray) -> bool:
         last = self._last_node
@@ -162,7 +160,7 @@ class KeyframeMethod:
             self.estimates[node_id] = compose_xyyaw(self.estimates[previous.id], delta)
             self.graph.add_node(node_id, self.estimates[node_id])
             self.graph.add_odometry(previous.id, node_id, delta, sigmas)
-            self.db.put_link(previous.id, node_id, "odometry", _planar_matrix(delta), np.diag(1.0 / np.square(sigmas)))
+            self.db.put_link(previous.id, node_id, "odometry", pose_from_xyyaw(delta), np.diag(1.0 / np.square(sigmas)))
         self._last_node = node
         self.counts["nodes"] += 1
 
@@ -265,16 +263,13 @@ class KeyframeMethod:
             self.counts[f"{prefix}_rejected_verification"] += 1
             return False
         sigmas = np.array([cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular])
-        edge = self.graph.add_loop(cand_id, node.id, delta, sigmas, robust=False)
-        self._optimize()
-        worst = max((e for e in self.graph.edge_errors(None)), key=lambda e: max(e.translation_error, e.rotation_error))
-        if max(worst.translation_error, worst.rotation_error) > cfg.optimize_max_error:
-            self.graph.remove_edge(edge)
-            self._optimize()
+        check = self.graph.try_loop(cand_id, node.id, delta, sigmas=sigmas, max_error=cfg.optimize_max_error, check="graph")
+        self._take_estimates()
+        if not check.accepted:
             self.counts[f"{prefix}_rejected_graph"] += 1
             return False
         self.counts["loops_accepted" if kind == "loop" else "proximity_accepted"] += 1
-        self.db.put_link(cand_id, node.id, kind, _planar_matrix(delta), np.diag(1.0 / np.square(sigmas)))
+        self.db.put_link(cand_id, node.id, kind, pose_from_xyyaw(delta), np.diag(1.0 / np.square(sigmas)))
         candidate.last_access = node.id
         self._retrieve_around(cand_id)
         return True
@@ -286,13 +281,12 @@ class KeyframeMethod:
         tilt = np.arccos(np.clip(base[2, 2], -1.0, 1.0))
         if abs(base[2, 3]) > MAX_LOOP_Z or tilt > MAX_LOOP_TILT:
             return None
-        return np.array([base[0, 3], base[1, 3], np.arctan2(base[1, 0], base[0, 0])])
+        return xyyaw_of_transform(base)
 
-    def _optimize(self) -> None:
-        result = self.graph.optimize(warm_start=True)
-        self.counts["optimizations"] += 1
-        for node_id, xyyaw in result.items():
-            self.estimates[node_id] = np.asarray(xyyaw)
+    def _take_estimates(self) -> None:
+        for node_id in self.graph.nodes:
+            self.estimates[node_id] = self.graph.estimate(node_id)
+        self.counts["optimizations"] = self.graph.optimizations
 
     # --- memory management ---------------------------------------------------------------------
     def _enforce_memory_budget(self) -> None:
@@ -311,8 +305,8 @@ class KeyframeMethod:
             "points3d": node.features.points, "grid_obstacles": node.grid.obstacles,
             "grid_free": node.grid.free, "cloud": node.points,
         }
-        pose = camera_poses_from_planar(self.estimates[node_id][None], self._camera_height, self._floor_z)[0]
-        odom = camera_poses_from_planar(node.odom[None], self._camera_height, self._floor_z)[0]
+        pose = self._mount.to_camera(self.estimates[node_id][None])[0]
+        odom = self._mount.to_camera(node.odom[None])[0]
         self.db.put_node(node_id, node.stamp, pose, odom, arrays, weight=node.last_access)
         self.vocabulary.remove(node_id)
         self.wm.discard(node_id)
@@ -382,9 +376,10 @@ class KeyframeMethod:
         if not self._frame_stamps:
             raise InputError("the keyframe method got no frames")
         if self.graph.num_loops:
-            self._optimize()
+            self.graph.optimize(warm_start=True)
+            self._take_estimates()
         final = self._final_planar_poses()
-        poses = camera_poses_from_planar(final, self._camera_height, self._floor_z)
+        poses = self._mount.to_camera(final)
         trajectory = Trajectory(np.array(self._frame_stamps), poses, source="keyframe")
         online = Trajectory(np.array(self._frame_stamps), np.array(self._online), source="keyframe online")
 
@@ -396,7 +391,9 @@ class KeyframeMethod:
             node = self.nodes[node_id]
             grid, points = (node.grid, node.points) if node.in_ram else self._load(node_id)[1:]
             grids.append(grid)
-            node_pose = camera_poses_from_planar(self.estimates[node_id][None], 0.0, self._floor_z)[0]
+            # Node points are in the robot base frame (z up from the floor), so they move with the
+            # base's pose on the floor, not with the camera's.
+            node_pose = self._mount.base_pose(self.estimates[node_id])
             clouds.append(points @ node_pose[:3, :3].T + node_pose[:3, 3])
             node_poses.append(self.estimates[node_id])
         grid_map = assemble(grids, np.array(node_poses), self.config.grid_cell)
@@ -405,8 +402,7 @@ class KeyframeMethod:
         # The database ends holding every node at its optimised pose, so a user can reopen it.
         for node_id in sorted(self.wm | set(self.stm)):
             self._transfer(node_id, count=False)
-        self.db.update_poses({i: camera_poses_from_planar(self.estimates[i][None], self._camera_height, self._floor_z)[0]
-                              for i in self.nodes})
+        self.db.update_poses({i: self._mount.to_camera(self.estimates[i][None])[0] for i in self.nodes})
         stats = dict(self.counts)
         stats.update(
             wm_nodes=wm_nodes, stm_nodes=stm_nodes, ltm_nodes=ltm_nodes,
@@ -419,14 +415,6 @@ class KeyframeMethod:
         if self._own_dir is not None:
             shutil.rmtree(self._own_dir, ignore_errors=True)
         return Result(trajectory=trajectory, online=online, grid=grid_map, cloud=cloud, stats=stats)
-
-
-def _planar_matrix(xyyaw: np.ndarray) -> np.ndarray:
-    c, s = np.cos(xyyaw[2]), np.sin(xyyaw[2])
-    m = np.eye(4)
-    m[:2, :2] = [[c, -s], [s, c]]
-    m[:2, 3] = xyyaw[:2]
-    return m
 
 
 def _voxel_filter(points: np.ndarray, voxel: float) -> np.ndarray:
