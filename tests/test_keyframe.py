@@ -13,10 +13,10 @@ from longslam.recording import simulate
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
-from longslam.slam.base import MethodContext
+from longslam.slam.api import MethodContext
 from longslam.slam.keyframe import KeyframeConfig, KeyframeMethod
 from longslam.slam.memory_db import MemoryDatabase
-from longslam.slam.registry import create_method
+from longslam.slam.catalog import check_params, create_method
 from longslam.world import get_world
 
 CAMERA = CameraSettings(width=160, height=120)
@@ -98,11 +98,13 @@ def test_bad_frames_are_counted_not_linked(sequence):
 
 def test_params_are_typed_and_checked(sequence):
     context = MethodContext(sequence.intrinsics, sequence.max_depth)
-    method = KeyframeMethod(context, {"max_features": "500", "proximity": "false", "loop_threshold": 0.2})
+    method = create_method("keyframe", context, {"max_features": "500", "proximity": "false", "loop_threshold": 0.2})
     assert method.config == KeyframeConfig(max_features=500, proximity=False, loop_threshold=0.2)
     with pytest.raises(InputError, match="unknown parameter.*valid parameters: .*wm_max_nodes"):
-        KeyframeMethod(context, {"wm_max_node": 3})
+        check_params("keyframe", {"wm_max_node": 3})
     with pytest.raises(InputError, match="max_features='many'"):
-        KeyframeMethod(context, {"max_features": "many"})
+        check_params("keyframe", {"max_features": "many"})
     with pytest.raises(InputError, match="min_inliers must be positive"):
-        KeyframeMethod(context, {"min_inliers": 0})
+        check_params("keyframe", {"min_inliers": 0})
+    with pytest.raises(InputError, match="loop_threshold='nan'.*finite"):
+        check_params("keyframe", {"loop_threshold": "nan"})

@@ -115,7 +115,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
 def cmd_list(args: argparse.Namespace) -> None:
     from longslam.sim.noise import NOISE_LEVELS
     from longslam.sim.routes import ROUTES
-    from longslam.slam.registry import method_names
+    from longslam.slam.catalog import method_names
     from longslam.world import WORLDS
 
     print("worlds:      ", ", ".join(WORLDS.names()))

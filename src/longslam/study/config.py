@@ -156,7 +156,7 @@ def load_study(path: str | Path, methods_available: list[str] | None = None) -> 
     except tomllib.TOMLDecodeError as err:
         raise StudyConfigError(f"study file {path} is not valid TOML: {err}") from None
     if methods_available is None:
-        from longslam.slam.registry import method_names
+        from longslam.slam.catalog import method_names
 
         methods_available = method_names()
     return parse_study(data, path, methods_available)
@@ -302,31 +302,18 @@ class _AnyKey:
 
 
 def check_method_params(config: StudyConfig) -> None:
-    """Create each method once with its parameters, so a bad parameter fails before any run.
+    """Check each method's parameters against its config, so a bad parameter fails before any run.
 
-    Only `InputError`s (the methods' way to reject parameters) are turned into study errors;
-    anything else a method raises at creation is left for its runs to record.
+    Only the configs are built, not the methods (nothing is opened or allocated). A third-party
+    method without a config type takes its parameters as they are, and checks them at its runs.
     """
-    import tempfile
+    from longslam.slam.catalog import check_params
 
-    from longslam.slam.base import MethodContext
-    from longslam.slam.registry import create_method
-
-    with tempfile.TemporaryDirectory(prefix="longslam-check-") as tmp:
-        context = MethodContext(config.camera.intrinsics, config.camera.max_depth, tmp)
-        for entry in config.methods:
-            key = f"variants.{entry.label}.params" if entry.label != entry.method else f"params.{entry.method}"
-            try:
-                method = create_method(entry.method, context, entry.params)
-            except UnknownNameError as err:
-                raise StudyConfigError(f"study file {config.source}: methods: {err}") from None
-            except InputError as err:
-                raise StudyConfigError(f"study file {config.source}: {key}: {err}") from None
-            except Exception:
-                continue
-            close = getattr(method, "close", None)
-            if callable(close):
-                try:
-                    close()
-                except Exception:
-                    pass
+    for entry in config.methods:
+        key = f"variants.{entry.label}.params" if entry.label != entry.method else f"params.{entry.method}"
+        try:
+            check_params(entry.method, entry.params)
+        except UnknownNameError as err:
+            raise StudyConfigError(f"study file {config.source}: methods: {err}") from None
+        except InputError as err:
+            raise StudyConfigError(f"study file {config.source}: {key}: {err}") from None

@@ -31,15 +31,13 @@ from longslam.geometry import (
     wrap_angle,
     xyyaw_of_transform,
 )
-from longslam.slam.base import MethodContext, Result, frame_odometry
+from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
 from longslam.slam.features import Features, extract
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.memory_db import MemoryDatabase
 from longslam.slam.occupancy import LocalGrid, assemble, depth_points_in_base, local_grid
-from longslam.slam.params import config_from_params
 from longslam.slam.place_recognition import Vocabulary, refine_3d, verify
 from longslam.slam.graph import PoseGraph
-from longslam.slam.registry import METHODS
 from longslam.trajectory import Trajectory
 
 # A verified loop transform must be planar: the camera neither rises nor tilts on this robot.
@@ -65,8 +63,8 @@ class Node:
 class KeyframeMethod:
     name = "keyframe"
 
-    def __init__(self, context: MethodContext, params: dict[str, Any]):
-        self.config = config_from_params(KeyframeConfig, params, self.name)
+    def __init__(self, context: MethodContext, config: KeyframeConfig = KeyframeConfig()):
+        self.config = config
         self.intrinsics = context.intrinsics
         self._own_dir: str | None = None
         folder = context.output_dir
@@ -428,4 +426,4 @@ def _voxel_filter(points: np.ndarray, voxel: float) -> np.ndarray:
     return (sums / counts[:, None]).astype(np.float32)
 
 
-METHODS.register("keyframe", KeyframeMethod)
+SPEC = MethodSpec("keyframe", KeyframeConfig, KeyframeMethod, "RTAB-Map's design: keyframes, bag of words, SQLite memory")

@@ -32,8 +32,8 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import CameraMount, compose_xyyaw, invert, planar_pose, relative_xyyaw, xyyaw_of_transform
-from longslam.slam.base import MethodContext, Result, frame_odometry
-from longslam.slam.registry import METHODS
+from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
+from longslam.settings import to_mapping
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
@@ -79,8 +79,8 @@ class _Counts:
 class SubmapMethod:
     name = "submap"
 
-    def __init__(self, context: MethodContext, params: dict[str, Any]):
-        self.config = SubmapConfig.from_params(params)
+    def __init__(self, context: MethodContext, config: SubmapConfig = SubmapConfig()):
+        self.config = config
         self.context = context
         c = self.config
         self.registration_settings = RegistrationSettings(
@@ -324,7 +324,7 @@ class SubmapMethod:
             "fused_map_bytes": fused.nbytes,
             "fused_blocks": fused.num_blocks,
             "mesh": mesh_path.name if mesh_path else None,  # in the run folder
-            "config": c.to_dict(),
+            "config": to_mapping(c),
         }
         return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=stats)
 
@@ -336,8 +336,4 @@ def _reason_key(reason: str) -> str:
     return "other"
 
 
-def make_submap_method(context: MethodContext, params: dict[str, Any]) -> SubmapMethod:
-    return SubmapMethod(context, params)
-
-
-METHODS.register("submap", make_submap_method)
+SPEC = MethodSpec("submap", SubmapConfig, SubmapMethod, "Voxgraph's design: TSDF submaps in a pose graph")
