@@ -32,7 +32,7 @@ from longslam.pipeline import run_sequence_isolated
 from longslam.recording import simulate
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
-from longslam.slam.registry import method_names
+from longslam.slam.catalog import method_names
 
 
 def sequence(work: Path, route: str, noise: str, seed: int) -> Path:

@@ -35,7 +35,8 @@ from typing import Any
 
 from longslam.errors import InputError, UnknownNameError
 from longslam.eval.align import ALIGN_MODES
-from longslam.sim.camera import CameraSettings
+from longslam.settings import from_mapping
+from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import NOISE_LEVELS
 from longslam.sim.routes import ROUTES, Route, load_route_file
@@ -45,8 +46,6 @@ TOP_KEYS = (
     "camera", "follower", "params", "variants",
 )
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
-# Study-file camera keys -> CameraSettings fields (the names of the CLI's camera options).
-CAMERA_KEYS = {"width": "width", "height": "height", "fov": "hfov_deg", "max_depth": "max_depth", "camera_height": "camera_height"}
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
 VARIANT_KEYS = ("method", "params")
 
@@ -195,15 +194,12 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
 
     camera_table = r.table(data, "camera", CAMERA_KEYS)
     try:
-        camera = CameraSettings(**{CAMERA_KEYS[k]: v for k, v in camera_table.items()})
+        camera = from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in camera_table.items()}, "camera")
     except InputError as err:
         raise r.error("camera", str(err)) from None
     follower_table = r.table(data, "follower", FOLLOWER_KEYS)
-    for key, value in follower_table.items():
-        if not _is_number(value):
-            raise r.error(f"follower.{key}", f"expected a number, got {value!r}")
     try:
-        follower = FollowerSettings(**follower_table)
+        follower = from_mapping(FollowerSettings, follower_table, "follower")
     except InputError as err:
         raise r.error("follower", str(err)) from None
 
