@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.frame import Frame
+from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
 from longslam.trajectory import Trajectory
 
@@ -33,7 +34,7 @@ class OdometryMethod:
     def finish(self) -> Result:
         poses = np.array(self._poses).reshape(-1, 4, 4)
         trajectory = Trajectory(np.array(self._stamps), poses, source="odometry")
-        return Result(trajectory=trajectory, online=trajectory, stats={"map_bytes": {}, "frames": len(poses)})
+        return Result(trajectory=trajectory, online=trajectory, stats={stats.MAP_BYTES: {}, stats.FRAMES: len(poses)})
 
 
 SPEC = MethodSpec("odometry", OdometryConfig, OdometryMethod, "dead reckoning: the odometry's own poses")

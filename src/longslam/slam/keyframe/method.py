@@ -31,6 +31,7 @@ from longslam.geometry import (
     wrap_angle,
     xyyaw_of_transform,
 )
+from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
 from longslam.slam.features import Features, extract
 from longslam.slam.keyframe.config import KeyframeConfig
@@ -86,18 +87,18 @@ class KeyframeMethod:
         self._frame_odom: list[np.ndarray] = []
         self._online: list[np.ndarray] = []
         self.counts = {
-            "frames": 0, "nodes": 0, "frames_no_depth": 0, "frames_no_features": 0, "odometry_jumps": 0,
-            "loop_hypotheses": 0, "loops_accepted": 0, "loops_rejected_verification": 0,
-            "loops_rejected_graph": 0, "proximity_hypotheses": 0, "proximity_accepted": 0,
+            stats.FRAMES: 0, stats.NODES: 0, stats.FRAMES_WITHOUT_DEPTH: 0, "frames_no_features": 0, stats.ODOMETRY_JUMPS: 0,
+            "appearance_hypotheses": 0, "appearance_accepted": 0, "appearance_rejected_verification": 0,
+            "appearance_rejected_graph": 0, "proximity_hypotheses": 0, "proximity_accepted": 0,
             "proximity_rejected_verification": 0, "proximity_rejected_graph": 0,
-            "nodes_transferred": 0, "nodes_retrieved": 0, "optimizations": 0,
+            "nodes_transferred": 0, "nodes_retrieved": 0, stats.OPTIMIZATIONS: 0,
             "neighbor_links_refined": 0, "neighbor_links_odometry": 0, "neighbor_links_rejected": 0,
         }
 
     # --- per frame ---------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
         odom = self._corrected_odometry(frame_odometry(frame, self.name))
-        self.counts["frames"] += 1
+        self.counts[stats.FRAMES] += 1
         if self._is_new_node(frame.timestamp, odom):
             self._add_node(frame, odom)
         node = self._last_node
@@ -116,7 +117,7 @@ class KeyframeMethod:
             self._camera_in_base = self._mount.camera_in_base
             self._odometry = PlanarOdometry(self._mount, self.config.jump_distance, self.config.jump_angle)
         pose = self._odometry.update(camera_pose)
-        self.counts["odometry_jumps"] = self._odometry.jumps
+        self.counts[stats.ODOMETRY_JUMPS] = self._odometry.jumps
         return pose
 
     def _is_new_node(self, stamp: float, odom: np.ndarray) -> bool:
@@ -135,7 +136,7 @@ class KeyframeMethod:
         depth = np.asarray(frame.depth, dtype=np.float32)
         has_depth = bool(np.any(np.isfinite(depth) & (depth > 0)))
         if not has_depth:
-            self.counts["frames_no_depth"] += 1
+            self.counts[stats.FRAMES_WITHOUT_DEPTH] += 1
         features = extract(frame.rgb, depth, self.intrinsics, cfg.max_features) if has_depth else Features.empty()
         if has_depth and len(features) == 0:
             self.counts["frames_no_features"] += 1
@@ -160,7 +161,7 @@ class KeyframeMethod:
             self.graph.add_odometry(previous.id, node_id, delta, sigmas)
             self.db.put_link(previous.id, node_id, "odometry", pose_from_xyyaw(delta), np.diag(1.0 / np.square(sigmas)))
         self._last_node = node
-        self.counts["nodes"] += 1
+        self.counts[stats.NODES] += 1
 
         # One dictionary search per node: the words serve the query and then the index. The node
         # joins the index after its own query, so it never matches itself.
@@ -226,7 +227,7 @@ class KeyframeMethod:
                 if score < cfg.loop_threshold:
                     break
                 tried.add(cand)
-                self.counts["loop_hypotheses"] += 1
+                self.counts["appearance_hypotheses"] += 1
                 if self._try_link(node, cand, "loop"):
                     break  # one appearance loop per node: the graph is re-optimised for each
         if cfg.proximity:
@@ -250,7 +251,7 @@ class KeyframeMethod:
     def _try_link(self, node: Node, cand_id: int, kind: str) -> bool:
         """Verify a hypothesis, add it to the graph, keep it only if the optimised graph agrees."""
         cfg = self.config
-        prefix = "loops" if kind == "loop" else "proximity"
+        prefix = "appearance" if kind == "loop" else "proximity"
         candidate = self.nodes[cand_id]
         check = verify(node.features, candidate.features, self.intrinsics, cfg.min_inliers)
         delta = None
@@ -266,7 +267,7 @@ class KeyframeMethod:
         if not check.accepted:
             self.counts[f"{prefix}_rejected_graph"] += 1
             return False
-        self.counts["loops_accepted" if kind == "loop" else "proximity_accepted"] += 1
+        self.counts[f"{prefix}_accepted"] += 1
         self.db.put_link(cand_id, node.id, kind, pose_from_xyyaw(delta), np.diag(1.0 / np.square(sigmas)))
         candidate.last_access = node.id
         self._retrieve_around(cand_id)
@@ -284,7 +285,7 @@ class KeyframeMethod:
     def _take_estimates(self) -> None:
         for node_id in self.graph.nodes:
             self.estimates[node_id] = self.graph.estimate(node_id)
-        self.counts["optimizations"] = self.graph.optimizations
+        self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
 
     # --- memory management ---------------------------------------------------------------------
     def _enforce_memory_budget(self) -> None:
@@ -401,18 +402,23 @@ class KeyframeMethod:
         for node_id in sorted(self.wm | set(self.stm)):
             self._transfer(node_id, count=False)
         self.db.update_poses({i: self._mount.to_camera(self.estimates[i][None])[0] for i in self.nodes})
-        stats = dict(self.counts)
-        stats.update(
-            wm_nodes=wm_nodes, stm_nodes=stm_nodes, ltm_nodes=ltm_nodes,
-            vocabulary_words=self.vocabulary.n_words, graph_loops=self.graph.num_loops,
-            map_bytes=map_bytes,
-            database=str(self.db_path) if self._own_dir is None else None,
-        )
-        self.db.set_statistics(stats)
+        counts = self.counts
+        run_stats = dict(counts)
+        run_stats.update({
+            stats.LOOP_HYPOTHESES: counts["appearance_hypotheses"] + counts["proximity_hypotheses"],
+            stats.LOOPS_ACCEPTED: counts["appearance_accepted"] + counts["proximity_accepted"],
+            stats.LOOPS_REJECTED: sum(counts[f"{p}_rejected_{why}"] for p in ("appearance", "proximity") for why in ("verification", "graph")),
+            stats.MAP_BYTES: map_bytes,
+            stats.CAMERA_HEIGHT: self._mount.camera_height,
+            "wm_nodes": wm_nodes, "stm_nodes": stm_nodes, "ltm_nodes": ltm_nodes,
+            "vocabulary_words": self.vocabulary.n_words, "graph_loops": self.graph.num_loops,
+            "database": str(self.db_path) if self._own_dir is None else None,
+        })
+        self.db.set_statistics(run_stats)
         self.db.close()
         if self._own_dir is not None:
             shutil.rmtree(self._own_dir, ignore_errors=True)
-        return Result(trajectory=trajectory, online=online, grid=grid_map, cloud=cloud, stats=stats)
+        return Result(trajectory=trajectory, online=online, grid=grid_map, cloud=cloud, stats=run_stats)
 
 
 def _voxel_filter(points: np.ndarray, voxel: float) -> np.ndarray:

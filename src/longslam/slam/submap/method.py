@@ -32,8 +32,8 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import CameraMount, compose_xyyaw, invert, planar_pose, relative_xyyaw, xyyaw_of_transform
+from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
-from longslam.settings import to_mapping
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
@@ -70,9 +70,9 @@ class _Counts:
     registrations_accepted: int = 0
     registrations_rejected: int = 0
     submaps_too_few_points: int = 0
-    loop_closures_accepted: int = 0
-    loop_closures_rejected: int = 0
-    loop_candidates: int = 0
+    loops_accepted: int = 0
+    loops_rejected: int = 0
+    loop_hypotheses: int = 0
     rejection_reasons: dict[str, int] = field(default_factory=dict)
 
 
@@ -247,13 +247,13 @@ class SubmapMethod:
         if old:
             hits = self._vocabulary.query(feats.descriptors, candidates=old, top_k=1)
             if hits and hits[0][1] >= c.loop_min_score:
-                self.counts.loop_candidates += 1
+                self.counts.loop_hypotheses += 1
                 candidate = self._keyframes[hits[0][0]]
                 check = verify(feats, candidate.features, frame.intrinsics, min_inliers=c.loop_min_inliers)
                 if check.accepted:
                     self._add_loop(candidate, check.transform, active, in_submap)
                 else:
-                    self.counts.loop_closures_rejected += 1
+                    self.counts.loops_rejected += 1
         node = len(self._keyframes)
         self._keyframes.append(_Keyframe(active.index, frame.timestamp, in_submap.copy(), feats))
         self._vocabulary.add(node, feats.descriptors)
@@ -266,9 +266,9 @@ class SubmapMethod:
         info = np.diag([c.loop_sigma_xy**-2, c.loop_sigma_xy**-2, c.loop_sigma_yaw**-2])
         check = self.graph.try_loop(candidate.submap, active.index, delta, information=info, max_error=c.loop_max_error, check="edge")
         if check.accepted:
-            self.counts.loop_closures_accepted += 1
+            self.counts.loops_accepted += 1
         else:
-            self.counts.loop_closures_rejected += 1
+            self.counts.loops_rejected += 1
 
     # --- the end ---------------------------------------------------------------------------------
     def map_bytes(self) -> dict[str, int]:
@@ -305,28 +305,27 @@ class SubmapMethod:
         if c.write_mesh and self.context.output_dir:
             mesh_path = write_mesh(fused, Path(self.context.output_dir) / "mesh.ply")
         counts = self.counts
-        stats = {
-            "frames": counts.frames,
-            "submaps": len(self.submaps),
-            "frames_without_depth": counts.frames_without_depth,
+        run_stats = {
+            stats.FRAMES: counts.frames,
+            stats.SUBMAPS: len(self.submaps),
+            stats.FRAMES_WITHOUT_DEPTH: counts.frames_without_depth,
             "submaps_too_few_points": counts.submaps_too_few_points,
             "registrations_accepted": counts.registrations_accepted,
             "registrations_rejected": counts.registrations_rejected,
             "registration_rejection_reasons": dict(counts.rejection_reasons),
-            "loop_closures_accepted": counts.loop_closures_accepted,
-            "loop_closures_rejected": counts.loop_closures_rejected,
-            "loop_candidates": counts.loop_candidates,
+            stats.LOOP_HYPOTHESES: counts.loop_hypotheses,
+            stats.LOOPS_ACCEPTED: counts.loops_accepted,
+            stats.LOOPS_REJECTED: counts.loops_rejected,
             "graph_edges": {k: self.graph.count(k) for k in (ODOMETRY, REGISTRATION, LOOP)},
-            "optimizations": self.graph.optimizations,
-            "camera_height": self._mount.camera_height,
-            "map_bytes": self.map_bytes(),
+            stats.OPTIMIZATIONS: self.graph.optimizations,
+            stats.CAMERA_HEIGHT: self._mount.camera_height,
+            stats.MAP_BYTES: self.map_bytes(),
             "map_bytes_before_finish": bytes_before,
             "fused_map_bytes": fused.nbytes,
             "fused_blocks": fused.num_blocks,
             "mesh": mesh_path.name if mesh_path else None,  # in the run folder
-            "config": to_mapping(c),
         }
-        return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=stats)
+        return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=run_stats)
 
 
 def _reason_key(reason: str) -> str:
