@@ -25,9 +25,10 @@ from longslam.recording import simulate
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
 
-COUNTERS = ("nodes", "submaps", "loops_accepted", "loops_rejected_verification", "loops_rejected_graph",
+COUNTERS = ("nodes", "submaps", "loops_accepted", "loops_rejected", "appearance_accepted",
+            "appearance_rejected_verification", "appearance_rejected_graph",
             "proximity_accepted", "proximity_rejected_verification", "proximity_rejected_graph",
-            "registrations_accepted", "registrations_rejected", "loop_closures_accepted", "loop_closures_rejected",
+            "registrations_accepted", "registrations_rejected",
             "nodes_transferred", "nodes_retrieved", "vocabulary_words")
 
 

@@ -32,7 +32,7 @@ from longslam.pipeline import run_sequence_isolated
 from longslam.recording import simulate
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
-from longslam.slam.registry import method_names
+from longslam.slam.catalog import method_names
 
 
 def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
@@ -85,7 +85,7 @@ def table_300m(work: Path, noises: list[str], seeds: int, params: dict, with_key
                 rows.append({"noise": noise, "method": label, "ate": r["metrics"]["ate"], "rtf": r["figures"]["real_time_factor"],
                              "peak_rss_mb": r["figures"]["peak_rss_bytes"] / 1e6,
                              "registrations": (stats.get("registrations_accepted"), stats.get("registrations_rejected")),
-                             "loops": (stats.get("loop_closures_accepted"), stats.get("loop_closures_rejected"))})
+                             "loops": (stats.get("loops_accepted"), stats.get("loops_rejected"))})
     return rows
 
 

@@ -13,10 +13,10 @@ from longslam.recording import simulate
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
-from longslam.slam.base import MethodContext
+from longslam.slam.api import MethodContext
 from longslam.slam.keyframe import KeyframeConfig, KeyframeMethod
 from longslam.slam.memory_db import MemoryDatabase
-from longslam.slam.registry import create_method
+from longslam.slam.catalog import check_params, create_method
 from longslam.world import get_world
 
 CAMERA = CameraSettings(width=160, height=120)
@@ -47,7 +47,7 @@ def test_loops_close_and_beat_odometry(sequence, tmp_path):
     method, result = _run(sequence, output_dir=str(tmp_path))
     stats = result.stats
     assert len(result.trajectory) == len(result.online) == len(sequence)
-    assert stats["loops_accepted"] + stats["proximity_accepted"] >= 3
+    assert stats["loops_accepted"] >= 3 and stats["loops_accepted"] == stats["appearance_accepted"] + stats["proximity_accepted"]
     ours = evaluate(sequence.ground_truth, result.trajectory)["ate"]
     odometry = evaluate(sequence.ground_truth, sequence.odometry)["ate"]
     assert ours < 0.7 * odometry, (ours, odometry)
@@ -89,7 +89,7 @@ def test_bad_frames_are_counted_not_linked(sequence):
     frames[60] = Frame(frames[60].index, frames[60].timestamp, frames[60].rgb, frames[60].depth, jumped, frames[60].intrinsics)
     method, result = _run(sequence, {"detection_rate": 10.0}, frames=frames)
     stats = result.stats
-    assert stats["frames_no_depth"] >= 1 and stats["frames_no_features"] >= 1
+    assert stats["frames_without_depth"] >= 1 and stats["frames_no_features"] >= 1
     assert stats["odometry_jumps"] == 2  # into the glitch and back out of it
     # The glitch did not move the estimate: the trajectory stays within metres of the truth.
     truth = sequence.ground_truth.subset(np.arange(80))
@@ -98,11 +98,13 @@ def test_bad_frames_are_counted_not_linked(sequence):
 
 def test_params_are_typed_and_checked(sequence):
     context = MethodContext(sequence.intrinsics, sequence.max_depth)
-    method = KeyframeMethod(context, {"max_features": "500", "proximity": "false", "loop_threshold": 0.2})
+    method = create_method("keyframe", context, {"max_features": "500", "proximity": "false", "loop_threshold": 0.2})
     assert method.config == KeyframeConfig(max_features=500, proximity=False, loop_threshold=0.2)
     with pytest.raises(InputError, match="unknown parameter.*valid parameters: .*wm_max_nodes"):
-        KeyframeMethod(context, {"wm_max_node": 3})
+        check_params("keyframe", {"wm_max_node": 3})
     with pytest.raises(InputError, match="max_features='many'"):
-        KeyframeMethod(context, {"max_features": "many"})
+        check_params("keyframe", {"max_features": "many"})
     with pytest.raises(InputError, match="min_inliers must be positive"):
-        KeyframeMethod(context, {"min_inliers": 0})
+        check_params("keyframe", {"min_inliers": 0})
+    with pytest.raises(InputError, match="loop_threshold='nan'.*finite"):
+        check_params("keyframe", {"loop_threshold": "nan"})

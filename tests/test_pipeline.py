@@ -12,8 +12,8 @@ from longslam.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceWriter
 from longslam.io.trajectory_files import read_tum, write_kitti, write_tum
 from longslam.pipeline import run_sequence, run_sequence_isolated
-from longslam.slam.base import Method, MethodContext
-from longslam.slam.registry import create_method, method_names
+from longslam.slam.api import Method, MethodContext
+from longslam.slam.catalog import create_method, method_names
 from longslam.trajectory import Trajectory
 
 N = 30

@@ -44,7 +44,7 @@ def test_a_good_study_file_plans_every_run(tmp_path):
 
 
 def test_all_means_every_registered_method(tmp_path):
-    from longslam.slam.registry import method_names
+    from longslam.slam.catalog import method_names
 
     config = load_study(_write(tmp_path, GOOD.replace('["odometry"]', '"all"')))
     assert [m.label for m in config.methods][: len(method_names())] == method_names()

@@ -14,8 +14,8 @@ from longslam.recording import simulate
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
-from longslam.slam.base import MethodContext
-from longslam.slam.registry import METHODS
+from longslam.slam.api import MethodContext
+from longslam.slam.catalog import check_params, create_method
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.method import SubmapMethod
 from longslam.slam.submap.registration import register
@@ -38,7 +38,7 @@ def hall_sequences(tmp_path_factory):
 
 
 def run(reader: SequenceReader, frames=None, **params):
-    method = SubmapMethod(MethodContext(reader.intrinsics, reader.max_depth, None), params)
+    method = create_method("submap", MethodContext(reader.intrinsics, reader.max_depth, None), params)
     poses = [method.step(f) for f in (frames if frames is not None else reader)]
     return method, poses, method.finish()
 
@@ -123,7 +123,7 @@ def test_registration_recovers_a_small_offset_and_rejects_no_overlap():
 def test_method_gives_a_pose_per_frame_a_grid_and_stats(hall_sequences, tmp_path):
     _, noisy = hall_sequences
     context = MethodContext(noisy.intrinsics, noisy.max_depth, str(tmp_path))
-    method = METHODS.get("submap")(context, {"submap_interval": 10})
+    method = create_method("submap", context, {"submap_interval": 10})
     frames = list(noisy)
     online = [method.step(f) for f in frames]
     result = method.finish()
@@ -180,19 +180,21 @@ def test_frames_without_depth_are_counted_and_skipped(hall_sequences):
 
 def test_bad_parameters_are_input_errors():
     context = MethodContext(Intrinsics.from_fov(64, 48, 90.0), 8.0)
-    with pytest.raises(InputError, match="valid: .*voxel_size"):
-        SubmapMethod(context, {"voxel": 0.1})
+    with pytest.raises(InputError, match="valid parameters: .*voxel_size"):
+        check_params("submap", {"voxel": 0.1})
     with pytest.raises(InputError, match="truncation"):
-        SubmapMethod(context, {"voxel_size": 1.0})
+        check_params("submap", {"voxel_size": 1.0})
     with pytest.raises(InputError, match="number"):
-        SubmapMethod(context, {"truncation": "wide"})
+        check_params("submap", {"truncation": "wide"})
     with pytest.raises(InputError, match="true or false"):
-        SubmapMethod(context, {"loop_closure": "maybe"})
+        check_params("submap", {"loop_closure": "maybe"})
     with pytest.raises(InputError, match="positive"):
-        SubmapMethod(context, {"submap_interval": -1})
-    config = SubmapConfig.from_params({"voxel_size": "0.1", "loop_closure": "true", "registration_min_points": 50.0})
+        check_params("submap", {"submap_interval": -1})
+    with pytest.raises(InputError, match="finite"):
+        check_params("submap", {"voxel_size": "inf"})
+    config = check_params("submap", {"voxel_size": "0.1", "loop_closure": "true", "registration_min_points": 50.0})
     assert (config.voxel_size, config.loop_closure, config.registration_min_points) == (0.1, True, 50)
-    method = SubmapMethod(context, {})
+    method = SubmapMethod(context, SubmapConfig())
     frame = Frame(0, 0.0, np.zeros((48, 64, 3), np.uint8), np.zeros((48, 64), np.float32), None, context.intrinsics)
     with pytest.raises(InputError, match="odometry"):
         method.step(frame)

@@ -10,17 +10,29 @@ from pathlib import Path
 from longslam.errors import LongslamError
 
 
+CAMERA_HELP = {
+    "width": "image width in pixels", "height": "image height in pixels",
+    "fov": "horizontal field of view in degrees", "max_depth": "depth range in metres",
+    "camera_height": "camera height above the floor in metres",
+}
+
+
 def _camera_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--width", type=int, default=320, help="image width in pixels (default 320)")
-    parser.add_argument("--height", type=int, default=240, help="image height in pixels (default 240)")
-    parser.add_argument("--fov", type=float, default=90.0, help="horizontal field of view in degrees (default 90)")
-    parser.add_argument("--max-depth", type=float, default=8.0, help="depth range in metres (default 8)")
+    # Names and defaults come from CameraSettings, so the CLI cannot drift from the library.
+    from longslam.sim.camera import CAMERA_KEYS, CameraSettings
+
+    defaults = CameraSettings()
+    for key, field in CAMERA_KEYS.items():
+        parser.add_argument(f"--{key.replace('_', '-')}", dest=f"camera_{key}", metavar=key.upper(),
+                            help=f"{CAMERA_HELP[key]} (default {getattr(defaults, field)})")
 
 
 def _camera(args: argparse.Namespace):
-    from longslam.sim.camera import CameraSettings
+    from longslam.settings import from_mapping
+    from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 
-    return CameraSettings(width=args.width, height=args.height, hfov_deg=args.fov, max_depth=args.max_depth)
+    given = {field: getattr(args, f"camera_{key}") for key, field in CAMERA_KEYS.items()}
+    return from_mapping(CameraSettings, {k: v for k, v in given.items() if v is not None}, "camera")
 
 
 def _params(pairs: list[str]) -> dict:
@@ -115,7 +127,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
 def cmd_list(args: argparse.Namespace) -> None:
     from longslam.sim.noise import NOISE_LEVELS
     from longslam.sim.routes import ROUTES
-    from longslam.slam.registry import method_names
+    from longslam.slam.catalog import method_names
     from longslam.world import WORLDS
 
     print("worlds:      ", ", ".join(WORLDS.names()))

@@ -13,7 +13,7 @@ from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.recording import simulate
-from longslam.slam.registry import method_names
+from longslam.slam.catalog import method_names
 from longslam.study.plots import plot_plan
 from longslam.world import get_world
 

@@ -25,8 +25,8 @@ from longslam.io.atomic import atomic_path
 from longslam.jsonable import json_default
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import write_tum
-from longslam.slam.base import MethodContext, Result
-from longslam.slam.registry import create_method
+from longslam.slam.api import MethodContext, Result
+from longslam.slam.catalog import create_method
 
 RSS_SAMPLE_EVERY = 50  # frames between samples of resident memory
 

@@ -8,55 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.errors import TrajectoryError, UnknownNameError
+from longslam.errors import UnknownNameError
 from longslam.eval.sync import require_same_length
+from longslam.geometry.fit import umeyama  # noqa: F401  (re-exported: evaluation's alignment)
 from longslam.trajectory import Trajectory
 
 ALIGN_MODES = ("none", "se3", "sim3")
-
-# Second singular value of the cross-covariance below this fraction of the first: the points lie
-# on a line (or a point) and the rotation about that line is not determined by the data.
-DEGENERATE_RATIO = 1e-10
-
-
-def umeyama(
-    source: np.ndarray, target: np.ndarray, with_scale: bool
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """R (3, 3), t (3,), s minimising sum ||target_i - (s R source_i + t)||^2 (s = 1 unless with_scale).
-
-    Umeyama, "Least-squares estimation of transformation parameters between two point patterns",
-    IEEE PAMI 1991, eqs. 34-43. Raises TrajectoryError for fewer than 3 points or collinear points.
-    """
-    source = np.asarray(source, dtype=np.float64)
-    target = np.asarray(target, dtype=np.float64)
-    if source.shape != target.shape or source.ndim != 2 or source.shape[1] != 3:
-        raise TrajectoryError(
-            f"alignment needs two (N, 3) point arrays of the same shape, "
-            f"got {source.shape} and {target.shape}"
-        )
-    n = len(source)
-    if n < 3:
-        raise TrajectoryError(f"alignment needs at least 3 matched positions, got {n}")
-
-    mean_source, mean_target = source.mean(axis=0), target.mean(axis=0)
-    centred_source, centred_target = source - mean_source, target - mean_target
-    variance_source = np.sum(centred_source**2) / n
-    covariance = centred_target.T @ centred_source / n
-    u, d, vt = np.linalg.svd(covariance)
-    if d[1] <= DEGENERATE_RATIO * d[0]:
-        raise TrajectoryError(
-            f"cannot align: the {n} positions lie on a straight line (or a single point), so the "
-            f"rotation about that line is undetermined; use align='none'"
-        )
-    # Flip the weakest axis if needed so that R is a rotation, not a reflection.
-    sign = np.eye(3)
-    if np.linalg.det(u) * np.linalg.det(vt) < 0.0:
-        sign[2, 2] = -1.0
-    rotation = u @ sign @ vt
-    scale = float(np.trace(np.diag(d) @ sign) / variance_source) if with_scale else 1.0
-    translation = mean_target - scale * rotation @ mean_source
-    return rotation, translation, scale
-
 
 def transform_trajectory(
     trajectory: Trajectory, rotation: np.ndarray, translation: np.ndarray, scale: float = 1.0

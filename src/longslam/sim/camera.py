@@ -26,6 +26,11 @@ _LIGHT = np.array([0.45, 0.3, 0.84]) / np.linalg.norm([0.45, 0.3, 0.84])
 _AMBIENT, _DIFFUSE, _HEADLIGHT = 0.4, 0.3, 0.3  # sum 1: the brightest surface shows its texture as is
 
 
+# The user-facing names of the camera settings (CLI options --width ... --camera-height, a study
+# file's [camera] keys) -> CameraSettings fields.
+CAMERA_KEYS = {"width": "width", "height": "height", "fov": "hfov_deg", "max_depth": "max_depth", "camera_height": "camera_height"}
+
+
 @dataclass(frozen=True)
 class CameraSettings:
     width: int = 320  # pixels

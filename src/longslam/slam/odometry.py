@@ -2,23 +2,26 @@
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.slam.base import MethodContext, Result, frame_odometry
-from longslam.slam.registry import METHODS
+from longslam.slam import stats
+from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
 from longslam.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class OdometryConfig:
+    """Dead reckoning has no parameters."""
 
 
 class OdometryMethod:
     name = "odometry"
 
-    def __init__(self, context: MethodContext, params: dict[str, Any]):
-        if params:
-            raise InputError(f"method 'odometry' takes no parameters, got {', '.join(sorted(params))}")
+    def __init__(self, context: MethodContext, config: OdometryConfig = OdometryConfig()):
+        self.config = config
         self._stamps: list[float] = []
         self._poses: list[np.ndarray] = []
 
@@ -31,7 +34,7 @@ class OdometryMethod:
     def finish(self) -> Result:
         poses = np.array(self._poses).reshape(-1, 4, 4)
         trajectory = Trajectory(np.array(self._stamps), poses, source="odometry")
-        return Result(trajectory=trajectory, online=trajectory, stats={"map_bytes": {}, "frames": len(poses)})
+        return Result(trajectory=trajectory, online=trajectory, stats={stats.MAP_BYTES: {}, stats.FRAMES: len(poses)})
 
 
-METHODS.register("odometry", OdometryMethod)
+SPEC = MethodSpec("odometry", OdometryConfig, OdometryMethod, "dead reckoning: the odometry's own poses")

@@ -17,7 +17,7 @@ import scipy.sparse as sp
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
-from longslam.geometry import invert
+from longslam.geometry import invert, rigid_transform
 from longslam.slam.features import DESCRIPTOR_BYTES, Features
 
 _MATCH_CHUNK = 1 << 17
@@ -327,18 +327,6 @@ def verify(
     return Verification(True, n_inliers, transform, f"{n_inliers} inliers of {n_matches} matches", n_matches)
 
 
-def _kabsch(target: np.ndarray, source: np.ndarray) -> np.ndarray:
-    """4x4 rigid transform T minimising ||target - T(source)||."""
-    mt, ms = target.mean(axis=0), source.mean(axis=0)
-    u, _, vt = np.linalg.svd((source - ms).T @ (target - mt))
-    d = np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T))])
-    rot = vt.T @ d @ u.T
-    out = np.eye(4)
-    out[:3, :3] = rot
-    out[:3, 3] = mt - rot @ ms
-    return out
-
-
 def refine_3d(
     query: Features,
     candidate: Features,
@@ -366,5 +354,5 @@ def refine_3d(
         inliers = residual < gate
         if inliers.sum() < min_inliers:
             return current
-        current = _kabsch(c[inliers], q[inliers])
+        current = rigid_transform(q[inliers], c[inliers])
     return current

@@ -35,7 +35,8 @@ from typing import Any
 
 from longslam.errors import InputError, UnknownNameError
 from longslam.eval.align import ALIGN_MODES
-from longslam.sim.camera import CameraSettings
+from longslam.settings import from_mapping
+from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import NOISE_LEVELS
 from longslam.sim.routes import ROUTES, Route, load_route_file
@@ -45,8 +46,6 @@ TOP_KEYS = (
     "camera", "follower", "params", "variants",
 )
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
-# Study-file camera keys -> CameraSettings fields (the names of the CLI's camera options).
-CAMERA_KEYS = {"width": "width", "height": "height", "fov": "hfov_deg", "max_depth": "max_depth", "camera_height": "camera_height"}
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
 VARIANT_KEYS = ("method", "params")
 
@@ -156,7 +155,7 @@ def load_study(path: str | Path, methods_available: list[str] | None = None) -> 
     except tomllib.TOMLDecodeError as err:
         raise StudyConfigError(f"study file {path} is not valid TOML: {err}") from None
     if methods_available is None:
-        from longslam.slam.registry import method_names
+        from longslam.slam.catalog import method_names
 
         methods_available = method_names()
     return parse_study(data, path, methods_available)
@@ -195,15 +194,12 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
 
     camera_table = r.table(data, "camera", CAMERA_KEYS)
     try:
-        camera = CameraSettings(**{CAMERA_KEYS[k]: v for k, v in camera_table.items()})
+        camera = from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in camera_table.items()}, "camera")
     except InputError as err:
         raise r.error("camera", str(err)) from None
     follower_table = r.table(data, "follower", FOLLOWER_KEYS)
-    for key, value in follower_table.items():
-        if not _is_number(value):
-            raise r.error(f"follower.{key}", f"expected a number, got {value!r}")
     try:
-        follower = FollowerSettings(**follower_table)
+        follower = from_mapping(FollowerSettings, follower_table, "follower")
     except InputError as err:
         raise r.error("follower", str(err)) from None
 
@@ -302,31 +298,18 @@ class _AnyKey:
 
 
 def check_method_params(config: StudyConfig) -> None:
-    """Create each method once with its parameters, so a bad parameter fails before any run.
+    """Check each method's parameters against its config, so a bad parameter fails before any run.
 
-    Only `InputError`s (the methods' way to reject parameters) are turned into study errors;
-    anything else a method raises at creation is left for its runs to record.
+    Only the configs are built, not the methods (nothing is opened or allocated). A third-party
+    method without a config type takes its parameters as they are, and checks them at its runs.
     """
-    import tempfile
+    from longslam.slam.catalog import check_params
 
-    from longslam.slam.base import MethodContext
-    from longslam.slam.registry import create_method
-
-    with tempfile.TemporaryDirectory(prefix="longslam-check-") as tmp:
-        context = MethodContext(config.camera.intrinsics, config.camera.max_depth, tmp)
-        for entry in config.methods:
-            key = f"variants.{entry.label}.params" if entry.label != entry.method else f"params.{entry.method}"
-            try:
-                method = create_method(entry.method, context, entry.params)
-            except UnknownNameError as err:
-                raise StudyConfigError(f"study file {config.source}: methods: {err}") from None
-            except InputError as err:
-                raise StudyConfigError(f"study file {config.source}: {key}: {err}") from None
-            except Exception:
-                continue
-            close = getattr(method, "close", None)
-            if callable(close):
-                try:
-                    close()
-                except Exception:
-                    pass
+    for entry in config.methods:
+        key = f"variants.{entry.label}.params" if entry.label != entry.method else f"params.{entry.method}"
+        try:
+            check_params(entry.method, entry.params)
+        except UnknownNameError as err:
+            raise StudyConfigError(f"study file {config.source}: methods: {err}") from None
+        except InputError as err:
+            raise StudyConfigError(f"study file {config.source}: {key}: {err}") from None

@@ -28,7 +28,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.pipeline import run_frames, write_result
 from longslam.recording import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
-from longslam.slam.base import MethodContext, Result
+from longslam.slam.api import MethodContext, Result
 from longslam.study.prepare import render_once
 from longslam.study.spec import RunSpec
 from longslam.trajectory import Trajectory

@@ -70,7 +70,7 @@ class KeyframeConfig:
     interpolate_corrections: bool = True
     camera_height: float | None = None  # m above the floor; default: the first odometry pose's z
 
-    def validate(self) -> None:
+    def __post_init__(self) -> None:
         positive = ("detection_rate", "max_features", "max_words", "min_inliers", "grid_cell", "grid_range",
                     "odom_sigma_min", "loop_sigma_linear", "loop_sigma_angular", "optimize_max_error",
                     "cloud_voxel", "cloud_stride", "jump_distance", "jump_angle", "loop_candidates")

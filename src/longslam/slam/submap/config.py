@@ -1,13 +1,13 @@
 """The submap method's parameters: one typed config, the paper's / Voxgraph's values as defaults.
 
-Every field can be set from the command line: `longslam run --method submap --param voxel_size=0.1`.
+Every field can be set from the command line (`longslam run --method submap --param voxel_size=0.1`)
+or a study file, through `longslam.settings.from_mapping`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
-from typing import Any
+from dataclasses import dataclass
 
 from longslam.errors import InputError
 
@@ -78,50 +78,3 @@ class SubmapConfig:
             raise InputError(f"robust_kernel must be cauchy, huber or none, got {self.robust_kernel!r}")
         if self.grid_max_height <= self.grid_min_height:
             raise InputError("grid_max_height must exceed grid_min_height")
-
-    @classmethod
-    def from_params(cls, params: dict[str, Any]) -> "SubmapConfig":
-        """Build from `--param` values (JSON-decoded or strings), checking names and types."""
-        types = {f.name: f.type for f in fields(cls)}
-        unknown = sorted(set(params) - set(types))
-        if unknown:
-            raise InputError(
-                f"method 'submap': unknown parameter(s) {', '.join(unknown)}; valid: {', '.join(sorted(types))}"
-            )
-        values = {}
-        for key, raw in params.items():
-            values[key] = _coerce(key, raw, types[key])
-        return cls(**values)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
-
-
-def _coerce(key: str, raw: Any, kind: Any) -> Any:
-    kind = kind if isinstance(kind, str) else kind.__name__
-    if kind == "bool":
-        if isinstance(raw, bool):
-            return raw
-        if isinstance(raw, str) and raw.lower() in ("true", "false", "1", "0", "yes", "no", "on", "off"):
-            return raw.lower() in ("true", "1", "yes", "on")
-        if isinstance(raw, int) and raw in (0, 1):
-            return bool(raw)
-        raise InputError(f"submap parameter {key} must be true or false, got {raw!r}")
-    if kind == "int":
-        if isinstance(raw, bool):
-            raise InputError(f"submap parameter {key} must be an integer, got {raw!r}")
-        try:
-            value = float(raw)
-        except (TypeError, ValueError):
-            raise InputError(f"submap parameter {key} must be an integer, got {raw!r}") from None
-        if not value.is_integer():
-            raise InputError(f"submap parameter {key} must be an integer, got {raw!r}")
-        return int(value)
-    if kind == "float":
-        if isinstance(raw, bool):
-            raise InputError(f"submap parameter {key} must be a number, got {raw!r}")
-        try:
-            return float(raw)
-        except (TypeError, ValueError):
-            raise InputError(f"submap parameter {key} must be a number, got {raw!r}") from None
-    return str(raw)

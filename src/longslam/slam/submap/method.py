@@ -31,13 +31,12 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.geometry import invert, planar_from_camera_poses, planar_pose
-from longslam.slam.base import MethodContext, Result, frame_odometry
-from longslam.slam.pose_graph import compose_xyyaw, relative_xyyaw
-from longslam.slam.registry import METHODS
+from longslam.geometry import CameraMount, compose_xyyaw, invert, planar_pose, relative_xyyaw, xyyaw_of_transform
+from longslam.slam import stats
+from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
-from longslam.slam.submap.graph import LOOP, ODOMETRY, REGISTRATION, SubmapGraph
+from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
 from longslam.slam.submap.registration import RegistrationSettings, register
 from longslam.slam.submap.tsdf import TSDF
 from longslam.trajectory import Trajectory
@@ -71,28 +70,27 @@ class _Counts:
     registrations_accepted: int = 0
     registrations_rejected: int = 0
     submaps_too_few_points: int = 0
-    loop_closures_accepted: int = 0
-    loop_closures_rejected: int = 0
-    loop_candidates: int = 0
+    loops_accepted: int = 0
+    loops_rejected: int = 0
+    loop_hypotheses: int = 0
     rejection_reasons: dict[str, int] = field(default_factory=dict)
 
 
 class SubmapMethod:
     name = "submap"
 
-    def __init__(self, context: MethodContext, params: dict[str, Any]):
-        self.config = SubmapConfig.from_params(params)
+    def __init__(self, context: MethodContext, config: SubmapConfig = SubmapConfig()):
+        self.config = config
         self.context = context
         c = self.config
         self.registration_settings = RegistrationSettings(
             min_points=c.registration_min_points, max_rms=c.registration_max_rms,
             max_translation=c.registration_max_correction, effective_points=c.registration_effective_points,
         )
-        self.graph = SubmapGraph(c.robust_kernel, c.robust_k)
+        self.graph = PoseGraph(c.robust_kernel, c.robust_k, max_iterations=50)
         self.submaps: list[Submap] = []
         self.counts = _Counts()
-        self._camera_height: float | None = None
-        self._floor_z = 0.0
+        self._mount: CameraMount | None = None
         self._last_odometry: np.ndarray | None = None
         self._pose_in_active = np.eye(4)  # camera pose of the latest frame in the active submap
         self._max_depth = c.max_ray_length if context.max_depth is None else min(c.max_ray_length, context.max_depth)
@@ -113,7 +111,7 @@ class SubmapMethod:
 
     # --- geometry helpers --------------------------------------------------------------------
     def _origin_pose(self, xyyaw: np.ndarray) -> np.ndarray:
-        return planar_pose(float(xyyaw[0]), float(xyyaw[1]), float(xyyaw[2]), self._floor_z)
+        return self._mount.base_pose(xyyaw)
 
     def _world_pose(self, submap: int, in_submap: np.ndarray) -> np.ndarray:
         return self._origin_pose(self.graph.estimate(submap)) @ in_submap
@@ -121,14 +119,11 @@ class SubmapMethod:
     # --- frames ------------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
         odometry = frame_odometry(frame, "submap")
-        if self._camera_height is None:
-            # The floor is z = 0 and the odometry starts at the true first pose, so its z is the
-            # camera height (unless the user gave one).
-            self._camera_height = self.config.camera_height or float(odometry[2, 3])
-            self._floor_z = float(odometry[2, 3]) - self._camera_height
+        if self._mount is None:
+            self._mount = CameraMount.from_first_pose(odometry, self.config.camera_height)
         active = self.submaps[-1] if self.submaps else None
         if active is None:
-            base = planar_from_camera_poses(odometry[None], self._camera_height)[0]
+            base = self._mount.to_planar(odometry[None])[0]
             active = self._start_submap(frame.timestamp, base)
             in_submap = invert(self._origin_pose(base)) @ odometry
         else:
@@ -136,7 +131,7 @@ class SubmapMethod:
             in_submap = self._pose_in_active @ (invert(self._last_odometry) @ odometry)
             if frame.timestamp - active.start_time >= self.config.submap_interval:
                 # The new submap's origin: the robot's floor pose now, in the old submap's frame.
-                delta = planar_from_camera_poses(in_submap[None], self._camera_height)[0]
+                delta = self._mount.to_planar(in_submap[None])[0]
                 active = self._start_submap(frame.timestamp, delta)
                 in_submap = invert(planar_pose(*delta)) @ in_submap
         self._last_odometry = odometry
@@ -171,7 +166,7 @@ class SubmapMethod:
             self._finish_submap(previous)
             self.graph.add_node(index, compose_xyyaw(self.graph.estimate(previous.index), origin))
             info = np.diag([c.odometry_sigma_xy**-2, c.odometry_sigma_xy**-2, c.odometry_sigma_yaw**-2])
-            self.graph.add_edge(previous.index, index, origin, info, ODOMETRY)
+            self.graph.add_edge(previous.index, index, origin, information=info, kind=ODOMETRY)
         else:
             self.graph.add_node(index, origin)
         submap = Submap(index, time, TSDF(c.voxel_size, c.truncation))
@@ -199,7 +194,7 @@ class SubmapMethod:
             self.counts.submaps_too_few_points += 1
         elif c.registration:
             self._register_submap(submap)
-        self.graph.optimize()
+        self.graph.optimize(warm_start=True)
 
     def _world_box(self, submap: Submap) -> tuple[np.ndarray, np.ndarray] | None:
         if submap.box is None:
@@ -232,7 +227,8 @@ class SubmapMethod:
             result = register(reference.tsdf, reading.points, initial, self.registration_settings)
             if result.accepted:
                 self.counts.registrations_accepted += 1
-                self.graph.add_edge(reference.index, reading.index, result.relative, result.information, REGISTRATION, robust=True)
+                self.graph.add_edge(reference.index, reading.index, result.relative, information=result.information,
+                                    kind=REGISTRATION, robust=True)
             else:
                 self.counts.registrations_rejected += 1
                 key = _reason_key(result.reason)
@@ -251,13 +247,13 @@ class SubmapMethod:
         if old:
             hits = self._vocabulary.query(feats.descriptors, candidates=old, top_k=1)
             if hits and hits[0][1] >= c.loop_min_score:
-                self.counts.loop_candidates += 1
+                self.counts.loop_hypotheses += 1
                 candidate = self._keyframes[hits[0][0]]
                 check = verify(feats, candidate.features, frame.intrinsics, min_inliers=c.loop_min_inliers)
                 if check.accepted:
                     self._add_loop(candidate, check.transform, active, in_submap)
                 else:
-                    self.counts.loop_closures_rejected += 1
+                    self.counts.loops_rejected += 1
         node = len(self._keyframes)
         self._keyframes.append(_Keyframe(active.index, frame.timestamp, in_submap.copy(), feats))
         self._vocabulary.add(node, feats.descriptors)
@@ -266,16 +262,13 @@ class SubmapMethod:
         c = self.config
         # Pose of the active submap's origin in the candidate submap's frame.
         origin = candidate.in_submap @ query_in_candidate @ invert(in_submap)
-        delta = np.array([origin[0, 3], origin[1, 3], np.arctan2(origin[1, 0], origin[0, 0])])
+        delta = xyyaw_of_transform(origin)
         info = np.diag([c.loop_sigma_xy**-2, c.loop_sigma_xy**-2, c.loop_sigma_yaw**-2])
-        edge = self.graph.add_edge(candidate.submap, active.index, delta, info, LOOP, robust=False)
-        self.graph.optimize()
-        if self.graph.edge_error(edge) > c.loop_max_error:
-            self.graph.remove_edge(edge)
-            self.graph.optimize()
-            self.counts.loop_closures_rejected += 1
+        check = self.graph.try_loop(candidate.submap, active.index, delta, information=info, max_error=c.loop_max_error, check="edge")
+        if check.accepted:
+            self.counts.loops_accepted += 1
         else:
-            self.counts.loop_closures_accepted += 1
+            self.counts.loops_rejected += 1
 
     # --- the end ---------------------------------------------------------------------------------
     def map_bytes(self) -> dict[str, int]:
@@ -307,33 +300,32 @@ class SubmapMethod:
         online = Trajectory(stamps, np.array(self._online), source="submap online")
         fused = fuse_submaps([(s.tsdf, origins[s.index]) for s in self.submaps], c.voxel_size, c.truncation)
         cloud, _ = fused.surface_points(with_normals=False)
-        grid = grid_from_tsdf(fused, cloud, self._floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)
+        grid = grid_from_tsdf(fused, cloud, self._mount.floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)
         mesh_path = None
         if c.write_mesh and self.context.output_dir:
             mesh_path = write_mesh(fused, Path(self.context.output_dir) / "mesh.ply")
         counts = self.counts
-        stats = {
-            "frames": counts.frames,
-            "submaps": len(self.submaps),
-            "frames_without_depth": counts.frames_without_depth,
+        run_stats = {
+            stats.FRAMES: counts.frames,
+            stats.SUBMAPS: len(self.submaps),
+            stats.FRAMES_WITHOUT_DEPTH: counts.frames_without_depth,
             "submaps_too_few_points": counts.submaps_too_few_points,
             "registrations_accepted": counts.registrations_accepted,
             "registrations_rejected": counts.registrations_rejected,
             "registration_rejection_reasons": dict(counts.rejection_reasons),
-            "loop_closures_accepted": counts.loop_closures_accepted,
-            "loop_closures_rejected": counts.loop_closures_rejected,
-            "loop_candidates": counts.loop_candidates,
+            stats.LOOP_HYPOTHESES: counts.loop_hypotheses,
+            stats.LOOPS_ACCEPTED: counts.loops_accepted,
+            stats.LOOPS_REJECTED: counts.loops_rejected,
             "graph_edges": {k: self.graph.count(k) for k in (ODOMETRY, REGISTRATION, LOOP)},
-            "optimisations": self.graph.optimisations,
-            "camera_height": self._camera_height,
-            "map_bytes": self.map_bytes(),
+            stats.OPTIMIZATIONS: self.graph.optimizations,
+            stats.CAMERA_HEIGHT: self._mount.camera_height,
+            stats.MAP_BYTES: self.map_bytes(),
             "map_bytes_before_finish": bytes_before,
             "fused_map_bytes": fused.nbytes,
             "fused_blocks": fused.num_blocks,
             "mesh": mesh_path.name if mesh_path else None,  # in the run folder
-            "config": c.to_dict(),
         }
-        return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=stats)
+        return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=run_stats)
 
 
 def _reason_key(reason: str) -> str:
@@ -343,8 +335,4 @@ def _reason_key(reason: str) -> str:
     return "other"
 
 
-def make_submap_method(context: MethodContext, params: dict[str, Any]) -> SubmapMethod:
-    return SubmapMethod(context, params)
-
-
-METHODS.register("submap", make_submap_method)
+SPEC = MethodSpec("submap", SubmapConfig, SubmapMethod, "Voxgraph's design: TSDF submaps in a pose graph")

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.slam.pose_graph import compose_xyyaw
+from longslam.geometry import compose_xyyaw
 from longslam.slam.submap.tsdf import TSDF
 
 

@@ -1,8 +1,14 @@
-"""The interface every SLAM method implements: frames in, a pose per frame out, then a result."""
+"""The interface every SLAM method implements: frames in, a pose per frame out, then a result.
+
+A method is described by a `MethodSpec`: its name, the dataclass of its parameters and a `build`
+function. The catalogue (`slam/catalog.py`) lists the specs; methods never import it, so checking
+a study's parameters builds a config, not a method.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -10,6 +16,7 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.frame import Frame, Intrinsics
 from longslam.gridmap import GridMap
+from longslam.settings import from_mapping
 from longslam.trajectory import Trajectory
 
 
@@ -54,3 +61,27 @@ def frame_odometry(frame: Frame, method: str) -> np.ndarray:
             f"needs a sequence with odometry.txt"
         )
     return np.array(frame.odometry, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """A method under its name: its parameters' dataclass and how to build it from a config.
+
+    `config_type` None means the method takes its parameters as a plain dict (a third-party
+    factory `make_method(context, params)` from before specs existed).
+    """
+
+    name: str
+    config_type: type | None
+    build: Callable[[MethodContext, Any], Method]
+    summary: str = ""
+
+    def config(self, params: Mapping[str, Any] | None = None) -> Any:
+        """The checked config for `params` (unknown keys and bad values refused), no method built."""
+        params = dict(params or {})
+        if self.config_type is None:
+            return params
+        return from_mapping(self.config_type, params, f"method {self.name!r}")
+
+    def create(self, context: MethodContext, params: Mapping[str, Any] | None = None) -> Method:
+        return self.build(context, self.config(params))

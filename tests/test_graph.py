@@ -1,4 +1,4 @@
-"""PoseGraph2D: loop closures correct drift; wrong closures are muted, visible and removable."""
+"""PoseGraph: loop closures correct drift; wrong closures are muted, visible and removable."""
 
 from __future__ import annotations
 
@@ -6,14 +6,8 @@ import numpy as np
 import pytest
 
 from longslam.errors import InputError
-from longslam.geometry import planar_poses, wrap_angle
-from longslam.slam.pose_graph import (
-    PoseGraph2D,
-    compose_xyyaw,
-    pose_from_xyyaw,
-    relative_xyyaw,
-    xyyaw_from_pose,
-)
+from longslam.geometry import compose_xyyaw, planar_poses, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
+from longslam.slam.graph import PoseGraph
 
 ODO_SIGMAS = (0.05, 0.05, 0.01)
 LOOP_SIGMAS = (0.05, 0.05, 0.01)
@@ -44,9 +38,9 @@ def drifting_odometry(truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return deltas, np.array(poses)
 
 
-def build_graph(truth: np.ndarray) -> tuple[PoseGraph2D, np.ndarray]:
+def build_graph(truth: np.ndarray) -> tuple[PoseGraph, np.ndarray]:
     deltas, odo = drifting_odometry(truth)
-    graph = PoseGraph2D()
+    graph = PoseGraph()
     for i, pose in enumerate(odo):
         graph.add_node(i, pose)
     for i, d in enumerate(deltas):
@@ -135,7 +129,7 @@ def test_optimize_is_deterministic():
 
 
 def test_bad_input_is_named():
-    graph = PoseGraph2D()
+    graph = PoseGraph()
     graph.add_node(0, (0, 0, 0))
     with pytest.raises(InputError, match="node 1"):
         graph.add_odometry(0, 1, (1, 0, 0), ODO_SIGMAS)
@@ -148,4 +142,4 @@ def test_bad_input_is_named():
         graph.optimize()
     with pytest.raises(InputError):
         graph.remove_edge(99)
-    assert PoseGraph2D().optimize() == {}
+    assert PoseGraph().optimize() == {}

@@ -1,4 +1,4 @@
-"""SE(3) and planar pose helpers shared by every stage.
+"""SE(3) helpers: inverting, checking and converting 4x4 rigid transforms.
 
 A pose is a 4x4 float64 matrix, camera-in-world (or base-in-world for the robot's planar pose).
 World frame: z up. Camera frame: OpenCV (x right, y down, z forward).
@@ -8,56 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
-
-# Rotation taking camera-frame vectors to base-frame vectors: camera z (forward) is base x,
-# camera x (right) is base -y, camera y (down) is base -z.
-R_BASE_CAMERA = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-
-
-def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
-    """Wrap radians into [-pi, pi)."""
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def planar_pose(x: float, y: float, yaw: float, z: float = 0.0) -> np.ndarray:
-    """4x4 pose of a frame at (x, y, z) rotated by yaw about world z."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    pose = np.eye(4)
-    pose[:2, :2] = [[c, -s], [s, c]]
-    pose[:3, 3] = (x, y, z)
-    return pose
-
-
-def planar_poses(xyyaw: np.ndarray, z: float = 0.0) -> np.ndarray:
-    """(N, 3) array of x, y, yaw -> (N, 4, 4) poses."""
-    xyyaw = np.asarray(xyyaw, dtype=np.float64)
-    n = len(xyyaw)
-    c, s = np.cos(xyyaw[:, 2]), np.sin(xyyaw[:, 2])
-    poses = np.tile(np.eye(4), (n, 1, 1))
-    poses[:, 0, 0], poses[:, 0, 1], poses[:, 1, 0], poses[:, 1, 1] = c, -s, s, c
-    poses[:, 0, 3], poses[:, 1, 3], poses[:, 2, 3] = xyyaw[:, 0], xyyaw[:, 1], z
-    return poses
-
-
-def base_to_camera(camera_height: float) -> np.ndarray:
-    """Pose of the camera in the robot base frame: `camera_height` above the floor, looking ahead."""
-    pose = np.eye(4)
-    pose[:3, :3] = R_BASE_CAMERA
-    pose[2, 3] = camera_height
-    return pose
-
-
-def camera_poses_from_planar(xyyaw: np.ndarray, camera_height: float, floor_z: float = 0.0) -> np.ndarray:
-    """(N, 3) robot x, y, yaw on the floor -> (N, 4, 4) camera-in-world poses."""
-    return planar_poses(xyyaw, z=floor_z) @ base_to_camera(camera_height)
-
-
-def planar_from_camera_poses(poses: np.ndarray, camera_height: float) -> np.ndarray:
-    """Inverse of `camera_poses_from_planar`: (N, 4, 4) camera poses -> (N, 3) x, y, yaw."""
-    base = np.asarray(poses) @ invert(base_to_camera(camera_height))
-    yaw = np.arctan2(base[:, 1, 0], base[:, 0, 0])
-    return np.column_stack([base[:, 0, 3], base[:, 1, 3], yaw])
-
 
 def invert(pose: np.ndarray) -> np.ndarray:
     """Inverse of one (4, 4) or many (N, 4, 4) rigid transforms."""

@@ -1,0 +1,32 @@
+"""Geometry shared by every stage: SE(3) transforms, planar robot poses, rigid fits.
+
+`from longslam.geometry import X` works for every public helper; the modules say where each lives:
+`se3` (4x4 transforms, TUM conversion), `planar` (x, y, yaw, the camera mount, odometry with its
+jump filter), `fit` (Umeyama's rigid / similarity fit).
+"""
+
+from longslam.geometry.fit import rigid_transform, umeyama
+from longslam.geometry.planar import (
+    R_BASE_CAMERA,
+    CameraMount,
+    PlanarOdometry,
+    base_to_camera,
+    camera_poses_from_planar,
+    compose_xyyaw,
+    planar_from_camera_poses,
+    planar_pose,
+    planar_poses,
+    pose_from_xyyaw,
+    relative_xyyaw,
+    wrap_angle,
+    xyyaw_from_pose,
+    xyyaw_of_transform,
+)
+from longslam.geometry.se3 import invert, poses_from_tum, rigidity_violation, rotation_angle, tum_from_poses
+
+__all__ = [
+    "R_BASE_CAMERA", "CameraMount", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",
+    "compose_xyyaw", "invert", "planar_from_camera_poses", "planar_pose", "planar_poses",
+    "pose_from_xyyaw", "poses_from_tum", "relative_xyyaw", "rigid_transform", "rigidity_violation",
+    "rotation_angle", "tum_from_poses", "umeyama", "wrap_angle", "xyyaw_from_pose", "xyyaw_of_transform",
+]

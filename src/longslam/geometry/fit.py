@@ -1,0 +1,64 @@
+"""One rigid (or similarity) fit between matched 3D point sets: Umeyama's least squares.
+
+Used to align a trajectory to its reference (evaluation) and to polish a loop transform on
+matched 3D points (place recognition). Same definition as evo's `geometry.umeyama_alignment`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from longslam.errors import TrajectoryError
+
+# Second singular value of the cross-covariance below this fraction of the first: the points lie
+# on a line (or a point) and the rotation about that line is not determined by the data.
+DEGENERATE_RATIO = 1e-10
+
+
+def umeyama(
+    source: np.ndarray, target: np.ndarray, with_scale: bool, allow_degenerate: bool = False
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """R (3, 3), t (3,), s minimising sum ||target_i - (s R source_i + t)||^2 (s = 1 unless with_scale).
+
+    Umeyama, "Least-squares estimation of transformation parameters between two point patterns",
+    IEEE PAMI 1991, eqs. 34-43. Raises TrajectoryError for fewer than 3 points, or for collinear
+    points unless `allow_degenerate` (then one of the equally good rotations is returned).
+    """
+    source = np.asarray(source, dtype=np.float64)
+    target = np.asarray(target, dtype=np.float64)
+    if source.shape != target.shape or source.ndim != 2 or source.shape[1] != 3:
+        raise TrajectoryError(
+            f"alignment needs two (N, 3) point arrays of the same shape, "
+            f"got {source.shape} and {target.shape}"
+        )
+    n = len(source)
+    if n < 3:
+        raise TrajectoryError(f"alignment needs at least 3 matched positions, got {n}")
+
+    mean_source, mean_target = source.mean(axis=0), target.mean(axis=0)
+    centred_source, centred_target = source - mean_source, target - mean_target
+    variance_source = np.sum(centred_source**2) / n
+    covariance = centred_target.T @ centred_source / n
+    u, d, vt = np.linalg.svd(covariance)
+    if d[1] <= DEGENERATE_RATIO * d[0] and not allow_degenerate:
+        raise TrajectoryError(
+            f"cannot align: the {n} positions lie on a straight line (or a single point), so the "
+            f"rotation about that line is undetermined; use align='none'"
+        )
+    # Flip the weakest axis if needed so that R is a rotation, not a reflection.
+    sign = np.eye(3)
+    if np.linalg.det(u) * np.linalg.det(vt) < 0.0:
+        sign[2, 2] = -1.0
+    rotation = u @ sign @ vt
+    scale = float(np.trace(np.diag(d) @ sign) / variance_source) if with_scale else 1.0
+    translation = mean_target - scale * rotation @ mean_source
+    return rotation, translation, scale
+
+
+def rigid_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The 4x4 rigid transform T minimising sum ||target_i - T(source_i)||^2."""
+    rotation, translation, _ = umeyama(source, target, with_scale=False, allow_degenerate=True)
+    out = np.eye(4)
+    out[:3, :3] = rotation
+    out[:3, 3] = translation
+    return out

@@ -1,0 +1,141 @@
+"""One way to turn user-given values into typed dataclass settings, and back.
+
+Method parameters (`--param key=value`, a study file's `[params.M]`), camera options (CLI flags,
+a study's `[camera]`) and the follower's settings all come through `from_mapping`: strings from
+the command line and TOML/JSON values alike are converted to each field's type, unknown keys and
+bad values are refused with the key, the value and what is valid, and non-finite numbers are
+refused everywhere. A dataclass checks its own ranges in `__post_init__`, so a config that exists
+is a valid one. `to_mapping` / `to_toml` write a config back, so each run folder can keep the
+settings it ran with (`config.toml`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Mapping
+from typing import Any, TypeVar
+
+from longslam.errors import InputError
+
+C = TypeVar("C")
+
+TRUE_WORDS = ("1", "true", "yes", "on")
+FALSE_WORDS = ("0", "false", "no", "off")
+
+
+def _field_type(cls: type, name: str) -> tuple[Any, bool]:
+    """The field's base type and whether it may be None."""
+    kind = typing.get_type_hints(cls)[name]
+    if typing.get_origin(kind) in (typing.Union, types.UnionType) and type(None) in typing.get_args(kind):
+        base = next(a for a in typing.get_args(kind) if a is not type(None))
+        return base, True
+    return kind, False
+
+
+def convert(raw: Any, kind: Any, optional: bool = False) -> Any:
+    """`raw` (a string from the command line, or a TOML/JSON value) as a value of type `kind`.
+
+    Raises ValueError with what was expected.
+    """
+    if raw is None or (optional and isinstance(raw, str) and raw.lower() in ("none", "null")):
+        if not optional:
+            raise ValueError("may not be empty")
+        return None
+    if kind is bool:
+        if isinstance(raw, bool):
+            return raw
+        if isinstance(raw, int) and raw in (0, 1):
+            return bool(raw)
+        if isinstance(raw, str) and raw.lower() in TRUE_WORDS + FALSE_WORDS:
+            return raw.lower() in TRUE_WORDS
+        raise ValueError("expected true or false")
+    if kind is int:
+        if isinstance(raw, bool):
+            raise ValueError("expected a whole number")
+        try:
+            value = float(raw)
+        except (TypeError, ValueError):
+            raise ValueError("expected a whole number") from None
+        if not math.isfinite(value) or not value.is_integer():
+            raise ValueError("expected a whole number")
+        return int(value)
+    if kind is float:
+        if isinstance(raw, bool):
+            raise ValueError("expected a number")
+        try:
+            value = float(raw)
+        except (TypeError, ValueError):
+            raise ValueError("expected a number") from None
+        if not math.isfinite(value):
+            raise ValueError("expected a finite number")
+        return value
+    if kind is str:
+        if not isinstance(raw, (str, int, float)) or isinstance(raw, bool):
+            raise ValueError("expected a string")
+        return str(raw)
+    raise ValueError(f"fields of type {kind!r} cannot be set from text")
+
+
+def field_names(cls: type) -> list[str]:
+    return [f.name for f in dataclasses.fields(cls)]
+
+
+def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | None = None) -> C:
+    """An instance of the dataclass `cls` with `values` over its defaults (or over `base`).
+
+    `what` names the owner in errors, e.g. "method 'keyframe'" or "camera". Unknown keys and
+    unconvertible values raise InputError naming the key, the value and what is valid; the
+    dataclass's own `__post_init__` then checks ranges.
+    """
+    if not isinstance(values, Mapping):
+        raise InputError(f"{what}: expected a table of key = value, got {values!r}")
+    names = field_names(cls)
+    unknown = sorted(set(values) - set(names))
+    if unknown:
+        valid = ", ".join(sorted(names)) if names else "none (it takes no parameters)"
+        raise InputError(f"{what}: unknown parameter(s) {', '.join(map(str, unknown))}; valid parameters: {valid}")
+    converted = {}
+    for key, raw in values.items():
+        kind, optional = _field_type(cls, key)
+        try:
+            converted[key] = convert(raw, kind, optional)
+        except ValueError as err:
+            raise InputError(f"{what}: parameter {key}={raw!r}: {err} (expected {getattr(kind, '__name__', kind)})") from None
+    if base is not None:
+        return dataclasses.replace(base, **converted)
+    return cls(**converted)
+
+
+def to_mapping(config: Any) -> dict[str, Any]:
+    """The dataclass's fields and values (None values kept)."""
+    return {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"no TOML form for {value!r}")
+
+
+def to_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
+    """TOML text of named tables of plain values; None values are left out (TOML has no null),
+    and a comment says so, so reading the file back gives the default for them."""
+    lines: list[str] = []
+    for name, table in tables.items():
+        lines.append(f"[{name}]")
+        for key, value in table.items():
+            if value is None:
+                lines.append(f"# {key}: not set (default)")
+            else:
+                lines.append(f"{key} = {_toml_value(value)}")
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,68 @@
+"""The methods longslam knows: the built-in specs and third-party ones from entry points.
+
+A third-party package declares, in its pyproject.toml,
+
+    [project.entry-points."longslam.methods"]
+    mymethod = "mypackage.module:SPEC"
+
+where SPEC is a `longslam.slam.api.MethodSpec` (its parameters then get the same checking as the
+built-in methods') or a factory `make_method(context: MethodContext, params: dict) -> Method`.
+
+Built-in methods are named here by module path and imported only when asked for, so listing the
+methods does not import every method; the methods themselves never import this module.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from functools import lru_cache
+from importlib.metadata import entry_points
+from typing import Any
+
+from longslam.errors import UnknownNameError
+from longslam.slam.api import Method, MethodContext, MethodSpec
+
+ENTRY_POINT_GROUP = "longslam.methods"
+BUILTIN = {
+    "keyframe": "longslam.slam.keyframe.method:SPEC",
+    "odometry": "longslam.slam.odometry:SPEC",
+    "submap": "longslam.slam.submap.method:SPEC",
+}
+
+
+def _load(target: str) -> Any:
+    module, _, attribute = target.partition(":")
+    return getattr(importlib.import_module(module), attribute)
+
+
+@lru_cache(maxsize=8)
+def _plugins(search_path: tuple[str, ...]) -> dict[str, Any]:
+    # Keyed on sys.path: a package made importable later (a test, a notebook) is then found.
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name not in BUILTIN}
+
+
+def method_names() -> list[str]:
+    """Every method by name: the built-in ones, then the plugins'."""
+    return list(BUILTIN) + sorted(_plugins(tuple(sys.path)))
+
+
+def get_spec(name: str) -> MethodSpec:
+    if name in BUILTIN:
+        return _load(BUILTIN[name])
+    plugins = _plugins(tuple(sys.path))
+    if name not in plugins:
+        raise UnknownNameError("method", name, method_names())
+    loaded = plugins[name].load()
+    if isinstance(loaded, MethodSpec):
+        return loaded
+    return MethodSpec(name, None, loaded)
+
+
+def check_params(name: str, params: dict[str, Any] | None = None) -> Any:
+    """The method's checked config for `params`, without building the method."""
+    return get_spec(name).config(params)
+
+
+def create_method(name: str, context: MethodContext, params: dict[str, Any] | None = None) -> Method:
+    return get_spec(name).create(context, params)

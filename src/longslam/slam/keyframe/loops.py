@@ -1,0 +1,114 @@
+"""Loop closure for the keyframe method: hypotheses, verification, and the graph's verdict.
+
+Hypotheses come from the visual vocabulary (tf-idf over working memory, Kp/ and Rtabmap/
+LoopThr) and from proximity to the current estimate (RGBD/ProximityBySpace). Each is verified
+by PnP RANSAC (Vis/MinInliers), polished on 3D-3D matches (Vis/EstimationType 0), must be planar,
+and is kept only if the optimised graph agrees with it (RGBD/OptimizeMaxError).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from longslam.frame import Intrinsics
+from longslam.geometry import invert, pose_from_xyyaw, wrap_angle, xyyaw_of_transform
+from longslam.slam.features import Features
+from longslam.slam.graph import PoseGraph
+from longslam.slam.keyframe.config import KeyframeConfig
+from longslam.slam.keyframe.memory import KeyframeMemory, Node
+from longslam.slam.place_recognition import refine_3d, verify
+
+# A verified loop transform must be planar: the camera neither rises nor tilts on this robot.
+MAX_LOOP_Z = 0.3  # m
+MAX_LOOP_TILT = 0.2  # rad
+APPEARANCE, PROXIMITY = "appearance", "proximity"
+SOURCES = (APPEARANCE, PROXIMITY)
+
+
+def counter_names() -> list[str]:
+    """The per-source counters this module keeps (hypotheses, accepted, rejected and why)."""
+    return [f"{s}_{what}" for s in SOURCES
+            for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")]
+
+
+class LoopCloser:
+    def __init__(self, config: KeyframeConfig, intrinsics: Intrinsics, graph: PoseGraph, memory: KeyframeMemory,
+                 camera_in_base: np.ndarray, counts: dict[str, int]):
+        self.config = config
+        self.intrinsics = intrinsics
+        self.graph = graph
+        self.memory = memory
+        self.camera_in_base = camera_in_base
+        self.counts = counts
+
+    def detect(self, node: Node, words: np.ndarray) -> None:
+        """Try the new node against working memory: the best appearance hypotheses (one loop at
+        most: the graph is re-optimised for each), then the nearby nodes not tried yet."""
+        cfg = self.config
+        searchable = self.memory.searchable()
+        tried: set[int] = set()
+        if searchable:
+            for cand, score in self.memory.vocabulary.query_words(words, searchable, top_k=cfg.loop_candidates):
+                if score < cfg.loop_threshold:
+                    break
+                tried.add(cand)
+                self.counts[f"{APPEARANCE}_hypotheses"] += 1
+                if self.try_link(node, cand, APPEARANCE):
+                    break
+        if cfg.proximity:
+            for cand in self.proximity_candidates(node, exclude=tried):
+                self.counts[f"{PROXIMITY}_hypotheses"] += 1
+                self.try_link(node, cand, PROXIMITY)
+
+    def proximity_candidates(self, node: Node, exclude: set[int]) -> list[int]:
+        cfg = self.config
+        nodes = self.memory.nodes
+        ids = np.array([i for i in self.memory.wm if i not in exclude and nodes[i].in_ram], dtype=np.int64)
+        if not len(ids):
+            return []
+        here = self.graph.estimate(node.id)
+        poses = np.array([self.graph.estimate(i) for i in ids])
+        dist = np.hypot(poses[:, 0] - here[0], poses[:, 1] - here[1])
+        angle = np.abs(wrap_angle(poses[:, 2] - here[2]))
+        near = (dist <= cfg.proximity_radius) & (angle <= cfg.proximity_max_angle)
+        order = np.argsort(dist[near], kind="stable")
+        return [int(i) for i in ids[near][order][: cfg.proximity_candidates]]
+
+    def visual_link(self, query: Features, candidate: Features) -> np.ndarray | None:
+        """The query robot's pose in the candidate robot's frame (x, y, yaw) from their images, or
+        None when PnP does not verify it or the motion is not planar."""
+        cfg = self.config
+        check = verify(query, candidate, self.intrinsics, cfg.min_inliers)
+        if not check.accepted:
+            return None
+        transform = refine_3d(query, candidate, check.transform) if cfg.refine_3d else check.transform
+        return self.planar_link(transform)
+
+    def try_link(self, node: Node, cand_id: int, source: str) -> bool:
+        """Verify a hypothesis, add it to the graph, keep it only if the optimised graph agrees."""
+        cfg = self.config
+        candidate = self.memory.nodes[cand_id]
+        delta = self.visual_link(node.features, candidate.features)
+        if delta is None:
+            self.counts[f"{source}_rejected_verification"] += 1
+            return False
+        sigmas = np.array([cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular])
+        check = self.graph.try_loop(cand_id, node.id, delta, sigmas=sigmas, max_error=cfg.optimize_max_error, check="graph")
+        if not check.accepted:
+            self.counts[f"{source}_rejected_graph"] += 1
+            return False
+        self.counts[f"{source}_accepted"] += 1
+        link_kind = "loop" if source == APPEARANCE else PROXIMITY
+        self.memory.db.put_link(cand_id, node.id, link_kind, pose_from_xyyaw(delta), np.diag(1.0 / np.square(sigmas)))
+        candidate.last_access = node.id
+        self.memory.retrieve_around(cand_id)
+        return True
+
+    def planar_link(self, camera_transform: np.ndarray) -> np.ndarray | None:
+        """Pose of the query robot in the candidate robot's frame as (x, y, yaw), or None if the
+        verified camera motion is not planar (a sign of a wrong match)."""
+        base = self.camera_in_base @ camera_transform @ invert(self.camera_in_base)
+        tilt = np.arccos(np.clip(base[2, 2], -1.0, 1.0))
+        if abs(base[2, 3]) > MAX_LOOP_Z or tilt > MAX_LOOP_TILT:
+            return None
+        return xyyaw_of_transform(base)
