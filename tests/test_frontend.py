@@ -6,7 +6,9 @@ import pytest
 from longslam.errors import InputError
 from longslam.eval.metrics import evaluate
 from longslam.frame import Frame, Intrinsics
-from longslam.geometry import base_to_camera, camera_poses_from_planar, planar_from_camera_poses
+from longslam.geometry import base_to_camera, planar_from_camera_poses
+from longslam.geometry import compose_xyyaw as compose
+from longslam.geometry import relative_xyyaw as relative
 from longslam.io.sequence import SequenceReader
 from longslam.recording import simulate
 from longslam.sim.noise import get_noise
@@ -15,7 +17,6 @@ from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.slam.frontend.local_map import LocalMap
 from longslam.slam.frontend.registration import register
 from longslam.slam.frontend.scan import ScanExtractor
-from longslam.slam.frontend.smoother import compose, relative
 from longslam.trajectory import Trajectory
 
 

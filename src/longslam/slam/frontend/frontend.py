@@ -24,13 +24,14 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame, Intrinsics
-from longslam.geometry import base_to_camera, camera_poses_from_planar, planar_from_camera_poses, wrap_angle
+from longslam.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
 from longslam.slam.frontend.visual import VisualConfig, VisualOdometry
-from longslam.slam.frontend.smoother import (BiasFilter, FullSmoother, MotionNoise, SmootherConfig, WheelStep,
-                                             compose, relative)
+from longslam.slam.frontend.smoother import BiasFilter, FullSmoother, MotionNoise, SmootherConfig, WheelStep
+
+relative = relative_xyyaw
 
 MODES = ("fused", "wheel")
 # Below this forward step (m) the robot is turning in place: the wheels' forward bias is not added.
@@ -109,14 +110,13 @@ class FrontEnd:
         self.config = config or FrontEndConfig()
         self.config.validate()
         self.intrinsics = intrinsics
-        self.camera_height: float | None = None
-        self.floor_z = 0.0
+        self.mount: CameraMount | None = None  # known at the first frame
         self._extract: ScanExtractor | None = None
         self._visual: VisualOdometry | None = None
         self._filter: BiasFilter | None = None
         self._map = LocalMap(self.config.local_map)
         self._smoother = FullSmoother(self.config.noise, self.config.smoother, use_bias=self.config.use_bias)
-        self._raw_prev: np.ndarray | None = None
+        self._wheels: PlanarOdometry | None = None
         self._odom: np.ndarray | None = None  # jump-corrected wheel odometry of the latest frame
         self._has_wheels: bool | None = None
         self._online: list[np.ndarray] = []
@@ -150,31 +150,33 @@ class FrontEnd:
     def _start(self, frame: Frame) -> None:
         cfg = self.config
         if frame.odometry is not None:
-            z = float(np.asarray(frame.odometry)[2, 3])
-            self.camera_height = cfg.camera_height or z
-            self.floor_z = z - self.camera_height
+            self.mount = CameraMount.from_first_pose(np.asarray(frame.odometry, dtype=np.float64), cfg.camera_height)
+            # The same jump filter as the methods always had: the "wheel" mode is exactly it.
+            self._wheels = PlanarOdometry(self.mount, cfg.jump_distance, cfg.jump_angle)
         else:
-            self.camera_height = cfg.camera_height or cfg.default_camera_height
-            self.floor_z = 0.0
-        self._extract = ScanExtractor(self.intrinsics, base_to_camera(self.camera_height), cfg.scan)
-        if cfg.visual and cfg.mode == "fused":
-            self._visual = VisualOdometry(self.intrinsics, base_to_camera(self.camera_height), cfg.visual_tracking)
-        if frame.odometry is None:
+            self.mount = CameraMount(cfg.camera_height or cfg.default_camera_height, 0.0)
             self._odom = np.zeros(3)  # a sequence without odometry starts at the origin
+        self._extract = ScanExtractor(self.intrinsics, self.mount.camera_in_base, cfg.scan)
+        if cfg.visual and cfg.mode == "fused":
+            self._visual = VisualOdometry(self.intrinsics, self.mount.camera_in_base, cfg.visual_tracking)
         self._filter = BiasFilter(np.zeros(3), cfg.noise, use_bias=cfg.use_bias and bool(self._has_wheels))
 
+    @property
+    def camera_height(self) -> float | None:
+        return None if self.mount is None else self.mount.camera_height
+
+    @property
+    def floor_z(self) -> float:
+        return 0.0 if self.mount is None else self.mount.floor_z
+
     def _wheel_step(self, frame: Frame) -> WheelStep | None:
-        raw = planar_from_camera_poses(np.asarray(frame.odometry, dtype=np.float64)[None], self.camera_height)[0]
-        if self._odom is None:
-            self._raw_prev, self._odom = raw, raw
-            self._filter.state[:3] = raw
+        previous = self._odom
+        self._odom = self._wheels.update(np.asarray(frame.odometry, dtype=np.float64))
+        self.counts["odometry_jumps"] = self._wheels.jumps
+        if previous is None:
+            self._filter.state[:3] = self._odom
             return None
-        delta = relative(self._raw_prev, raw)
-        self._raw_prev = raw
-        if np.hypot(delta[0], delta[1]) > self.config.jump_distance or abs(delta[2]) > self.config.jump_angle:
-            self.counts["odometry_jumps"] += 1
-            delta = np.zeros(3)
-        self._odom = compose(self._odom, delta)
+        delta = relative(previous, self._odom)
         return WheelStep(float(delta[0]), float(delta[1]), float(delta[2]), abs(delta[0]) > TRANSLATING_STEP)
 
     def _wheel_sigmas(self, wheel: WheelStep | None) -> np.ndarray | None:
@@ -281,7 +283,8 @@ class FrontEnd:
         return self._smoother.solve()
 
     def camera_poses(self, xyyaw: np.ndarray) -> np.ndarray:
-        return camera_poses_from_planar(np.asarray(xyyaw).reshape(-1, 3), self.camera_height, self.floor_z)
+        """(N, 3) planar poses -> (N, 4, 4) camera-in-world poses (after the first frame)."""
+        return self.mount.to_camera(np.asarray(xyyaw).reshape(-1, 3))
 
     @property
     def stats(self) -> dict[str, Any]:

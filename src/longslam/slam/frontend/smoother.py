@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from longslam.geometry import wrap_angle
+from longslam.geometry import compose_xyyaw, wrap_angle
 
 X = gtsam.symbol_shorthand.X
 B = gtsam.symbol_shorthand.B
@@ -51,26 +51,6 @@ class WheelStep:
     lateral: float
     yaw: float
     moving: bool
-
-
-def _rot(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s], [s, c]])
-
-
-def compose(pose: np.ndarray, delta: np.ndarray) -> np.ndarray:
-    out = np.empty(3)
-    out[:2] = pose[:2] + _rot(pose[2]) @ delta[:2]
-    out[2] = wrap_angle(pose[2] + delta[2])
-    return out
-
-
-def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """b expressed in a's frame."""
-    out = np.empty(3)
-    out[:2] = _rot(a[2]).T @ (b[:2] - a[:2])
-    out[2] = wrap_angle(b[2] - a[2])
-    return out
 
 
 class BiasFilter:
@@ -117,7 +97,7 @@ class BiasFilter:
         q = np.zeros((5, 5))
         q[:3, :3] = g @ np.diag(sigmas ** 2) @ g.T
         q[3:, 3:] = np.diag(walk ** 2)
-        self.state[:3] = compose(self.state[:3], delta)
+        self.state[:3] = compose_xyyaw(self.state[:3], delta)
         self.cov = f_mat @ self.cov @ f_mat.T + q
 
     def predict_step(self, step: np.ndarray, sigmas: np.ndarray) -> None:
