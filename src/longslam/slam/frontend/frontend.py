@@ -57,6 +57,9 @@ class FrontEndConfig:
     visual: bool = True
     visual_gate_distance: float = 0.04  # m
     visual_gate_angle: float = 0.01  # rad
+    visual_gate_sigmas: float = 4.0  # forward gate in stds of the forward-bias innovation
+    visual_max_bias: float = 0.1  # m per step: an RGB-D step further than this from the raw wheel step is wrong
+    visual_bias_reset_after: int = 5  # consecutive forward refusals that widen the bias's variance
     visual_gate_distance_no_wheels: float = 0.3  # m
     visual_gate_angle_no_wheels: float = 0.2  # rad
     visual_sigma_forward: float = 0.004  # m per step
@@ -122,8 +125,9 @@ class FrontEnd:
         self._online: list[np.ndarray] = []
         self._odom_list: list[np.ndarray] = []
         self._last_insert: np.ndarray | None = None
+        self._forward_refusals = 0
         self._time = 0.0
-        self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0, "visual_failed": 0, "scans_registered": 0, "scans_refused": 0,
+        self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0, "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
                        "scans_unmatched": 0, "scan_points": 0, "loops": 0}
 
     # --- per frame ---------------------------------------------------------------------------
@@ -194,14 +198,12 @@ class FrontEnd:
         if wheel is not None:
             bias = flt.bias if cfg.use_bias else np.zeros(2)
             expected = np.array([wheel.forward - (bias[0] if wheel.moving else 0.0), wheel.lateral, wheel.yaw - bias[1]])
+            bias_var = flt.cov[3, 3] if cfg.use_bias else 0.0
             flt.predict_wheel(wheel)
-            visual = self._visual_step(frame, expected, cfg.visual_gate_distance, cfg.visual_gate_angle)
+            visual = self._gated_wheel_visual(frame, wheel, expected, bias_var, vis_sigmas)
             if visual is not None and cfg.use_bias:
                 raw = np.array([wheel.forward, wheel.yaw])
-                n = cfg.noise
-                wheel_var = np.array([(n.forward_min + n.forward_rel * abs(wheel.forward)) ** 2,
-                                      (n.yaw_min + n.yaw_rel * abs(wheel.yaw)) ** 2])
-                flt.update_bias(raw - visual[[0, 2]], wheel_var + vis_sigmas[[0, 2]] ** 2, wheel.moving)
+                flt.update_bias(raw - visual[[0, 2]], self._wheel_variances(wheel) + vis_sigmas[[0, 2]] ** 2, wheel.moving)
         elif k > 0:
             # No wheels: the visual step where it tracks, else the last step again (constant
             # velocity), loosely.
@@ -245,6 +247,51 @@ class FrontEnd:
                                  flt.bias if wheel is not None else None,
                                  None if visual is None else (visual, vis_sigmas))
         return pose
+
+    def _wheel_variances(self, wheel: WheelStep) -> np.ndarray:
+        n = self.config.noise
+        return np.array([(n.forward_min + n.forward_rel * abs(wheel.forward)) ** 2,
+                         (n.yaw_min + n.yaw_rel * abs(wheel.yaw)) ** 2])
+
+    def _gated_wheel_visual(self, frame: Frame, wheel: WheelStep, expected: np.ndarray, bias_var: float,
+                            vis_sigmas: np.ndarray) -> np.ndarray | None:
+        """The RGB-D step if it agrees with the wheels: sideways and in heading within fixed gates
+        of the bias-corrected wheel step; forward within `visual_gate_sigmas` of the forward
+        bias's own uncertainty (a Mahalanobis gate), so the gate widens when the bias is unsure.
+
+        The wheels' bias jumps to a new value every few seconds; a fixed gate around the old
+        value would refuse all the evidence of the new one (measured: a 6 cm/frame jump at
+        xlarge left the estimate 3 m off). So after `visual_bias_reset_after` consecutive
+        forward refusals the forward bias's variance is widened and the gate opens.
+        """
+        cfg = self.config
+        if self._visual is None:
+            return None
+        res = self._visual(frame.rgb, frame.depth, expected)
+        if res is None:
+            self.counts["visual_failed"] += 1
+            return None
+        d = res.step - expected
+        if abs(d[1]) > cfg.visual_gate_distance or abs(wrap_angle(d[2])) > cfg.visual_gate_angle:
+            self.counts["visual_refused"] += 1
+            return None
+        if wheel.moving:
+            spread = np.sqrt(bias_var + self._wheel_variances(wheel)[0] + vis_sigmas[0] ** 2)
+            if abs(d[0]) > max(cfg.visual_gate_sigmas * spread, cfg.visual_gate_distance) and self.config.use_bias \
+                    or abs(res.step[0] - wheel.forward) > cfg.visual_max_bias:
+                self.counts["visual_refused"] += 1
+                self._forward_refusals += 1
+                if self._forward_refusals >= cfg.visual_bias_reset_after:
+                    self._filter.widen_forward_bias(cfg.noise.bias_forward_reset)
+                    self.counts["forward_bias_resets"] += 1
+                    self._forward_refusals = 0
+                return None
+        elif abs(d[0]) > cfg.visual_gate_distance:
+            self.counts["visual_refused"] += 1
+            return None
+        self._forward_refusals = 0
+        self.counts["visual_accepted"] += 1
+        return res.step
 
     def _visual_step(self, frame: Frame, expected: np.ndarray, gate_distance: float, gate_angle: float,
                      ransac: bool = False) -> np.ndarray | None:

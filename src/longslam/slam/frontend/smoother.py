@@ -38,6 +38,7 @@ class MotionNoise:
     bias_forward_walk: float = 0.0008  # m/frame per frame
     bias_yaw_walk: float = 0.00003  # rad/frame per frame
     bias_forward_init: float = 0.01  # m/frame
+    bias_forward_reset: float = 0.03  # m/frame, added when the RGB-D steps say the bias jumped
     bias_yaw_init: float = 0.0005  # rad/frame
     # Without wheels: a constant-velocity prediction, loose in every direction.
     cv_forward: float = 0.05  # m
@@ -121,6 +122,10 @@ class BiasFilter:
         self.state[2] = wrap_angle(self.state[2])
         self.cov = (np.eye(5) - gain @ h) @ self.cov
         self.cov = 0.5 * (self.cov + self.cov.T)
+
+    def widen_forward_bias(self, std: float) -> None:
+        """The forward bias may have jumped: add `std`^2 to its variance."""
+        self.cov[3, 3] += std ** 2
 
     def pose_information(self) -> np.ndarray:
         """Information of the marginal pose (world x, y, yaw): the prior of the registration."""

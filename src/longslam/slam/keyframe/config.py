@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 from longslam.errors import InputError
+from longslam.slam.frontend.frontend import MODES as FRONTEND_MODES
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,11 @@ class KeyframeConfig:
     # hangs on its own keyframe only, and corrections show as jumps at keyframes).
     interpolate_corrections: bool = True
     camera_height: float | None = None  # m above the floor; default: the first odometry pose's z
+    # Where each frame's motion comes from (longslam.slam.frontend): "fused" (wheels with their
+    # biases estimated, scan-to-map and gated RGB-D steps; the final trajectory from the
+    # front end's smoother over every frame with the loop closures; runs without odometry.txt)
+    # or "wheel" (the wheel odometry alone: the paper's configuration).
+    frontend: str = "fused"
 
     def __post_init__(self) -> None:
         positive = ("detection_rate", "max_features", "max_words", "min_inliers", "grid_cell", "grid_range",
@@ -83,3 +89,5 @@ class KeyframeConfig:
                 raise InputError(f"method 'keyframe': parameter {name} must not be negative, got {value}")
         if self.obstacle_max_height <= self.obstacle_min_height:
             raise InputError("method 'keyframe': obstacle_max_height must exceed obstacle_min_height")
+        if self.frontend not in FRONTEND_MODES:
+            raise InputError(f"method 'keyframe': parameter frontend must be one of {', '.join(FRONTEND_MODES)}, got {self.frontend!r}")

@@ -22,7 +22,8 @@ from longslam.geometry import CameraMount, PlanarOdometry, compose_xyyaw, pose_f
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
 from longslam.slam.features import Features, extract
-from longslam.slam.graph import PoseGraph
+from longslam.slam.frontend import FrontEnd, FrontEndConfig
+from longslam.slam.graph import ODOMETRY, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.loops import LoopCloser, counter_names
 from longslam.slam.keyframe.maps import assemble_maps
@@ -57,6 +58,13 @@ class KeyframeMethod:
         self.loops: LoopCloser | None = None  # made at the first frame, when the camera mount is known
         self._mount: CameraMount | None = None
         self._odometry: PlanarOdometry | None = None
+        # The fused front end gives each frame's motion; "wheel" keeps the odometry path below.
+        self.frontend: FrontEnd | None = None
+        if config.frontend != "wheel":
+            self.frontend = FrontEnd(context.intrinsics, FrontEndConfig(
+                mode=config.frontend, camera_height=config.camera_height,
+                jump_distance=config.jump_distance, jump_angle=config.jump_angle))
+        self._node_frame: dict[int, int] = {}  # node id -> index of the frame it was made at
         self._last_node: Node | None = None
         self._frame_stamps: list[float] = []
         self._frame_node: list[int] = []
@@ -75,9 +83,13 @@ class KeyframeMethod:
 
     # --- per frame ---------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
-        odom = self._corrected_odometry(frame_odometry(frame, self.name))
+        if self.frontend is not None:
+            odom = self._frontend_motion(frame)
+        else:
+            odom = self._corrected_odometry(frame_odometry(frame, self.name))
         self.counts[stats.FRAMES] += 1
         if self._is_new_node(frame.timestamp, odom):
+            self._node_frame[len(self.nodes)] = len(self._frame_stamps)
             self._add_node(frame, odom)
         node = self._last_node
         xyyaw = compose_xyyaw(self.graph.estimate(node.id), relative_xyyaw(node.odom, odom))
@@ -86,6 +98,16 @@ class KeyframeMethod:
         self._frame_node.append(node.id)
         self._frame_odom.append(odom)
         self._online.append(pose)
+        return pose
+
+    def _frontend_motion(self, frame: Frame) -> np.ndarray:
+        """The front end's online pose of this frame, used as the node's "odometry"."""
+        pose = self.frontend.step(frame)
+        if self._mount is None:
+            self._mount = self.frontend.mount
+            self._camera_in_base = self._mount.camera_in_base
+            self.loops = LoopCloser(self.config, self.intrinsics, self.graph, self.memory, self._camera_in_base, self.counts)
+        self.counts[stats.ODOMETRY_JUMPS] = self.frontend.counts["odometry_jumps"]
         return pose
 
     def _corrected_odometry(self, camera_pose: np.ndarray) -> np.ndarray:
@@ -212,6 +234,15 @@ class KeyframeMethod:
             out[i, 2] = wrap_angle(own[i, 2] + w * wrap_angle(other[2] - own[i, 2]))
         return out
 
+    def _frontend_final(self) -> np.ndarray:
+        """Every frame's pose from the front end's smoother, with the graph's accepted loop
+        closures (node to node) added as constraints between the nodes' frames."""
+        for edge in self.graph.edges:
+            if edge.kind == ODOMETRY:
+                continue
+            self.frontend.add_loop(self._node_frame[edge.a], self._node_frame[edge.b], np.array(edge.delta), edge.information)
+        return self.frontend.final_trajectory()
+
     def memory_bytes(self) -> dict[str, int]:
         return {**self.memory.memory_bytes(), "graph": 3 * 8 * self.graph.num_nodes + 64 * len(self.graph.edges)}
 
@@ -221,14 +252,19 @@ class KeyframeMethod:
         if self.graph.num_loops:
             self.graph.optimize(warm_start=True)
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
-        final = self._final_planar_poses()
+        node_estimate = self.graph.estimate
+        if self.frontend is not None:
+            final = self._frontend_final()
+            node_estimate = lambda node_id: final[self._node_frame[node_id]]  # noqa: E731
+        else:
+            final = self._final_planar_poses()
         poses = self._mount.to_camera(final)
         trajectory = Trajectory(np.array(self._frame_stamps), poses, source="keyframe")
         online = Trajectory(np.array(self._frame_stamps), np.array(self._online), source="keyframe online")
 
         map_bytes = self.memory_bytes()
         census = self.memory.census()
-        grid_map, cloud = assemble_maps(sorted(self.nodes), self.graph.estimate, self.memory.grid_and_points,
+        grid_map, cloud = assemble_maps(sorted(self.nodes), node_estimate, self.memory.grid_and_points,
                                         self._mount, self.config.grid_cell, self.config.cloud_voxel)
 
         # The database ends holding every node at its optimised pose, so a user can reopen it.
@@ -246,6 +282,8 @@ class KeyframeMethod:
             "vocabulary_words": self.memory.vocabulary.n_words, "graph_loops": self.graph.num_loops,
             "database": str(self.db_path) if self._own_dir is None else None,
         })
+        if self.frontend is not None:
+            run_stats["frontend"] = self.frontend.stats
         self.db.set_statistics(run_stats)
         self.db.close()
         if self._own_dir is not None:

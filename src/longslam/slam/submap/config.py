@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from longslam.errors import InputError
+from longslam.slam.frontend.frontend import MODES as FRONTEND_MODES
 
 
 @dataclass(frozen=True)
@@ -23,6 +24,12 @@ class SubmapConfig:
     submap_interval: float = 20.0
     # Camera height above the floor; 0 = the first odometry pose's z (the floor is at z = 0)
     camera_height: float = 0.0
+    # Where each frame's motion comes from (longslam.slam.frontend): "fused" (wheels with their
+    # biases estimated, scan-to-map and gated RGB-D steps; the final trajectory from the front
+    # end's smoother over every frame with the graph's registration and loop edges; runs without
+    # odometry.txt) or "wheel" (the wheel odometry alone: the paper's configuration).
+    frontend: str = "fused"
+    frontend_max_edge_error: float = 3.0  # sigmas: graph edges beyond this stay out of the smoother
     # Registration constraints between finished submaps whose bounding boxes overlap
     registration: bool = True
     registration_sampling_ratio: float = 0.5  # share of the upright iso-surface points used (see README)
@@ -78,3 +85,5 @@ class SubmapConfig:
             raise InputError(f"robust_kernel must be cauchy, huber or none, got {self.robust_kernel!r}")
         if self.grid_max_height <= self.grid_min_height:
             raise InputError("grid_max_height must exceed grid_min_height")
+        if self.frontend not in FRONTEND_MODES:
+            raise InputError(f"submap parameter frontend must be one of {', '.join(FRONTEND_MODES)}, got {self.frontend!r}")

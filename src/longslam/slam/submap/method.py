@@ -34,6 +34,7 @@ from longslam.frame import Frame
 from longslam.geometry import CameraMount, compose_xyyaw, invert, planar_pose, relative_xyyaw, xyyaw_of_transform
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
+from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
@@ -91,6 +92,11 @@ class SubmapMethod:
         self.submaps: list[Submap] = []
         self.counts = _Counts()
         self._mount: CameraMount | None = None
+        # The fused front end gives each frame's motion; "wheel" reads the odometry directly.
+        self.frontend: FrontEnd | None = None
+        if c.frontend != "wheel":
+            self.frontend = FrontEnd(context.intrinsics, FrontEndConfig(mode=c.frontend, camera_height=c.camera_height or None))
+        self._submap_frame: list[int] = []  # index of each submap's first frame
         self._last_odometry: np.ndarray | None = None
         self._pose_in_active = np.eye(4)  # camera pose of the latest frame in the active submap
         self._max_depth = c.max_ray_length if context.max_depth is None else min(c.max_ray_length, context.max_depth)
@@ -118,7 +124,13 @@ class SubmapMethod:
 
     # --- frames ------------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
-        odometry = frame_odometry(frame, "submap")
+        if self.frontend is not None:
+            # The front end's online pose stands where the odometry stood.
+            odometry = self.frontend.camera_poses(self.frontend.step(frame)[None])[0]
+            if self._mount is None:
+                self._mount = self.frontend.mount
+        else:
+            odometry = frame_odometry(frame, "submap")
         if self._mount is None:
             self._mount = CameraMount.from_first_pose(odometry, self.config.camera_height)
         active = self.submaps[-1] if self.submaps else None
@@ -161,6 +173,7 @@ class SubmapMethod:
         the previous submap's frame for the others (that is the odometry constraint)."""
         c = self.config
         index = len(self.submaps)
+        self._submap_frame.append(len(self._stamps))
         if self.submaps:
             previous = self.submaps[-1]
             self._finish_submap(previous)
@@ -294,8 +307,15 @@ class SubmapMethod:
         stamps = np.array(self._stamps)
         in_submap = np.tile(np.eye(4), (len(stamps), 1, 1))
         in_submap[:, :3] = np.array(self._in_submap)
-        origins = np.array([self._origin_pose(self.graph.estimate(s.index)) for s in self.submaps])
-        poses = origins[np.array(self._frame_submap)] @ in_submap
+        if self.frontend is not None:
+            final = self._frontend_final()
+            poses = self._mount.to_camera(final)
+            # Each submap's origin is the robot's pose at its first frame: the map moves with
+            # the final trajectory.
+            origins = np.array([self._origin_pose(final[self._submap_frame[s.index]]) for s in self.submaps])
+        else:
+            origins = np.array([self._origin_pose(self.graph.estimate(s.index)) for s in self.submaps])
+            poses = origins[np.array(self._frame_submap)] @ in_submap
         trajectory = Trajectory(stamps, poses, source="submap")
         online = Trajectory(stamps, np.array(self._online), source="submap online")
         fused = fuse_submaps([(s.tsdf, origins[s.index]) for s in self.submaps], c.voxel_size, c.truncation)
@@ -325,7 +345,20 @@ class SubmapMethod:
             "fused_blocks": fused.num_blocks,
             "mesh": mesh_path.name if mesh_path else None,  # in the run folder
         }
+        if self.frontend is not None:
+            run_stats["frontend"] = self.frontend.stats
         return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=run_stats)
+
+
+    def _frontend_final(self) -> np.ndarray:
+        """Every frame's pose from the front end's smoother, with the submap graph's registration
+        and loop edges between the submaps' first frames. An edge the optimised graph explains
+        poorly (the robust kernel down-weighted it) is left out: the smoother has no kernel."""
+        for edge in self.graph.edges:
+            if edge.kind == ODOMETRY or self.graph.edge_error(edge.edge_id) > self.config.frontend_max_edge_error:
+                continue
+            self.frontend.add_loop(self._submap_frame[edge.a], self._submap_frame[edge.b], np.array(edge.delta), edge.information)
+        return self.frontend.final_trajectory()
 
 
 def _reason_key(reason: str) -> str:
