@@ -104,10 +104,22 @@ def test_cli_reports_bad_names_and_files(tmp_path, capsys):
     assert "NaN" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("name", ["odometry", "keyframe", "submap"])
-def test_methods_fed_by_odometry_refuse_frames_without_it(name):
+@pytest.mark.parametrize("name, params", [("odometry", {}), ("keyframe", {"frontend": "wheel"}), ("submap", {"frontend": "wheel"})])
+def test_methods_fed_by_odometry_refuse_frames_without_it(name, params):
     intrinsics = Intrinsics.from_fov(16, 12, 90.0)
-    method = create_method(name, MethodContext(intrinsics, 8.0))
+    method = create_method(name, MethodContext(intrinsics, 8.0), params)
     frame = Frame(7, 0.7, np.zeros((12, 16, 3), np.uint8), np.ones((12, 16), np.float32), None, intrinsics)
     with pytest.raises(InputError, match=rf"frame 7 \(t=0.700000\) has no odometry pose; the '{name}' method"):
         method.step(frame)
+
+
+@pytest.mark.parametrize("name", ["keyframe", "submap"])
+def test_methods_on_the_fused_front_end_run_without_odometry_and_say_so(name):
+    intrinsics = Intrinsics.from_fov(16, 12, 90.0)
+    method = create_method(name, MethodContext(intrinsics, 8.0))
+    for i in range(3):
+        frame = Frame(i, 0.1 * i, np.zeros((12, 16, 3), np.uint8), np.full((12, 16), 2.0, np.float32), None, intrinsics)
+        assert np.all(np.isfinite(method.step(frame)))
+    result = method.finish()
+    assert len(result.trajectory) == 3
+    assert result.stats["frontend"]["odometry_source"].startswith("none")
