@@ -2,6 +2,7 @@
 
     python benchmarks/frontend.py [--routes paper-300m] [--noises large xlarge] [--seeds 0 1 2]
                                   [--work /tmp/seqs] [--param key=value ...] [--no-odometry]
+                                  [--methods keyframe submap] [--frontends fused wheel]
 
 Sequences are simulated once per (route, noise, seed) into --work as ROUTE-NOISE-SEED (frames
 shared through the render cache). For each, prints dead reckoning (the odometry.txt poses),
@@ -10,6 +11,9 @@ ratios of ATE and E_trans to dead reckoning. ms/frame is the front end's own tim
 PNGs excluded); the smoother's one-off time at the end is printed apart.
 --no-odometry hides the wheel odometry from the front end (a real sequence's case); ATE is
 then also given after SE(3) alignment, since the start pose is unknown to the front end.
+--methods also runs those methods (in this process) with each --frontends setting, and prints
+their final trajectory's metrics, the loop constraints they fed to the front end and how many of
+those are wrong against ground truth (> 0.5 m or > 5 deg), and their real-time factor.
 """
 
 from __future__ import annotations
@@ -26,6 +30,9 @@ from longslam.io.sequence import SequenceReader
 from longslam.recording import simulate
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
+from longslam.geometry import planar_from_camera_poses, relative_xyyaw, wrap_angle
+from longslam.slam.api import MethodContext
+from longslam.slam.catalog import create_method
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.trajectory import Trajectory
 
@@ -68,6 +75,37 @@ def run(path: Path, config: FrontEndConfig, no_odometry: bool) -> dict:
     return out
 
 
+def wrong_loops(reader: SequenceReader, constraints: list, camera_height: float) -> tuple[int, float, float]:
+    """Constraints off by more than 0.5 m or 5 deg from the ground truth; the worst errors."""
+    gt = planar_from_camera_poses(reader.ground_truth.poses, camera_height)
+    wrong, worst_m, worst_deg = 0, 0.0, 0.0
+    for i, j, *delta in constraints:
+        d = np.asarray(delta) - relative_xyyaw(gt[i], gt[j])
+        e, ey = float(np.hypot(d[0], d[1])), float(np.degrees(abs(wrap_angle(d[2]))))
+        worst_m, worst_deg = max(worst_m, e), max(worst_deg, ey)
+        wrong += e > 0.5 or ey > 5.0
+    return wrong, worst_m, worst_deg
+
+
+def run_method(path: Path, method: str, frontend: str) -> dict:
+    reader = SequenceReader(path)
+    m = create_method(method, MethodContext(reader.intrinsics, reader.max_depth, None), {"frontend": frontend})
+    t0 = time.perf_counter()
+    for frame in reader:
+        m.step(frame)
+    result = m.finish()
+    seconds = time.perf_counter() - t0
+    out = evaluate(reader.ground_truth, result.trajectory)
+    stats = result.stats
+    out["rtf"] = (reader.timestamps[-1] - reader.timestamps[0]) / seconds
+    out["loops"] = stats.get("loops_accepted", 0) + stats.get("registrations_accepted", 0)
+    fe = stats.get("frontend")
+    if fe is not None:
+        out["fed"] = len(fe["loop_constraints"])
+        out["wrong"], out["worst_m"], out["worst_deg"] = wrong_loops(reader, fe["loop_constraints"], stats["camera_height"])
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--routes", nargs="+", default=["paper-300m"])
@@ -76,6 +114,8 @@ def main() -> None:
     ap.add_argument("--work", type=Path, default=Path("/tmp/seqs"))
     ap.add_argument("--param", action="append", default=[], help="front-end parameter key=value (nested: registration.sigma=0.05)")
     ap.add_argument("--no-odometry", action="store_true")
+    ap.add_argument("--methods", nargs="*", default=[])
+    ap.add_argument("--frontends", nargs="+", default=["fused"])
     args = ap.parse_args()
     params = dict(p.split("=", 1) for p in args.param)
     config = FrontEndConfig().with_flat({k: parse_value(v) for k, v in params.items()})
@@ -103,6 +143,16 @@ def main() -> None:
                 print(f"{'':28s} front end {st['ms_per_frame']:.1f} ms/frame, smoother {res['smooth_s']:.1f} s; "
                       f"registered {st['scans_registered']}/{st['frames']}, refused {st['scans_refused']}, "
                       f"unmatched {st['scans_unmatched']}; odometry: {st['odometry_source']}", flush=True)
+                for method in args.methods:
+                    for frontend in args.frontends:
+                        m = run_method(path, method, frontend)
+                        name = f"{method}-{frontend}"
+                        rows.setdefault((f"{route}-{noise}", name), []).append(m)
+                        loops = (f"loops {m['loops']}, fed {m['fed']}, wrong {m['wrong']} (worst {m['worst_m']:.2f} m "
+                                 f"{m['worst_deg']:.1f} deg)") if "fed" in m else f"loops {m['loops']}"
+                        print(f"{path.name:28s} {name:15s} {m['ate']:7.3f} {m['ate'] / base['ate']:6.2f} "
+                              f"{m['e_trans']:8.4f} {m['e_trans'] / base['e_trans']:6.2f} {m['e_rot']:7.3f}  "
+                              f"rtf {m['rtf']:.1f}; {loops}", flush=True)
     if len(args.seeds) > 1:
         print("\nmean over seeds")
         for (seq, name), ms in rows.items():

@@ -340,6 +340,8 @@ class FrontEnd:
         out["odometry_source"] = ("wheels" if self._has_wheels else
                                   "none: visual steps and scan registration (constant velocity where tracking fails)")
         out["ms_per_frame"] = 1000.0 * self._time / max(self.counts["frames"], 1)
+        # Every constraint a method added, so that a benchmark can check it against ground truth.
+        out["loop_constraints"] = [[i, j, *map(float, delta)] for i, j, delta, _ in self._smoother.loops]
         if self._filter is not None and self._has_wheels and self.config.mode == "fused":
             out["bias_final"] = [float(b) for b in self._filter.bias]
         return out
