@@ -163,6 +163,19 @@ def test_registration_lowers_the_error_on_a_loop(hall_sequences):
     assert ate(noisy.ground_truth, with_registration.trajectory) < 0.8 * odometry_ate
 
 
+def test_the_fused_front_end_beats_the_wheel_only_configuration(hall_sequences):
+    _, noisy = hall_sequences
+    _, _, fused = run(noisy, submap_interval=5)
+    _, _, wheel = run(noisy, submap_interval=5, frontend="wheel")
+    assert fused.stats["frontend"]["mode"] == "fused"
+    fused_ate, wheel_ate = ate(noisy.ground_truth, fused.trajectory), ate(noisy.ground_truth, wheel.trajectory)
+    assert fused_ate < wheel_ate, (fused_ate, wheel_ate)
+    assert fused.stats["frontend"]["loops"] == 0  # registration edges stay in the submap graph by default
+    _, _, fed = run(noisy, submap_interval=5, frontend_registrations=True)
+    # ...and reach the front end's smoother, between the submaps' first frames, when asked.
+    assert fed.stats["frontend"]["loops"] > 0
+
+
 def test_frames_without_depth_are_counted_and_skipped(hall_sequences):
     _, noisy = hall_sequences
     frames = list(noisy)[:120]

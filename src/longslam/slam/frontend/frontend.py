@@ -47,6 +47,7 @@ class FrontEndConfig:
     jump_angle: float = 0.8  # rad in one frame
     use_bias: bool = True  # estimate the wheels' forward and heading biases
     scan_anchor_lag: int = 20  # frames: a scan factor links a frame to the one this many before
+    scan_information_scale: float = 1.0  # of the registration's Hessian, in the full smoother
     max_correction: float = 0.5  # m: a registration moving the prediction further is refused
     max_correction_angle: float = 0.1  # rad
     insert_distance: float = 0.05  # m moved (or insert_angle turned) before a scan joins the map
@@ -109,6 +110,9 @@ class FrontEndConfig:
 
 
 class FrontEnd:
+    """Per-frame planar motion for a SLAM method (see the module's docstring). Not thread-safe;
+    one instance per sequence."""
+
     def __init__(self, intrinsics: Intrinsics, config: FrontEndConfig | None = None):
         self.config = config or FrontEndConfig()
         self.config.validate()
@@ -118,16 +122,18 @@ class FrontEnd:
         self._visual: VisualOdometry | None = None
         self._filter: BiasFilter | None = None
         self._map = LocalMap(self.config.local_map)
-        self._smoother = FullSmoother(self.config.noise, self.config.smoother, use_bias=self.config.use_bias)
+        # In "wheel" mode the smoother (used only when loops are added) trusts the wheels as given.
+        self._smoother = FullSmoother(self.config.noise, self.config.smoother,
+                                      use_bias=self.config.use_bias and self.config.mode == "fused")
         self._wheels: PlanarOdometry | None = None
         self._odom: np.ndarray | None = None  # jump-corrected wheel odometry of the latest frame
         self._has_wheels: bool | None = None
         self._online: list[np.ndarray] = []
-        self._odom_list: list[np.ndarray] = []
         self._last_insert: np.ndarray | None = None
         self._forward_refusals = 0
         self._time = 0.0
-        self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0, "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
+        self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0,
+                       "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
                        "scans_unmatched": 0, "scan_points": 0, "loops": 0}
 
     # --- per frame ---------------------------------------------------------------------------
@@ -236,7 +242,7 @@ class FrontEnd:
                     anchor = max(0, k - cfg.scan_anchor_lag)
                     if anchor < k:
                         scan_factor = (anchor, relative(self._online[anchor], reg.pose),
-                                       information_in_body(reg.hessian, reg.pose[2]))
+                                       cfg.scan_information_scale * information_in_body(reg.hessian, reg.pose[2]))
         pose = flt.pose
         last = self._last_insert
         if len(scan) and (last is None or np.hypot(*(pose[:2] - last[:2])) >= cfg.insert_distance

@@ -22,7 +22,9 @@ class ScanConfig:
     min_range: float = 0.3  # m, horizontal; closer returns are the robot's own blind zone
     max_range: float = 8.0  # m, horizontal
     cell: float = 0.05  # m, averaging cell
-    stride: int = 2  # pixel stride: 160 x 120 rays at 320 x 240 are plenty for 5 cm cells
+    # Pixel stride; 0 = about 160 columns whatever the image width (2 at 320 x 240): plenty for
+    # 5 cm cells, and a small image keeps every pixel.
+    stride: int = 0
 
 
 class ScanExtractor:
@@ -31,7 +33,7 @@ class ScanExtractor:
     def __init__(self, intrinsics: Intrinsics, camera_in_base: np.ndarray, config: ScanConfig | None = None):
         self.config = config or ScanConfig()
         self.intrinsics = intrinsics
-        s = max(int(self.config.stride), 1)
+        s = int(self.config.stride) or max(1, round(intrinsics.width / 160))
         v, u = np.mgrid[0:intrinsics.height:s, 0:intrinsics.width:s]
         rays = np.stack([(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy,
                          np.ones(u.shape)], axis=-1).reshape(-1, 3)

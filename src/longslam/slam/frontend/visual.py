@@ -21,8 +21,9 @@ from longslam.frame import Intrinsics
 class VisualConfig:
     max_corners: int = 150
     quality: float = 0.01
-    min_distance: int = 7  # px between corners
-    window: int = 11  # px, LK window
+    # Corner spacing and LK window in pixels at 320 px wide; scaled with the image width.
+    min_distance: int = 7
+    window: int = 11
     levels: int = 2
     max_range: float = 4.0  # m: farther points move by under a pixel per step
     max_fb_error: float = 0.5  # px, forward-backward tracking disagreement
@@ -53,6 +54,9 @@ class VisualOdometry:
                  seed: int = 0):
         self.config = config or VisualConfig()
         self.rng = np.random.default_rng(seed)
+        scale = intrinsics.width / 320.0
+        self._min_distance = max(2, round(self.config.min_distance * scale))
+        self._window = max(5, round(self.config.window * scale) | 1)  # odd
         self.k = intrinsics
         self.pose = np.asarray(camera_in_base, dtype=np.float64)
         self._prev: tuple[np.ndarray, np.ndarray] | None = None  # gray, depth
@@ -83,10 +87,10 @@ class VisualOdometry:
         # Corners only where depth is near: in a hall most corners are on a ceiling or walls
         # beyond max_range, and they would crowd out the floor texture that fixes the step.
         mask = ((d0 > 0) & (d0 <= cfg.max_range)).astype(np.uint8)
-        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, cfg.min_distance, mask=mask)
+        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, self._min_distance, mask=mask)
         if p0 is None or len(p0) < cfg.min_inliers:
             return None
-        lk = dict(winSize=(cfg.window, cfg.window), maxLevel=cfg.levels)
+        lk = dict(winSize=(self._window, self._window), maxLevel=cfg.levels)
         p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, p0, None, **lk)
         back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, None, **lk)
         fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)

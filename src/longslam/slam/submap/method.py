@@ -351,11 +351,14 @@ class SubmapMethod:
 
 
     def _frontend_final(self) -> np.ndarray:
-        """Every frame's pose from the front end's smoother, with the submap graph's registration
-        and loop edges between the submaps' first frames. An edge the optimised graph explains
-        poorly (the robust kernel down-weighted it) is left out: the smoother has no kernel."""
+        """Every frame's pose from the front end's smoother, with the submap graph's loop edges
+        (and, with `frontend_registrations`, its registration edges) between the submaps' first
+        frames. An edge the optimised graph explains poorly (the robust kernel down-weighted it)
+        is left out: the smoother has no kernel."""
         for edge in self.graph.edges:
-            if edge.kind == ODOMETRY or self.graph.edge_error(edge.edge_id) > self.config.frontend_max_edge_error:
+            if edge.kind == ODOMETRY or (edge.kind == REGISTRATION and not self.config.frontend_registrations):
+                continue
+            if self.graph.edge_error(edge.edge_id) > self.config.frontend_max_edge_error:
                 continue
             self.frontend.add_loop(self._submap_frame[edge.a], self._submap_frame[edge.b], np.array(edge.delta), edge.information)
         return self.frontend.final_trajectory()
