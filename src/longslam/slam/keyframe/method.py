@@ -21,7 +21,9 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.geometry import base_to_camera, camera_poses_from_planar, invert, planar_from_camera_poses, wrap_angle
+from longslam.geometry import (
+    base_to_camera, camera_poses_from_planar, invert, planar_from_camera_poses, planar_poses, wrap_angle,
+)
 from longslam.slam.base import MethodContext, Result, frame_odometry
 from longslam.slam.features import Features, extract
 from longslam.slam.keyframe.config import KeyframeConfig
@@ -396,8 +398,10 @@ class KeyframeMethod:
             node = self.nodes[node_id]
             grid, points = (node.grid, node.points) if node.in_ram else self._load(node_id)[1:]
             grids.append(grid)
-            node_pose = camera_poses_from_planar(self.estimates[node_id][None], 0.0, self._floor_z)[0]
-            clouds.append(points @ node_pose[:3, :3].T + node_pose[:3, 3])
+            # Node points are in the robot base frame (z up, on the floor), so they move by the
+            # base's planar pose, not by a camera-frame pose (OpenCV axes would scramble them).
+            base_pose = planar_poses(self.estimates[node_id][None], z=self._floor_z)[0]
+            clouds.append(points @ base_pose[:3, :3].T + base_pose[:3, 3])
             node_poses.append(self.estimates[node_id])
         grid_map = assemble(grids, np.array(node_poses), self.config.grid_cell)
         cloud = _voxel_filter(np.concatenate(clouds) if clouds else np.zeros((0, 3)), self.config.cloud_voxel)
