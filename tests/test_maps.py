@@ -1,5 +1,7 @@
 """Every method's written 3D map (map.ply) against the world it was made in."""
 
+import json
+
 import numpy as np
 import open3d as o3d
 import pytest
@@ -36,6 +38,8 @@ def sequence(tmp_path_factory):
 def test_written_map_lies_in_the_world(sequence, tmp_path, method):
     out = tmp_path / "run"
     run_sequence(method, sequence, out, progress=False)
+    database = json.loads((out / "stats.json").read_text())["method_stats"].get("database")
+    assert database in (None, str(out / "memory.db"))  # the final path, not the temporary one
     if not (out / "map.ply").is_file():
         assert method == "odometry", f"{method} wrote no map.ply"
         return
