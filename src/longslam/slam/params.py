@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import typing
 from typing import Any, TypeVar
 
@@ -51,8 +52,16 @@ def config_from_params(cls: type[C], params: dict[str, Any], method: str) -> C:
                 values[key] = base(raw)
         except (TypeError, ValueError) as err:
             raise InputError(f"method {method!r}: parameter {key}={raw!r}: {err} (expected {getattr(base, '__name__', base)})") from None
+    _refuse_non_finite(values, method)
     config = cls(**values)
     check = getattr(config, "validate", None)
     if check is not None:
         check()
     return config
+
+
+def _refuse_non_finite(values: dict[str, Any], method: str) -> None:
+    """NaN or an infinity passes float() but would silently disable every comparison it enters."""
+    for key, value in values.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"method {method!r}: parameter {key}={value!r}: expected a finite number")

@@ -121,7 +121,10 @@ def _coerce(key: str, raw: Any, kind: Any) -> Any:
         if isinstance(raw, bool):
             raise InputError(f"submap parameter {key} must be a number, got {raw!r}")
         try:
-            return float(raw)
+            value = float(raw)
         except (TypeError, ValueError):
             raise InputError(f"submap parameter {key} must be a number, got {raw!r}") from None
+        if not math.isfinite(value):
+            raise InputError(f"submap parameter {key} must be a finite number, got {raw!r}")
+        return value
     return str(raw)
