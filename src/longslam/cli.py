@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -85,6 +86,8 @@ def _trajectory_path(path: Path, names: tuple[str, ...]) -> Path:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
+    import numpy as np
+
     from longslam.eval.metrics import evaluate
     from longslam.eval.sync import associate, associate_by_index
     from longslam.io.trajectory_files import KITTI, read_trajectory
@@ -95,12 +98,24 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
         ref, est = associate_by_index(truth, estimate)
     else:
         ref, est = associate(truth, estimate, max_diff=args.max_diff)
-    scores = evaluate(ref, est, align=args.align)
+    with np.errstate(all="ignore"):  # overflow is reported below, as one error
+        scores = evaluate(ref, est, align=args.align)
+    _refuse_non_finite_scores(scores, args.estimate, args.groundtruth)
     if args.json:
-        print(json.dumps(scores))
+        print(json.dumps(scores, allow_nan=False))
         return
     for key, value in scores.items():
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
+
+
+def _refuse_non_finite_scores(scores: dict, estimate: str, truth: str) -> None:
+    """JSON has no NaN or Infinity, and a metric that overflowed measures nothing: say so."""
+    bad = [key for key, value in scores.items() if isinstance(value, float) and not math.isfinite(value)]
+    if bad:
+        raise LongslamError(
+            f"{estimate} against {truth}: {', '.join(bad)} overflowed to NaN or infinity; "
+            "the poses hold coordinates too large to score (expected metres)"
+        )
 
 
 def cmd_demo(args: argparse.Namespace) -> None:

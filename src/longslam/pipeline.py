@@ -22,6 +22,7 @@ from longslam.errors import InputError
 from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
 from longslam.frame import Frame
 from longslam.io.atomic import atomic_path
+from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.jsonable import json_default
 from longslam.io.sequence import SequenceReader
@@ -122,6 +123,7 @@ def run_sequence(
     if (out.exists() or out.is_symlink()) and not overwrite:
         raise InputError(f"run folder {out} exists already; choose another path or pass --overwrite")
     reader = SequenceReader(sequence)
+    clean_stale_partials(out.parent)  # run folders of runs that were killed
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
     with atomic_path(out, overwrite=overwrite) as tmp:
         tmp.mkdir(parents=True)

@@ -39,6 +39,7 @@ from longslam.errors import InputError
 from longslam.jsonable import json_default
 from longslam.textfile import read_text
 from longslam.frame import Frame, Intrinsics
+from longslam.io.partials import clean_stale_partials, make_public_like_mkdir
 from longslam.io.trajectory_files import read_tum, write_tum
 from longslam.trajectory import Trajectory
 
@@ -157,7 +158,11 @@ def associate(
 
 def _temp_sibling(path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    return Path(tempfile.mkdtemp(prefix=f".{path.name}.partial-", dir=path.parent))
+    clean_stale_partials(path.parent)  # left by writers that were killed
+    # The PID in the name tells a later writer whether this folder's writer is still alive.
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.partial-{os.getpid()}-", dir=path.parent))
+    make_public_like_mkdir(tmp)
+    return tmp
 
 
 def _refuse_existing(path: Path, overwrite: bool) -> None:
