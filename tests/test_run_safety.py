@@ -118,3 +118,19 @@ def test_peak_memory_is_the_whole_runs(sequence, tmp_path):
     reported = json.loads((out / "stats.json").read_text())["peak_rss_bytes"]
     assert reported >= 0.95 * kernel_peak, (reported, kernel_peak)
     assert reported > 320e6
+
+
+def test_stats_record_the_intrinsics_and_where_they_came_from(sequence, tmp_path, capsys):
+    import shutil
+
+    run_sequence("odometry", sequence, tmp_path / "a", progress=False)
+    used = json.loads((tmp_path / "a" / "stats.json").read_text())["intrinsics"]
+    assert used["fx"] == pytest.approx(8.0) and used["source"].endswith("camera.json")
+    bare = tmp_path / "bare"
+    shutil.copytree(sequence, bare)
+    (bare / "camera.json").unlink()
+    assert main(["run", "--method", "odometry", str(bare), "--out", str(tmp_path / "b")]) == 2
+    assert "--intrinsics fx,fy,cx,cy" in capsys.readouterr().err and not (tmp_path / "b").exists()
+    assert main(["run", "--method", "odometry", str(bare), "--out", str(tmp_path / "b"), "--intrinsics", "9,9,8,6"]) == 0
+    used = json.loads((tmp_path / "b" / "stats.json").read_text())["intrinsics"]
+    assert (used["fx"], used["cy"], used["source"]) == (9.0, 6.0, "given (--intrinsics)")

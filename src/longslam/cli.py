@@ -68,7 +68,8 @@ def cmd_simulate(args: argparse.Namespace) -> None:
 def cmd_run(args: argparse.Namespace) -> None:
     from longslam.pipeline import run_sequence
 
-    figures = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite)
+    figures = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
+                           intrinsics=args.intrinsics)
     print(
         f"wrote {args.out}: {figures['frames']} frames, real-time factor {figures['real_time_factor']:.1f}, "
         f"peak RSS {figures['peak_rss_bytes'] / 1e6:.0f} MB"
@@ -192,6 +193,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="run folder to write")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="method parameter (repeatable)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
+                   help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("evaluate", help="score a trajectory (TUM or KITTI) against ground truth")

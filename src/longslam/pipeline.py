@@ -117,12 +117,15 @@ def run_sequence(
     params: dict[str, Any] | None = None,
     overwrite: bool = False,
     progress: bool = True,
+    intrinsics: str | tuple[float, float, float, float] | None = None,
 ) -> dict[str, Any]:
-    """Run a method over a sequence on disk and write the run folder `out`. Returns the figures."""
+    """Run a method over a sequence on disk and write the run folder `out`. Returns the figures.
+
+    `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one."""
     out = check_output_folder(out, "run folder")
     if (out.exists() or out.is_symlink()) and not overwrite:
         raise InputError(f"run folder {out} exists already; choose another path or pass --overwrite")
-    reader = SequenceReader(sequence)
+    reader = SequenceReader(sequence, intrinsics=intrinsics)
     clean_stale_partials(out.parent)  # run folders of runs that were killed
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
     with atomic_path(out, overwrite=overwrite) as tmp:
@@ -130,6 +133,7 @@ def run_sequence(
         context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
         result, figures = run_frames(method_name, reader, context, params, total=len(reader), progress=progress)
         figures["sequence"] = str(Path(sequence).resolve())
+        figures["intrinsics"] = {**reader.intrinsics.to_dict(), "source": reader.intrinsics_source}
         figures = name_final_folder(figures, tmp, out)
         write_result(tmp, result, figures)
     return figures

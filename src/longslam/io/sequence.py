@@ -28,7 +28,7 @@ import os
 import shutil
 import tempfile
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import cv2
@@ -39,6 +39,7 @@ from longslam.errors import InputError
 from longslam.jsonable import json_default
 from longslam.textfile import read_text
 from longslam.frame import Frame, Intrinsics
+from longslam.io.camera_guess import intrinsics_without_camera_json
 from longslam.io.partials import clean_stale_partials, make_public_like_mkdir
 from longslam.io.trajectory_files import read_tum, write_tum
 from longslam.trajectory import Trajectory
@@ -52,9 +53,6 @@ RGB_LIST, DEPTH_LIST = "rgb.txt", "depth.txt"
 GROUND_TRUTH, ODOMETRY = "groundtruth.txt", "odometry.txt"
 CAMERA, META = "camera.json", "meta.json"
 
-# Intrinsics of the TUM freiburg sequences when a folder has no camera.json (TUM's own defaults).
-TUM_DEFAULT_FX = TUM_DEFAULT_FY = 525.0
-TUM_DEFAULT_CX, TUM_DEFAULT_CY = 319.5, 239.5
 
 
 # --------------------------------------------------------------------------- helpers
@@ -478,7 +476,9 @@ class SequenceReader:
     time by `frame(i)` and iteration.
     """
 
-    def __init__(self, path: str | Path, max_diff: float = DEFAULT_MAX_DIFF):
+    def __init__(self, path: str | Path, max_diff: float = DEFAULT_MAX_DIFF, intrinsics: Sequence[float] | str | None = None):
+        # `intrinsics` (fx, fy, cx, cy) replace camera.json's, or stand in for a missing one.
+        self._given_intrinsics = intrinsics
         self.path = Path(path)
         self.max_diff = float(max_diff)
         if not self.path.is_dir():
@@ -544,11 +544,18 @@ class SequenceReader:
 
     def _read_camera(self) -> tuple[Intrinsics, float, float | None]:
         file = self.path / CAMERA
-        if not file.exists():
+        self.intrinsics_source = str(file)
+        if not file.exists() or self._given_intrinsics is not None:
             first = _read_image(self.path / self._rgb_files[0], cv2.IMREAD_COLOR)
             h, w = first.shape[:2]
-            intr = Intrinsics(w, h, TUM_DEFAULT_FX, TUM_DEFAULT_FY, TUM_DEFAULT_CX, TUM_DEFAULT_CY)
-            return intr, DEPTH_SCALE, None
+            intr, self.intrinsics_source = intrinsics_without_camera_json(self.path, w, h, self._given_intrinsics)
+            if not file.exists():
+                return intr, DEPTH_SCALE, None
+            _, scale, max_depth = self._read_camera_json(file)
+            return intr, scale, max_depth
+        return self._read_camera_json(file)
+
+    def _read_camera_json(self, file: Path) -> tuple[Intrinsics, float, float | None]:
         try:
             data = json.loads(file.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
