@@ -8,6 +8,7 @@ import math
 import sys
 from pathlib import Path
 
+from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
 from longslam.errors import LongslamError
 
 
@@ -40,9 +41,11 @@ def _params(pairs: list[str]) -> dict:
 def cmd_world(args: argparse.Namespace) -> None:
     from longslam.sim.drive import drive_route
     from longslam.sim.routes import get_route
+    from longslam.io.paths import PLOT_SUFFIXES, check_output_file
     from longslam.study.plots import plot_plan
     from longslam.world import get_world, load_mesh_world
 
+    check_output_file(args.out, PLOT_SUFFIXES, "--out")
     world = load_mesh_world(args.mesh, args.floor) if args.mesh else get_world(args.world)
     paths, waypoints, title = {}, None, f"world {world.name}"
     if args.route:
@@ -168,6 +171,7 @@ def cmd_report(args: argparse.Namespace) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
+    parser.add_argument("--debug", action="store_true", help="show the full traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("world", help="draw a world's floor plan, optionally with a route")
@@ -229,6 +233,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")
     p.set_defaults(func=cmd_list)
+    for command in sub.choices.values():  # --debug also after the command; SUPPRESS keeps the top-level value
+        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the full traceback of an error")
     return parser
 
 
@@ -236,8 +242,13 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         args.func(args)
-    except LongslamError as err:
-        print(f"longslam {args.command}: error: {err}", file=sys.stderr)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handlers below
+    except BrokenPipeError:
+        return quiet_broken_pipe()
+    except EXPECTED_FAILURES as err:
+        if getattr(args, "debug", False):
+            raise
+        print(f"longslam {args.command}: error: {describe_failure(err, getattr(args, 'out', None))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"longslam {args.command}: interrupted", file=sys.stderr)

@@ -21,7 +21,7 @@ from tqdm import tqdm
 from longslam.errors import InputError
 from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
 from longslam.frame import Frame
-from longslam.io.atomic import atomic_path
+from longslam.io.atomic import atomic_path, write_text
 from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.jsonable import json_default
@@ -107,7 +107,7 @@ def write_result(out: Path, result: Result, figures: dict[str, Any]) -> None:
     # The peak so far covers writing every other file (Open3D's import and the map included):
     # stats.json, written last, is tiny.
     figures["peak_rss_bytes"] = peak_rss_bytes()
-    (out / "stats.json").write_text(json.dumps(figures, indent=2, default=json_default) + "\n")
+    write_text(out / "stats.json", json.dumps(figures, indent=2, default=json_default) + "\n")
 
 
 def run_sequence(

@@ -80,5 +80,27 @@ def _replace(tmp: Path, path: Path) -> None:
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
+    with atomic_path(path) as tmp, naming_the_file(path):  # the file the user asked for, not its partial
+        Path(tmp).write_text(text)
+
+
+@contextmanager
+def naming_the_file(path: str | Path) -> Iterator[None]:
+    """An OSError from writing an open file (a full disk, `ulimit -f`) carries no file name:
+    give it `path`, so the user learns which file could not be written."""
+    try:
+        yield
+    except OSError as err:
+        if err.filename is None:
+            raise OSError(err.errno, err.strerror or str(err), str(path)) from err
+        raise
+
+
+def write_text(path: str | Path, text: str) -> None:
+    with naming_the_file(path):
+        Path(path).write_text(text)
+
+
+def write_bytes(path: str | Path, data: bytes) -> None:
+    with naming_the_file(path):
+        Path(path).write_bytes(data)

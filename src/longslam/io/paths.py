@@ -7,6 +7,8 @@ from pathlib import Path
 
 from longslam.errors import InputError
 
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")  # what the figures can be saved as
+
 
 def check_output_folder(path: str | Path, what: str = "output folder") -> Path:
     """Refuse a folder path that cannot be written: a file or a symbolic link at `path`, a file

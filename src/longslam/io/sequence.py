@@ -39,6 +39,7 @@ from longslam.errors import InputError
 from longslam.jsonable import json_default
 from longslam.textfile import read_text
 from longslam.frame import Frame, Intrinsics
+from longslam.io.atomic import write_bytes, write_text
 from longslam.io.camera_guess import intrinsics_without_camera_json
 from longslam.io.partials import clean_stale_partials, make_public_like_mkdir
 from longslam.io.trajectory_files import read_tum, write_tum
@@ -204,7 +205,7 @@ def _write_camera(folder: Path, intrinsics: Intrinsics, depth_scale: float, max_
     data = intrinsics.to_dict()
     data["depth_scale"] = depth_scale
     data["max_depth"] = max_depth
-    (folder / CAMERA).write_text(json.dumps(data, indent=2) + "\n")
+    write_text(folder / CAMERA, json.dumps(data, indent=2) + "\n")
 
 
 # --------------------------------------------------------------------------- writing
@@ -344,8 +345,8 @@ class SequenceWriter:
             )
         depth_png = np.rint(depth.astype(np.float64) * DEPTH_SCALE).astype(np.uint16)
         bgr = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR)
-        (folder / RGB_DIR / f"{text}.png").write_bytes(_encode_png(bgr, where))
-        (folder / DEPTH_DIR / f"{text}.png").write_bytes(_encode_png(depth_png, where))
+        write_bytes(folder / RGB_DIR / f"{text}.png", _encode_png(bgr, where))
+        write_bytes(folder / DEPTH_DIR / f"{text}.png", _encode_png(depth_png, where))
         self._stamps.append(t)
         self._stamp_texts.append(text)
 
@@ -372,10 +373,10 @@ class SequenceWriter:
             write_tum(tmp / ODOMETRY, self._odometry)
         if self._ground_truth is not None:
             write_tum(tmp / GROUND_TRUTH, self._ground_truth)
-        (tmp / RGB_LIST).write_text(_list_text("color", self._stamp_texts, RGB_DIR))
-        (tmp / DEPTH_LIST).write_text(_list_text("depth", self._stamp_texts, DEPTH_DIR))
+        write_text(tmp / RGB_LIST, _list_text("color", self._stamp_texts, RGB_DIR))
+        write_text(tmp / DEPTH_LIST, _list_text("depth", self._stamp_texts, DEPTH_DIR))
         _write_camera(tmp, self.intrinsics, DEPTH_SCALE, self.max_depth)
-        (tmp / META).write_text(self._meta_text)
+        write_text(tmp / META, self._meta_text)
 
 
 def derive_sequence(
@@ -419,7 +420,7 @@ def derive_sequence(
             if (source / name).is_file():
                 shutil.copy2(source / name, tmp / name)
         write_tum(tmp / ODOMETRY, odometry)
-        (tmp / META).write_text(meta_text)
+        write_text(tmp / META, meta_text)
         _publish(tmp, path, overwrite)
     except BaseException:
         _remove(tmp)
