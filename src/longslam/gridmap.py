@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from longslam.errors import InputError
+from longslam.io.atomic import naming_the_file
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 100
 
@@ -61,7 +62,8 @@ class GridMap:
         """Write as .npz (data, resolution, origin), via a temporary name."""
         path = Path(path)
         tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(tmp, data=self.data, resolution=self.resolution, origin=np.asarray(self.origin))
+        with naming_the_file(path):
+            np.savez_compressed(tmp, data=self.data, resolution=self.resolution, origin=np.asarray(self.origin))
         os.replace(tmp, path)
 
     @classmethod

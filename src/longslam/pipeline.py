@@ -21,7 +21,9 @@ from tqdm import tqdm
 from longslam.errors import InputError
 from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
 from longslam.frame import Frame
-from longslam.io.atomic import atomic_path
+from longslam.io.atomic import atomic_path, write_text
+from longslam.io.partials import clean_stale_partials
+from longslam.io.paths import check_output_folder
 from longslam.jsonable import json_default
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import write_tum
@@ -102,7 +104,10 @@ def write_result(out: Path, result: Result, figures: dict[str, Any]) -> None:
 
         cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(result.cloud, dtype=np.float64)))
         o3d.io.write_point_cloud(str(out / "map.ply"), cloud)
-    (out / "stats.json").write_text(json.dumps(figures, indent=2, default=json_default) + "\n")
+    # The peak so far covers writing every other file (Open3D's import and the map included):
+    # stats.json, written last, is tiny.
+    figures["peak_rss_bytes"] = peak_rss_bytes()
+    write_text(out / "stats.json", json.dumps(figures, indent=2, default=json_default) + "\n")
 
 
 def run_sequence(
@@ -112,21 +117,43 @@ def run_sequence(
     params: dict[str, Any] | None = None,
     overwrite: bool = False,
     progress: bool = True,
+    intrinsics: str | tuple[float, float, float, float] | None = None,
 ) -> dict[str, Any]:
-    """Run a method over a sequence on disk and write the run folder `out`. Returns the figures."""
-    out = Path(out)
-    if out.exists() and not overwrite:
+    """Run a method over a sequence on disk and write the run folder `out`. Returns the figures.
+
+    `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one."""
+    out = check_output_folder(out, "run folder")
+    if (out.exists() or out.is_symlink()) and not overwrite:
         raise InputError(f"run folder {out} exists already; choose another path or pass --overwrite")
-    reader = SequenceReader(sequence)
-    with atomic_path(out) as tmp:
+    reader = SequenceReader(sequence, intrinsics=intrinsics)
+    clean_stale_partials(out.parent)  # run folders of runs that were killed
+    # Without --overwrite the final rename refuses a folder another run finished meanwhile.
+    with atomic_path(out, overwrite=overwrite) as tmp:
         tmp.mkdir(parents=True)
         context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
         result, figures = run_frames(method_name, reader, context, params, total=len(reader), progress=progress)
         figures["sequence"] = str(Path(sequence).resolve())
+        figures["intrinsics"] = {**reader.intrinsics.to_dict(), "source": reader.intrinsics_source}
+        figures = name_final_folder(figures, tmp, out)
         write_result(tmp, result, figures)
-        if out.exists():
-            shutil.rmtree(out)
     return figures
+
+
+def name_final_folder(figures: dict[str, Any], tmp: Path, out: Path) -> dict[str, Any]:
+    """The figures with every path into the temporary folder `tmp` (a method's database, say)
+    named by where it will be, in `out`, once the run folder is renamed."""
+    prefix = str(tmp)
+
+    def rename(value: Any) -> Any:
+        if isinstance(value, str) and (value == prefix or value.startswith(prefix + "/")):
+            return str(out) + value[len(prefix):]
+        if isinstance(value, dict):
+            return {k: rename(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return type(value)(rename(v) for v in value)
+        return value
+
+    return rename(figures)
 
 
 def _child(queue: mp.Queue, args: tuple, kwargs: dict) -> None:

@@ -28,7 +28,7 @@ import os
 import shutil
 import tempfile
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import cv2
@@ -39,6 +39,9 @@ from longslam.errors import InputError
 from longslam.jsonable import json_default
 from longslam.textfile import read_text
 from longslam.frame import Frame, Intrinsics
+from longslam.io.atomic import write_bytes, write_text
+from longslam.io.camera_guess import intrinsics_without_camera_json
+from longslam.io.partials import clean_stale_partials, make_public_like_mkdir
 from longslam.io.trajectory_files import read_tum, write_tum
 from longslam.trajectory import Trajectory
 
@@ -51,9 +54,6 @@ RGB_LIST, DEPTH_LIST = "rgb.txt", "depth.txt"
 GROUND_TRUTH, ODOMETRY = "groundtruth.txt", "odometry.txt"
 CAMERA, META = "camera.json", "meta.json"
 
-# Intrinsics of the TUM freiburg sequences when a folder has no camera.json (TUM's own defaults).
-TUM_DEFAULT_FX = TUM_DEFAULT_FY = 525.0
-TUM_DEFAULT_CX, TUM_DEFAULT_CY = 319.5, 239.5
 
 
 # --------------------------------------------------------------------------- helpers
@@ -157,7 +157,11 @@ def associate(
 
 def _temp_sibling(path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    return Path(tempfile.mkdtemp(prefix=f".{path.name}.partial-", dir=path.parent))
+    clean_stale_partials(path.parent)  # left by writers that were killed
+    # The PID in the name tells a later writer whether this folder's writer is still alive.
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.partial-{os.getpid()}-", dir=path.parent))
+    make_public_like_mkdir(tmp)
+    return tmp
 
 
 def _refuse_existing(path: Path, overwrite: bool) -> None:
@@ -201,7 +205,7 @@ def _write_camera(folder: Path, intrinsics: Intrinsics, depth_scale: float, max_
     data = intrinsics.to_dict()
     data["depth_scale"] = depth_scale
     data["max_depth"] = max_depth
-    (folder / CAMERA).write_text(json.dumps(data, indent=2) + "\n")
+    write_text(folder / CAMERA, json.dumps(data, indent=2) + "\n")
 
 
 # --------------------------------------------------------------------------- writing
@@ -341,8 +345,8 @@ class SequenceWriter:
             )
         depth_png = np.rint(depth.astype(np.float64) * DEPTH_SCALE).astype(np.uint16)
         bgr = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR)
-        (folder / RGB_DIR / f"{text}.png").write_bytes(_encode_png(bgr, where))
-        (folder / DEPTH_DIR / f"{text}.png").write_bytes(_encode_png(depth_png, where))
+        write_bytes(folder / RGB_DIR / f"{text}.png", _encode_png(bgr, where))
+        write_bytes(folder / DEPTH_DIR / f"{text}.png", _encode_png(depth_png, where))
         self._stamps.append(t)
         self._stamp_texts.append(text)
 
@@ -369,10 +373,10 @@ class SequenceWriter:
             write_tum(tmp / ODOMETRY, self._odometry)
         if self._ground_truth is not None:
             write_tum(tmp / GROUND_TRUTH, self._ground_truth)
-        (tmp / RGB_LIST).write_text(_list_text("color", self._stamp_texts, RGB_DIR))
-        (tmp / DEPTH_LIST).write_text(_list_text("depth", self._stamp_texts, DEPTH_DIR))
+        write_text(tmp / RGB_LIST, _list_text("color", self._stamp_texts, RGB_DIR))
+        write_text(tmp / DEPTH_LIST, _list_text("depth", self._stamp_texts, DEPTH_DIR))
         _write_camera(tmp, self.intrinsics, DEPTH_SCALE, self.max_depth)
-        (tmp / META).write_text(self._meta_text)
+        write_text(tmp / META, self._meta_text)
 
 
 def derive_sequence(
@@ -416,7 +420,7 @@ def derive_sequence(
             if (source / name).is_file():
                 shutil.copy2(source / name, tmp / name)
         write_tum(tmp / ODOMETRY, odometry)
-        (tmp / META).write_text(meta_text)
+        write_text(tmp / META, meta_text)
         _publish(tmp, path, overwrite)
     except BaseException:
         _remove(tmp)
@@ -473,7 +477,9 @@ class SequenceReader:
     time by `frame(i)` and iteration.
     """
 
-    def __init__(self, path: str | Path, max_diff: float = DEFAULT_MAX_DIFF):
+    def __init__(self, path: str | Path, max_diff: float = DEFAULT_MAX_DIFF, intrinsics: Sequence[float] | str | None = None):
+        # `intrinsics` (fx, fy, cx, cy) replace camera.json's, or stand in for a missing one.
+        self._given_intrinsics = intrinsics
         self.path = Path(path)
         self.max_diff = float(max_diff)
         if not self.path.is_dir():
@@ -539,11 +545,18 @@ class SequenceReader:
 
     def _read_camera(self) -> tuple[Intrinsics, float, float | None]:
         file = self.path / CAMERA
-        if not file.exists():
+        self.intrinsics_source = str(file)
+        if not file.exists() or self._given_intrinsics is not None:
             first = _read_image(self.path / self._rgb_files[0], cv2.IMREAD_COLOR)
             h, w = first.shape[:2]
-            intr = Intrinsics(w, h, TUM_DEFAULT_FX, TUM_DEFAULT_FY, TUM_DEFAULT_CX, TUM_DEFAULT_CY)
-            return intr, DEPTH_SCALE, None
+            intr, self.intrinsics_source = intrinsics_without_camera_json(self.path, w, h, self._given_intrinsics)
+            if not file.exists():
+                return intr, DEPTH_SCALE, None
+            _, scale, max_depth = self._read_camera_json(file)
+            return intr, scale, max_depth
+        return self._read_camera_json(file)
+
+    def _read_camera_json(self, file: Path) -> tuple[Intrinsics, float, float | None]:
         try:
             data = json.loads(file.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:

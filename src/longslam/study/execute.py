@@ -25,7 +25,7 @@ from longslam.eval.sync import associate
 from longslam.gridmap import GridMap
 from longslam.io.atomic import atomic_path
 from longslam.io.sequence import SequenceReader
-from longslam.pipeline import run_frames, write_result
+from longslam.pipeline import name_final_folder, run_frames, write_result
 from longslam.recording import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
 from longslam.slam.api import MethodContext, Result
@@ -85,6 +85,7 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
         frames = frames_with_odometry(reader, odometry)
         result, figures = run_frames(spec.method_name, frames, context, spec.params, total=len(reader), progress=progress)
         figures.update(sequence=str(rendered), route=spec.route, noise=spec.noise, seed=spec.seed, label=spec.method)
+        figures = name_final_folder(figures, tmp, run_dir)
         write_result(tmp, result, figures)
         record = score_run(spec, result, figures, truth, load_truth)
         record["files"] = {kind: name for kind, name in RUN_FILES.items() if (tmp / name).is_file()}

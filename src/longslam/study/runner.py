@@ -21,7 +21,10 @@ from tqdm import tqdm
 from longslam.study.config import StudyConfig, check_method_params
 from longslam.study.database import DB_NAME, ResultsDB
 from longslam.study.executors import Task, make_executor
-from longslam.study.prepare import clean_partials, prepare_route, render_once, route_dir, world_grid_path
+from longslam.study.lock import study_lock
+from longslam.study.prepare import (
+    check_out_folder, check_routes, clean_partials, prepare_route, render_once, route_dir, world_grid_path,
+)
 from longslam.study.spec import RunSpec, plan_runs
 
 
@@ -69,9 +72,20 @@ def run_study(
     """Run every run of `config` not yet in `out`'s database, then write the report."""
     start = time.perf_counter()
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    # Everything that can be wrong with the study is found before its folder is touched.
     check_method_params(config)
     specs = plan_runs(config)
+    check_routes(config)
+    check_out_folder(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with study_lock(out):
+        return _run_locked(config, out, specs, start, executor, address, jobs, retry_failed, report, progress)
+
+
+def _run_locked(
+    config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, address: str | None,
+    jobs: int | None, retry_failed: bool, report: bool, progress: bool,
+) -> StudySummary:
     say = tqdm.write if progress else (lambda *a, **k: None)
 
     with ResultsDB(out / DB_NAME) as db:
