@@ -25,34 +25,21 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.eval.metrics import evaluate
+from common import run_and_score, sequence
 from longslam.io.sequence import SequenceReader
-from longslam.io.trajectory_files import read_tum
-from longslam.pipeline import run_sequence_isolated
-from longslam.recording import simulate
-from longslam.sim.noise import get_noise
-from longslam.sim.routes import get_route
+from longslam.run.score import score
+from longslam.settings import parse_key_values
 from longslam.slam.catalog import method_names
 
 
-def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
-    path = work / f"{route}-{noise}-{seed}"
-    if not path.exists():
-        simulate(get_route(route), get_noise(noise), seed, path, progress=False)
-    return path
-
-
 def run(work: Path, seq: Path, method: str, params: dict, tag: str) -> dict:
-    out = work / "runs" / f"{seq.name}-{method}-{tag}"
-    figures = run_sequence_isolated(method, seq, out, params, overwrite=True, progress=False)
-    reader = SequenceReader(seq)
-    metrics = evaluate(reader.ground_truth, read_tum(out / "trajectory.txt"))
-    return {"metrics": metrics, "figures": figures}
+    metrics, measurements = run_and_score(method, seq, work / "runs" / f"{seq.name}-{method}-{tag}", params)
+    return {"metrics": metrics, "figures": measurements}
 
 
 def odometry_metrics(seq: Path) -> dict:
     reader = SequenceReader(seq)
-    return evaluate(reader.ground_truth, reader.odometry)
+    return score(reader.ground_truth, reader.odometry)
 
 
 def mean_std(values: list[float]) -> str:
@@ -134,13 +121,7 @@ def main() -> None:
     parser.add_argument("--with-keyframe", action="store_true", help="also run the keyframe method")
     parser.add_argument("--work", default=None, help="folder for sequences and runs (default: a temporary one)")
     args = parser.parse_args()
-    params = {}
-    for pair in args.param:
-        key, _, value = pair.partition("=")
-        try:
-            params[key] = json.loads(value)
-        except json.JSONDecodeError:
-            params[key] = value
+    params = parse_key_values(args.param)
     with_keyframe = args.with_keyframe
     if with_keyframe and "keyframe" not in method_names():
         parser.error("the keyframe method is not registered")

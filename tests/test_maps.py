@@ -8,7 +8,7 @@ import pytest
 from scipy import ndimage
 
 from longslam.gridmap import OCCUPIED
-from longslam.pipeline import run_sequence
+from longslam.run.engine import run_sequence
 from longslam.recording import simulate
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise

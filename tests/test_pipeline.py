@@ -11,7 +11,8 @@ from longslam.frame import Frame, Intrinsics
 from longslam.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceWriter
 from longslam.io.trajectory_files import read_tum, write_kitti, write_tum
-from longslam.pipeline import run_sequence, run_sequence_isolated
+from longslam.run.engine import run_sequence
+from longslam.run.isolate import run_sequence_isolated
 from longslam.slam.api import Method, MethodContext
 from longslam.slam.catalog import create_method, method_names
 from longslam.trajectory import Trajectory
@@ -52,6 +53,20 @@ def test_odometry_method_returns_the_odometry(sequence, tmp_path):
     assert abs(stats["sequence_duration_s"] - N * 0.1) < 1e-6
     assert figures["real_time_factor"] > 1.0
     assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no temporary folder left
+
+
+def test_the_run_folder_keeps_the_config_it_ran_with(sequence, tmp_path):
+    import tomllib
+
+    from longslam.settings import from_mapping
+    from longslam.slam.submap.config import SubmapConfig
+
+    path, _, _ = sequence
+    run_sequence("submap", path, tmp_path / "run", {"submap_interval": "1.5", "registration": False}, progress=False)
+    written = tomllib.loads((tmp_path / "run" / "config.toml").read_text())
+    assert written["run"]["method"] == "submap" and written["run"]["sequence"] == str(path.resolve())
+    # Every field, defaults included, so the run can be repeated from its folder alone.
+    assert from_mapping(SubmapConfig, written["params"], "config.toml") == SubmapConfig(submap_interval=1.5, registration=False)
 
 
 def test_existing_run_folder_is_refused(sequence, tmp_path):

@@ -9,13 +9,13 @@ import textwrap
 import numpy as np
 import pytest
 
-from longslam import pipeline
+from longslam.run import engine, folder
 from longslam.cli import main
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
 from longslam.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceWriter
-from longslam.pipeline import run_sequence
+from longslam.run.engine import run_sequence
 from longslam.trajectory import Trajectory
 
 N = 20
@@ -38,7 +38,7 @@ def sequence(tmp_path_factory):
 
 def test_a_run_never_replaces_a_folder_another_run_finished_meanwhile(sequence, tmp_path, monkeypatch):
     out = tmp_path / "run"
-    real = pipeline.run_frames
+    real = engine.run_frames
 
     def other_run_finishes_first(*args, **kwargs):
         result = real(*args, **kwargs)
@@ -46,7 +46,7 @@ def test_a_run_never_replaces_a_folder_another_run_finished_meanwhile(sequence, 
         (out / "trajectory.txt").write_text("the other run's\n")
         return result
 
-    monkeypatch.setattr(pipeline, "run_frames", other_run_finishes_first)
+    monkeypatch.setattr(engine, "run_frames", other_run_finishes_first)
     with pytest.raises(InputError, match="written by another process while this one ran"):
         run_sequence("odometry", sequence, out, progress=False)
     assert (out / "trajectory.txt").read_text() == "the other run's\n"
@@ -78,7 +78,7 @@ def test_overwrite_replaces_a_finished_folder(sequence, tmp_path):
 
 def test_stats_name_the_final_folder_not_the_partial_one(tmp_path):
     figures = {"method_stats": {"database": str(tmp_path / ".run.partial-7" / "memory.db"), "n": 3}, "x": ["a"]}
-    named = pipeline.name_final_folder(figures, tmp_path / ".run.partial-7", tmp_path / "run")
+    named = folder.name_final_folder(figures, tmp_path / ".run.partial-7", tmp_path / "run")
     assert named["method_stats"]["database"] == str(tmp_path / "run" / "memory.db")
     assert named["x"] == ["a"] and named["method_stats"]["n"] == 3
 
@@ -89,7 +89,7 @@ def test_a_bad_out_is_refused_before_the_first_frame(sequence, tmp_path, monkeyp
     out = {"file": tmp_path / "afile", "under_a_file": tmp_path / "afile" / "run", "symlink": tmp_path / "link"}[kind]
     if kind == "symlink":
         out.symlink_to(tmp_path / "elsewhere")
-    monkeypatch.setattr(pipeline, "run_frames", lambda *a, **k: pytest.fail("frames ran before --out was checked"))
+    monkeypatch.setattr(engine, "run_frames", lambda *a, **k: pytest.fail("frames ran before --out was checked"))
     assert main(["run", "--method", "odometry", str(sequence), "--out", str(out), "--overwrite"]) == 2
     err = capsys.readouterr().err
     assert str(out) in err and "Traceback" not in err
@@ -101,14 +101,14 @@ def test_peak_memory_is_the_whole_runs(sequence, tmp_path):
     out = tmp_path / "run"
     script = textwrap.dedent(f"""
         import numpy as np
-        from longslam import pipeline
-        real = pipeline.write_tum
+        from longslam.run import engine, folder
+        real = folder.write_tum
         def heavy(*args):
             block = np.ones(40_000_000)  # 320 MB, touched
             real(*args)
             del block
-        pipeline.write_tum = heavy
-        pipeline.run_sequence("odometry", {str(sequence)!r}, {str(out)!r}, progress=False)
+        folder.write_tum = heavy
+        engine.run_sequence("odometry", {str(sequence)!r}, {str(out)!r}, progress=False)
     """)
     # The kernel's peak of a process that was forked (or vforked) from a big one starts at the
     # parent's resident size, and exec keeps it: a run started straight from pytest (hundreds of MB

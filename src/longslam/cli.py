@@ -38,16 +38,9 @@ def _camera(args: argparse.Namespace):
 
 
 def _params(pairs: list[str]) -> dict:
-    params = {}
-    for pair in pairs:
-        if "=" not in pair:
-            raise LongslamError(f"--param {pair!r}: expected KEY=VALUE")
-        key, value = pair.split("=", 1)
-        try:
-            params[key] = json.loads(value)
-        except json.JSONDecodeError:
-            params[key] = value
-    return params
+    from longslam.settings import parse_key_values
+
+    return parse_key_values(pairs)
 
 
 def cmd_world(args: argparse.Namespace) -> None:
@@ -81,57 +74,25 @@ def cmd_simulate(args: argparse.Namespace) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> None:
-    from longslam.pipeline import run_sequence
+    from longslam.run.engine import run_sequence
 
-    figures = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
-                           intrinsics=args.intrinsics)
+    measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
+                                intrinsics=args.intrinsics)
     print(
-        f"wrote {args.out}: {figures['frames']} frames, real-time factor {figures['real_time_factor']:.1f}, "
-        f"peak RSS {figures['peak_rss_bytes'] / 1e6:.0f} MB"
+        f"wrote {args.out}: {measurements['frames']} frames, real-time factor {measurements['real_time_factor']:.1f}, "
+        f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
     )
 
 
-def _trajectory_path(path: Path, names: tuple[str, ...]) -> Path:
-    """A trajectory file, or the usual file inside a run or sequence folder."""
-    if path.is_dir():
-        for name in names:
-            if (path / name).is_file():
-                return path / name
-        raise LongslamError(f"{path} is a folder without {' or '.join(names)}")
-    return path
-
-
 def cmd_evaluate(args: argparse.Namespace) -> None:
-    import numpy as np
+    from longslam.run.score import score_files
 
-    from longslam.eval.metrics import evaluate
-    from longslam.eval.sync import associate, associate_by_index
-    from longslam.io.trajectory_files import KITTI, read_trajectory
-
-    estimate, est_fmt = read_trajectory(_trajectory_path(Path(args.estimate), ("trajectory.txt",)))
-    truth, gt_fmt = read_trajectory(_trajectory_path(Path(args.groundtruth), ("groundtruth.txt",)))
-    if KITTI in (est_fmt, gt_fmt):
-        ref, est = associate_by_index(truth, estimate)
-    else:
-        ref, est = associate(truth, estimate, max_diff=args.max_diff)
-    with np.errstate(all="ignore"):  # overflow is reported below, as one error
-        scores = evaluate(ref, est, align=args.align)
-    _refuse_non_finite_scores(scores, args.estimate, args.groundtruth)
+    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff)
     if args.json:
         print(json.dumps(scores, allow_nan=False))
         return
     for key, value in scores.items():
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
-
-
-def _refuse_non_finite_scores(scores: dict, estimate: str, truth: str) -> None:
-    """JSON has no NaN or Infinity, and a metric that overflowed measures nothing: say so."""
-    bad = [key for key, value in scores.items() if isinstance(value, float) and not math.isfinite(value)]
-    if bad:
-        raise LongslamError(
-            f"{estimate} against {truth}: {', '.join(bad)} overflowed to NaN or infinity; "
-            "the poses hold coordinates too large to score (expected metres)"
-        )
 
 
 def cmd_demo(args: argparse.Namespace) -> None:

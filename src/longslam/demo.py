@@ -8,7 +8,7 @@ from longslam.eval.metrics import evaluate
 from longslam.eval.sync import associate
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
-from longslam.pipeline import run_sequence_isolated
+from longslam.run.isolate import run_sequence_isolated
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
@@ -59,11 +59,9 @@ def run_demo(
     rows, paths = [], {"ground truth": truth.positions[:, :2]}
     for name in methods:
         run_dir = out / "runs" / name
-        figures = run_sequence_isolated(name, sequence, run_dir, overwrite=True, progress=progress)
-        estimate = read_tum(run_dir / "trajectory.txt")
-        ref, est = associate(truth, estimate)
-        scores = evaluate(ref, est)
-        rows.append({"method": name, **scores, **{k: figures[k] for k in ("peak_rss_bytes", "real_time_factor")}})
+        scores, measurements = run_and_score(name, sequence, run_dir, progress=progress)
+        estimate = read_tum(run_dir / TRAJECTORY)
+        rows.append({"method": name, **scores, **{k: measurements[k] for k in ("peak_rss_bytes", "real_time_factor")}})
         paths[name] = estimate.positions[:, :2]
     world = get_world(route.world)
     plot = out / "trajectories.png"

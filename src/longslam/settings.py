@@ -12,6 +12,7 @@ settings it ran with (`config.toml`).
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import types
 import typing
@@ -139,3 +140,19 @@ def to_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
                 lines.append(f"{key} = {_toml_value(value)}")
         lines.append("")
     return "\n".join(lines)
+
+
+def parse_key_values(pairs: list[str], option: str = "--param") -> dict[str, Any]:
+    """`KEY=VALUE` strings (repeatable command-line options) as a dict; a value is JSON when it
+    parses as JSON (numbers, true/false, lists), else the string itself, converted later by
+    `from_mapping` to the field's type."""
+    params: dict[str, Any] = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise InputError(f"{option} {pair!r}: expected KEY=VALUE")
+        key, value = pair.split("=", 1)
+        try:
+            params[key] = json.loads(value)
+        except json.JSONDecodeError:
+            params[key] = value
+    return params
