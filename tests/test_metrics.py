@@ -12,7 +12,8 @@ from scipy.spatial.transform import Rotation
 from longslam.errors import InputError, TrajectoryError, UnknownNameError
 from longslam.eval import metrics as lm
 from longslam.eval.align import align_trajectory, umeyama
-from longslam.eval.sync import associate, associate_by_index, matching_indices
+from longslam.eval.sync import associate, associate_by_index
+from longslam.timestamps import one_to_one_nearest
 from longslam.geometry import planar_poses, tum_from_poses
 from longslam.trajectory import Trajectory
 
@@ -306,18 +307,18 @@ def test_associate_matches_evo(offset, swap):
 def test_associate_is_one_to_one():
     # 0.0 and 0.004 both have 0.001 as nearest stamp; evo would pair both with it.
     short, long = np.array([0.0, 0.004, 0.1, 0.2]), np.array([0.001, 0.1, 0.2, 0.3, 0.4])
-    short_idx, long_idx = matching_indices(short, long, 0.01)
+    short_idx, long_idx = one_to_one_nearest(short, long, 0.01)
     assert short_idx.tolist() == [0, 2, 3]
     assert long_idx.tolist() == [0, 1, 2]
     # Keeping the closer one: here 0.004 is closer to 0.006.
-    short_idx, long_idx = matching_indices(np.array([0.0, 0.004]), np.array([0.006, 0.5, 0.9]), 0.01)
+    short_idx, long_idx = one_to_one_nearest(np.array([0.0, 0.004]), np.array([0.006, 0.5, 0.9]), 0.01)
     assert short_idx.tolist() == [1] and long_idx.tolist() == [0]
 
 
 def test_matching_breaks_ties_like_evo():
     # Stamps exact in binary: 0.25 lies exactly between 0.0 and 0.5, 1.125 between 1.0 and 1.25.
     short, long = np.array([0.25, 1.125, 2.0]), np.array([0.0, 0.5, 1.0, 1.25, 1.875, 2.125])
-    ours = matching_indices(short, long, 0.25)
+    ours = one_to_one_nearest(short, long, 0.25)
     theirs = evo_sync.matching_time_indices(short, long, 0.25)
     assert (ours[0].tolist(), ours[1].tolist()) == theirs
     assert theirs == ([0, 1, 2], [0, 2, 4])

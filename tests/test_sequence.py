@@ -13,7 +13,8 @@ import longslam
 from longslam.errors import InputError
 from longslam.frame import Frame, Intrinsics
 from longslam.geometry import camera_poses_from_planar
-from longslam.io.sequence import SequenceReader, SequenceWriter, associate, derive_sequence
+from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
+from longslam.timestamps import associate_lists
 from longslam.trajectory import Trajectory
 
 W, H, N = 32, 24, 20
@@ -244,9 +245,9 @@ def test_read_real_tum_folder(tmp_path):
 
 def test_association_is_one_to_one():
     # two rgb stamps near one depth stamp: only the closer one gets it
-    pairs = associate([1.000, 1.015, 2.0], [1.012, 2.005, 5.0], max_diff=0.02)
+    pairs = associate_lists([1.000, 1.015, 2.0], [1.012, 2.005, 5.0], max_diff=0.02)
     assert pairs == [(1, 0), (2, 1)]
-    assert associate([1.0], [1.5], max_diff=0.02) == []
+    assert associate_lists([1.0], [1.5], max_diff=0.02) == []
 
 
 def test_a_folder_without_camera_json_is_never_guessed(tmp_path):

@@ -26,9 +26,8 @@ import json
 import math
 import os
 import shutil
-import tempfile
-import uuid
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import cv2
@@ -39,10 +38,11 @@ from longslam.errors import InputError
 from longslam.jsonable import json_default
 from longslam.textfile import read_text
 from longslam.frame import Frame, Intrinsics
-from longslam.io.atomic import write_bytes, write_text
+from longslam.io.atomic import atomic_path, write_bytes, write_text
 from longslam.io.camera_guess import intrinsics_without_camera_json
-from longslam.io.partials import clean_stale_partials, make_public_like_mkdir
+from longslam.io.partials import clean_stale_partials
 from longslam.io.trajectory_files import read_tum, write_tum
+from longslam.timestamps import associate_lists, match_every
 from longslam.trajectory import Trajectory
 
 DEPTH_SCALE = 5000.0  # TUM: a 16-bit depth value of 5000 is one metre
@@ -95,103 +95,19 @@ def _check_max_depth(max_depth) -> float:
     return value
 
 
-def _match_stamps(
-    frame_stamps: np.ndarray, traj_stamps: np.ndarray, max_diff: float, source: str
-) -> np.ndarray:
-    """For each frame stamp, the index of the nearest trajectory stamp; error if none within max_diff."""
-    frame_stamps = np.asarray(frame_stamps, dtype=np.float64)
-    if len(traj_stamps) == 0:
-        if len(frame_stamps):
-            raise InputError(
-                f"{source} holds no poses, so frame t={frame_stamps[0]:.6f} has no odometry"
-            )
-        return np.zeros(0, dtype=np.int64)
-    right = np.clip(np.searchsorted(traj_stamps, frame_stamps), 0, len(traj_stamps) - 1)
-    left = np.clip(right - 1, 0, len(traj_stamps) - 1)
-    use_left = np.abs(traj_stamps[left] - frame_stamps) <= np.abs(traj_stamps[right] - frame_stamps)
-    nearest = np.where(use_left, left, right)
-    diff = np.abs(traj_stamps[nearest] - frame_stamps)
-    bad = np.flatnonzero(diff > max_diff)
-    if len(bad):
-        first = bad[0]
-        more = f" (and {len(bad) - 1} more frames)" if len(bad) > 1 else ""
-        raise InputError(
-            f"{source}: no pose within {max_diff} s of frame t={frame_stamps[first]:.6f}{more}; "
-            f"nearest pose is at t={traj_stamps[nearest[first]]:.6f}"
-        )
-    return nearest
-
-
-def associate(
-    first: np.ndarray, second: np.ndarray, max_diff: float = DEFAULT_MAX_DIFF
-) -> list[tuple[int, int]]:
-    """One-to-one association of two timestamp lists, as TUM's associate.py does.
-
-    Every pair closer than `max_diff` is a candidate; candidates are taken greedily, closest first,
-    each stamp used at most once. Returns (index in first, index in second) pairs sorted by the
-    first stamp.
-    """
-    first = np.asarray(first, dtype=np.float64)
-    second = np.asarray(second, dtype=np.float64)
-    order = np.argsort(second, kind="stable")
-    sorted_second = second[order]
-    candidates = []
-    lo = np.searchsorted(sorted_second, first - max_diff, side="left")
-    hi = np.searchsorted(sorted_second, first + max_diff, side="right")
-    for i in range(len(first)):
-        for k in range(lo[i], hi[i]):
-            j = int(order[k])
-            d = abs(first[i] - second[j])
-            if d <= max_diff:
-                candidates.append((d, i, j))
-    candidates.sort()
-    used_first, used_second, pairs = set(), set(), []
-    for _, i, j in candidates:
-        if i not in used_first and j not in used_second:
-            used_first.add(i)
-            used_second.add(j)
-            pairs.append((i, j))
-    pairs.sort(key=lambda p: (first[p[0]], p[0]))
-    return pairs
-
-
-def _temp_sibling(path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    clean_stale_partials(path.parent)  # left by writers that were killed
-    # The PID in the name tells a later writer whether this folder's writer is still alive.
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.partial-{os.getpid()}-", dir=path.parent))
-    make_public_like_mkdir(tmp)
-    return tmp
-
-
 def _refuse_existing(path: Path, overwrite: bool) -> None:
     if not overwrite and (path.exists() or path.is_symlink()):
         raise InputError(f"{path} exists already; pass overwrite=True to replace it")
 
 
-def _publish(tmp: Path, path: Path, overwrite: bool) -> None:
-    """Rename the finished temporary folder to `path`, replacing an old one only if allowed."""
-    if path.exists() or path.is_symlink():
-        if not overwrite:
-            raise InputError(f"{path} exists already; pass overwrite=True to replace it")
-        backup = path.with_name(f".{path.name}.old-{uuid.uuid4().hex[:12]}")
-        os.rename(path, backup)
-        try:
-            os.rename(tmp, path)
-        except BaseException:
-            os.rename(backup, path)
-            raise
-        if backup.is_dir() and not backup.is_symlink():
-            shutil.rmtree(backup, ignore_errors=True)
-        else:
-            backup.unlink(missing_ok=True)
-    else:
-        os.rename(tmp, path)
-
-
-def _remove(tmp: Path | None) -> None:
-    if tmp is not None and tmp.exists():
-        shutil.rmtree(tmp, ignore_errors=True)
+@contextmanager
+def _sequence_folder(path: Path, overwrite: bool) -> Iterator[Path]:
+    """A temporary folder beside `path`, renamed to it when the block ends (see `atomic_path`)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    clean_stale_partials(path.parent)  # left by writers that were killed
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        tmp.mkdir()
+        yield tmp
 
 
 def _encode_png(image: np.ndarray, where: str) -> bytes:
@@ -260,7 +176,8 @@ class SequenceWriter:
     def __enter__(self) -> "SequenceWriter":
         if self._tmp is not None or self._done:
             raise InputError(f"SequenceWriter for {self.path} can be entered only once")
-        self._tmp = _temp_sibling(self.path)
+        self._folder_block = _sequence_folder(self.path, self.overwrite)
+        self._tmp = self._folder_block.__enter__()
         (self._tmp / RGB_DIR).mkdir()
         (self._tmp / DEPTH_DIR).mkdir()
         return self
@@ -268,15 +185,14 @@ class SequenceWriter:
     def __exit__(self, exc_type, exc, tb) -> bool:
         tmp, self._tmp = self._tmp, None
         self._done = True
-        if exc_type is not None:
-            _remove(tmp)
-            return False
-        try:
-            self._finish(tmp)
-            _publish(tmp, self.path, self.overwrite)
-        except BaseException:
-            _remove(tmp)
-            raise
+        block = self._folder_block
+        if exc_type is None:
+            try:
+                self._finish(tmp)
+            except BaseException as err:
+                block.__exit__(type(err), err, err.__traceback__)
+                raise
+        block.__exit__(exc_type, exc, tb)  # renames the folder, or removes it after an error
         return False
 
     @property
@@ -369,7 +285,7 @@ class SequenceWriter:
             raise InputError(f"sequence {self.path}: no frames were added")
         stamps = np.array([float(s) for s in self._stamp_texts])
         if self._odometry is not None:
-            _match_stamps(stamps, self._odometry.timestamps, self.max_diff, f"odometry for {self.path}")
+            match_every(stamps, self._odometry.timestamps, self.max_diff, f"odometry for {self.path}")
             write_tum(tmp / ODOMETRY, self._odometry)
         if self._ground_truth is not None:
             write_tum(tmp / GROUND_TRUTH, self._ground_truth)
@@ -401,10 +317,9 @@ def derive_sequence(
         raise InputError(f"derive_sequence: the new sequence {path} is the source itself")
     meta_text = _meta_json(meta)
     _refuse_existing(path, overwrite)
-    _match_stamps(reader.timestamps, odometry.timestamps, max_diff, f"odometry for {path}")
+    match_every(reader.timestamps, odometry.timestamps, max_diff, f"odometry for {path}")
 
-    tmp = _temp_sibling(path)
-    try:
+    with _sequence_folder(path, overwrite) as tmp:
         can_link = True
         for name in sorted(set(reader._rgb_files) | set(reader._depth_files)):
             src, dst = source / name, tmp / name
@@ -421,10 +336,6 @@ def derive_sequence(
                 shutil.copy2(source / name, tmp / name)
         write_tum(tmp / ODOMETRY, odometry)
         write_text(tmp / META, meta_text)
-        _publish(tmp, path, overwrite)
-    except BaseException:
-        _remove(tmp)
-        raise
 
 
 # --------------------------------------------------------------------------- reading
@@ -488,7 +399,7 @@ class SequenceReader:
 
         rgb_rows = _read_list(self.path / RGB_LIST)
         depth_rows = _read_list(self.path / DEPTH_LIST)
-        pairs = associate([t for t, _ in rgb_rows], [t for t, _ in depth_rows], self.max_diff)
+        pairs = associate_lists([t for t, _ in rgb_rows], [t for t, _ in depth_rows], self.max_diff)
         if not pairs:
             raise InputError(
                 f"{self.path}: no rgb image in {RGB_LIST} has a depth image in {DEPTH_LIST} "
@@ -509,7 +420,7 @@ class SequenceReader:
         self._odometry_index: np.ndarray | None = None
         if (self.path / ODOMETRY).exists():
             self.odometry = read_tum(self.path / ODOMETRY)
-            self._odometry_index = _match_stamps(
+            self._odometry_index = match_every(
                 self.timestamps, self.odometry.timestamps, self.max_diff, str(self.path / ODOMETRY)
             )
 
