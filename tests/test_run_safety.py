@@ -1,7 +1,6 @@
 """`run`'s output folder: never replace another run's folder, name final paths, measure the whole run."""
 
 import json
-import os
 import subprocess
 import sys
 import textwrap

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
-from pathlib import Path
 
 from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
 from longslam.errors import LongslamError
@@ -47,7 +45,7 @@ def cmd_world(args: argparse.Namespace) -> None:
     from longslam.sim.drive import drive_route
     from longslam.sim.routes import get_route
     from longslam.io.paths import PLOT_SUFFIXES, check_output_file
-    from longslam.study.plots import plot_plan
+    from longslam.viz.plots import plot_plan
     from longslam.world import get_world, load_mesh_world
 
     check_output_file(args.out, PLOT_SUFFIXES, "--out")

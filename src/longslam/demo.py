@@ -4,17 +4,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from longslam.eval.metrics import evaluate
-from longslam.eval.sync import associate
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
-from longslam.run.isolate import run_sequence_isolated
+from longslam.run.folder import TRAJECTORY
+from longslam.run.isolate import run_and_score
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.recording import simulate
 from longslam.slam.catalog import method_names
-from longslam.study.plots import plot_plan
+from longslam.viz.plots import plot_plan
 from longslam.world import get_world
 
 COLUMNS = ("method", "ATE [m]", "E_trans", "E_rot [deg/m]", "peak RSS [MB]", "real-time factor")

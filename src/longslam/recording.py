@@ -45,7 +45,7 @@ def cache_key(route: Route, camera: CameraSettings, follower: FollowerSettings) 
         {
             "render_version": RENDER_VERSION,
             "world": route.world,
-            "waypoints": [list(w) if not isinstance(w, str) else w for w in route.waypoints],
+            "waypoints": route.waypoints_json(),
             "camera": asdict(camera),
             "follower": asdict(follower),
         },
@@ -79,7 +79,7 @@ def rendered_sequence(
     meta = {
         "world": route.world,
         "route": route.name,
-        "waypoints": [list(w) if not isinstance(w, str) else w for w in route.waypoints],
+        "waypoints": route.waypoints_json(),
         "camera": asdict(camera),
         "follower": asdict(follower),
         "route_length_m": driven.length,

@@ -9,7 +9,6 @@ KITTI files, which carry no timestamps.
 
 from __future__ import annotations
 
-import numpy as np
 
 from longslam.errors import InputError, TrajectoryError
 from longslam.timestamps import one_to_one_nearest

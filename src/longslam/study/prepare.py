@@ -118,7 +118,7 @@ def prepare_route(
 
 
 def _waypoints_json(route: Route) -> list:
-    return [w if isinstance(w, str) else list(map(float, w)) for w in route.waypoints]
+    return route.waypoints_json()
 
 
 def load_route_data(out: Path, route: str) -> RouteData:
