@@ -36,6 +36,18 @@ def _field_type(cls: type, name: str) -> tuple[Any, bool]:
     return kind, False
 
 
+def _finite_number(raw: Any, expected: str) -> float:
+    if isinstance(raw, bool):  # True is an int to Python, not a number to a user
+        raise ValueError(expected)
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        raise ValueError(expected) from None
+    if not math.isfinite(value):
+        raise ValueError(expected)
+    return value
+
+
 def convert(raw: Any, kind: Any, optional: bool = False) -> Any:
     """`raw` (a string from the command line, or a TOML/JSON value) as a value of type `kind`.
 
@@ -54,25 +66,12 @@ def convert(raw: Any, kind: Any, optional: bool = False) -> Any:
             return raw.lower() in TRUE_WORDS
         raise ValueError("expected true or false")
     if kind is int:
-        if isinstance(raw, bool):
-            raise ValueError("expected a whole number")
-        try:
-            value = float(raw)
-        except (TypeError, ValueError):
-            raise ValueError("expected a whole number") from None
-        if not math.isfinite(value) or not value.is_integer():
+        value = _finite_number(raw, "expected a whole number")
+        if not value.is_integer():
             raise ValueError("expected a whole number")
         return int(value)
     if kind is float:
-        if isinstance(raw, bool):
-            raise ValueError("expected a number")
-        try:
-            value = float(raw)
-        except (TypeError, ValueError):
-            raise ValueError("expected a number") from None
-        if not math.isfinite(value):
-            raise ValueError("expected a finite number")
-        return value
+        return _finite_number(raw, "expected a finite number")
     if kind is str:
         if not isinstance(raw, (str, int, float)) or isinstance(raw, bool):
             raise ValueError("expected a string")

@@ -55,6 +55,10 @@ class Table:
     row_labels: list[tuple[str, str]]  # (method, metric); metric may be ""
     rows: list[list[Cell]] = field(default_factory=list)
 
+    def add_row(self, label: tuple[str, str], cells: list[Cell]) -> None:
+        self.row_labels.append(label)
+        self.rows.append(cells)
+
     def mark_best(self, higher_is_better: bool = False) -> None:
         """Bold the best mean of each column among the rows of each metric."""
         metrics = {label[1] for label in self.row_labels}
@@ -73,6 +77,24 @@ def _paper_columns(columns: list[tuple[str, str]]) -> bool:
     return any(paper_route(route) and noise in PAPER_NOISE for route, noise in columns)
 
 
+def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0) -> list[Cell]:
+    """A method's mean ± std of one database column, per (route, noise) column of the table."""
+    cells = []
+    for route, noise in results.columns:
+        values = [scale * v for v in results.values(method, route, noise, column)]
+        cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
+    return cells
+
+
+def _paper_cells(columns: list[tuple[str, str]], lookup) -> list[Cell]:
+    """The paper's published value per column ('–' where it has none); lookup(route, noise)."""
+    cells = []
+    for route, noise in columns:
+        value = lookup(paper_route(route) or "", noise)
+        cells.append(Cell(value.text, value.mean) if value else Cell("–"))
+    return cells
+
+
 def accuracy_table(results: StudyResults) -> Table:
     columns = results.columns
     table = Table(
@@ -83,22 +105,13 @@ def accuracy_table(results: StudyResults) -> Table:
     )
     for method in results.methods:
         for metric in ACCURACY_METRICS:
-            cells = []
-            for route, noise in columns:
-                values = results.values(method, route, noise, metric)
-                cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
-            table.row_labels.append((method, METRIC_LABELS[metric]))
-            table.rows.append(cells)
+            table.add_row((method, METRIC_LABELS[metric]), _our_cells(results, method, metric))
     if _paper_columns(columns):
         numbers = paper_accuracy()
         for key, name in PAPER_METHODS.items():
             for metric in ACCURACY_METRICS:
-                cells = []
-                for route, noise in columns:
-                    value = numbers.get((key, paper_route(route) or "", noise, metric))
-                    cells.append(Cell(value.text, value.mean) if value else Cell("–"))
-                table.row_labels.append((f"{name} (paper)", METRIC_LABELS[metric]))
-                table.rows.append(cells)
+                cells = _paper_cells(columns, lambda route, noise: numbers.get((key, route, noise, metric)))
+                table.add_row((f"{name} (paper)", METRIC_LABELS[metric]), cells)
     table.mark_best()
     return table
 
@@ -112,21 +125,11 @@ def memory_table(results: StudyResults) -> Table:
         columns, [],
     )
     for method in results.methods:
-        cells = []
-        for route, noise in columns:
-            values = [v / 1e9 for v in results.values(method, route, noise, "peak_rss_bytes")]
-            cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
-        table.row_labels.append((method, ""))
-        table.rows.append(cells)
+        table.add_row((method, ""), _our_cells(results, method, "peak_rss_bytes", scale=1e-9))
     if _paper_columns(columns):
         numbers = paper_memory_gb()
         for key, name in PAPER_METHODS.items():
-            cells = []
-            for route, noise in columns:
-                value = numbers.get((key, paper_route(route) or "", noise))
-                cells.append(Cell(value.text, value.mean) if value else Cell("–"))
-            table.row_labels.append((f"{name} (paper)", ""))
-            table.rows.append(cells)
+            table.add_row((f"{name} (paper)", ""), _paper_cells(columns, lambda route, noise: numbers.get((key, route, noise))))
     table.mark_best()
     return table
 
