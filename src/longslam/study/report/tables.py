@@ -95,43 +95,43 @@ def _paper_cells(columns: list[tuple[str, str]], lookup) -> list[Cell]:
     return cells
 
 
-def accuracy_table(results: StudyResults) -> Table:
+def _comparison_table(results: StudyResults, title: str, caption: str, metrics: list[tuple[str, str, float]],
+                      paper_numbers) -> Table:
+    """One row per (method, metric): ours (mean ± std of a database column times a scale), then
+    the paper's published rows where the table has the paper's routes. `paper_numbers()` gives
+    {(paper method, route, noise, column): value}."""
     columns = results.columns
-    table = Table(
-        "Table 1: accuracy",
-        "E_trans (unitless), E_rot (deg/m) and ATE (m, no alignment): mean ± std over the seeds; "
-        "lower is better, the best of each column in bold.",
-        columns, [],
-    )
+    table = Table(title, caption, columns, [])
     for method in results.methods:
-        for metric in ACCURACY_METRICS:
-            table.add_row((method, METRIC_LABELS[metric]), _our_cells(results, method, metric))
+        for column, label, scale in metrics:
+            table.add_row((method, label), _our_cells(results, method, column, scale))
     if _paper_columns(columns):
-        numbers = paper_accuracy()
+        numbers = paper_numbers()
         for key, name in PAPER_METHODS.items():
-            for metric in ACCURACY_METRICS:
-                cells = _paper_cells(columns, lambda route, noise: numbers.get((key, route, noise, metric)))
-                table.add_row((f"{name} (paper)", METRIC_LABELS[metric]), cells)
+            for column, label, _ in metrics:
+                cells = _paper_cells(columns, lambda route, noise: numbers.get((key, route, noise, column)))
+                table.add_row((f"{name} (paper)", label), cells)
     table.mark_best()
     return table
+
+
+def accuracy_table(results: StudyResults) -> Table:
+    return _comparison_table(
+        results, "Table 1: accuracy",
+        "E_trans (unitless), E_rot (deg/m) and ATE (m, no alignment): mean ± std over the seeds; "
+        "lower is better, the best of each column in bold.",
+        [(metric, METRIC_LABELS[metric], 1.0) for metric in ACCURACY_METRICS], paper_accuracy,
+    )
 
 
 def memory_table(results: StudyResults) -> Table:
-    columns = results.columns
-    table = Table(
-        "Table 2: peak memory",
+    return _comparison_table(
+        results, "Table 2: peak memory",
         "Peak resident memory (GB) of the process that ran the method, measured from outside it; "
         "mean ± std over the seeds; lower is better, the best of each column in bold.",
-        columns, [],
+        [("peak_rss_bytes", "", 1e-9)],
+        lambda: {(*key, "peak_rss_bytes"): value for key, value in paper_memory_gb().items()},
     )
-    for method in results.methods:
-        table.add_row((method, ""), _our_cells(results, method, "peak_rss_bytes", scale=1e-9))
-    if _paper_columns(columns):
-        numbers = paper_memory_gb()
-        for key, name in PAPER_METHODS.items():
-            table.add_row((f"{name} (paper)", ""), _paper_cells(columns, lambda route, noise: numbers.get((key, route, noise))))
-    table.mark_best()
-    return table
 
 
 def map_table(results: StudyResults) -> Table | None:
