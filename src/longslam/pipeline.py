@@ -21,7 +21,7 @@ from tqdm import tqdm
 from longslam.errors import InputError
 from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
 from longslam.frame import Frame
-from longslam.io.atomic import atomic_path, write_text
+from longslam.io.atomic import atomic_path, name_final_folder, write_text
 from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.jsonable import json_default
@@ -137,23 +137,6 @@ def run_sequence(
         figures = name_final_folder(figures, tmp, out)
         write_result(tmp, result, figures)
     return figures
-
-
-def name_final_folder(figures: dict[str, Any], tmp: Path, out: Path) -> dict[str, Any]:
-    """The figures with every path into the temporary folder `tmp` (a method's database, say)
-    named by where it will be, in `out`, once the run folder is renamed."""
-    prefix = str(tmp)
-
-    def rename(value: Any) -> Any:
-        if isinstance(value, str) and (value == prefix or value.startswith(prefix + "/")):
-            return str(out) + value[len(prefix):]
-        if isinstance(value, dict):
-            return {k: rename(v) for k, v in value.items()}
-        if isinstance(value, (list, tuple)):
-            return type(value)(rename(v) for v in value)
-        return value
-
-    return rename(figures)
 
 
 def _child(queue: mp.Queue, args: tuple, kwargs: dict) -> None:

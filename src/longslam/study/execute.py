@@ -23,9 +23,9 @@ from longslam.eval.map_quality import map_quality
 from longslam.eval.metrics import ape_errors, ate, evaluate
 from longslam.eval.sync import associate
 from longslam.gridmap import GridMap
-from longslam.io.atomic import atomic_path
+from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.sequence import SequenceReader
-from longslam.pipeline import name_final_folder, run_frames, write_result
+from longslam.pipeline import run_frames, write_result
 from longslam.recording import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
 from longslam.slam.base import MethodContext, Result
