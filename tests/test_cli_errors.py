@@ -126,8 +126,9 @@ def test_a_file_size_limit_names_the_file(tiny, tmp_path, command):
         args = f"run --method keyframe {tiny} --out {tmp_path / 'out'}"
         limit = 40  # kB: the keyframe's memory.db outgrows it
     else:
-        args = f"simulate --route demo --out {tmp_path / 'out'} --width 32 --height 24"
-        limit = 8
+        (tmp_path / "route.txt").write_text("20 31.25\n24 31.25\n")
+        args = f"simulate --route {tmp_path / 'route.txt'} --out {tmp_path / 'out'} --width 32 --height 24"
+        limit = 2
     result = _shell(f'ulimit -f {limit}; LONGSLAM_CACHE={tmp_path / "cache"} "$LONGSLAM_PY" -m longslam.cli {args}', tmp_path)
     assert result.returncode == 2, result.stderr
     lines = [line for line in result.stderr.splitlines() if line.strip() and "%" not in line]
