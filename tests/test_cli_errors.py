@@ -63,6 +63,17 @@ def test_bad_out_for_simulate_is_refused_before_rendering(tmp_path, monkeypatch,
         _one_line_error(capsys, str(out))
 
 
+def test_bad_out_for_demo_and_study(tmp_path, capsys):
+    (tmp_path / "afile").write_text("x")
+    assert main(["demo", "--out", str(tmp_path / "afile")]) == 2
+    _one_line_error(capsys, "demo folder", "is a file")
+    (tmp_path / "r.txt").write_text("20 31.25\n22 31.25\n")
+    study = tmp_path / "s.toml"
+    study.write_text('routes = ["r.txt"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = 1\n')
+    assert main(["study", str(study), "--out", str(tmp_path / "afile" / "x")]) == 2
+    _one_line_error(capsys, "study folder", "is a file")
+
+
 def test_a_negative_seed_is_refused_before_rendering(tmp_path, monkeypatch, capsys):
     from longslam import recording
 
