@@ -63,6 +63,17 @@ def test_bad_out_for_simulate_is_refused_before_rendering(tmp_path, monkeypatch,
         _one_line_error(capsys, str(out))
 
 
+def test_bad_out_for_demo_and_study(tmp_path, capsys):
+    (tmp_path / "afile").write_text("x")
+    assert main(["demo", "--out", str(tmp_path / "afile")]) == 2
+    _one_line_error(capsys, "demo folder", "is a file")
+    (tmp_path / "r.txt").write_text("20 31.25\n22 31.25\n")
+    study = tmp_path / "s.toml"
+    study.write_text('routes = ["r.txt"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = 1\n')
+    assert main(["study", str(study), "--out", str(tmp_path / "afile" / "x")]) == 2
+    _one_line_error(capsys, "study folder", "is a file")
+
+
 def test_a_negative_seed_is_refused_before_rendering(tmp_path, monkeypatch, capsys):
     from longslam import recording
 
@@ -126,8 +137,9 @@ def test_a_file_size_limit_names_the_file(tiny, tmp_path, command):
         args = f"run --method keyframe {tiny} --out {tmp_path / 'out'}"
         limit = 40  # kB: the keyframe's memory.db outgrows it
     else:
-        args = f"simulate --route demo --out {tmp_path / 'out'} --width 32 --height 24"
-        limit = 8
+        (tmp_path / "route.txt").write_text("20 31.25\n24 31.25\n")
+        args = f"simulate --route {tmp_path / 'route.txt'} --out {tmp_path / 'out'} --width 32 --height 24"
+        limit = 2
     result = _shell(f'ulimit -f {limit}; LONGSLAM_CACHE={tmp_path / "cache"} "$LONGSLAM_PY" -m longslam.cli {args}', tmp_path)
     assert result.returncode == 2, result.stderr
     lines = [line for line in result.stderr.splitlines() if line.strip() and "%" not in line]

@@ -3,9 +3,9 @@
 import os
 import stat
 import subprocess
+import time
 
 import numpy as np
-import pytest
 
 from longslam.frame import Intrinsics
 from longslam.geometry import camera_poses_from_planar
@@ -36,11 +36,13 @@ def _write(path, n=5):
     return path
 
 
-def _leftovers(folder, pid):
+def _leftovers(folder, pid, age=3600.0):
     run = folder / f".run.partial-{pid}"
     seq = folder / f".seq.partial-{pid}-k3x9"
     for path in (run, seq):
         (path / "rgb").mkdir(parents=True)
+        old = time.time() - age  # left an hour ago
+        os.utime(path, (old, old))
     return run, seq
 
 
@@ -48,12 +50,15 @@ def test_a_run_cleans_partials_whose_process_is_gone(tmp_path):
     seq = _write(tmp_path / "in" / "seq")
     dead = _leftovers(tmp_path, _dead_pid())
     alive = _leftovers(tmp_path / "busy", os.getpid())
+    # A dead PID whose partial is still being modified may be another machine's, on a shared disk.
+    fresh = _leftovers(tmp_path / "shared", _dead_pid(), age=0.0)
     other = tmp_path / ".notes.txt"
     other.write_text("mine")
     run_sequence("odometry", seq, tmp_path / "run", progress=False)
     assert not any(p.exists() for p in dead)
     assert all(p.exists() for p in alive) and other.exists()
     assert clean_stale_partials(tmp_path / "busy") == []  # this process is alive
+    assert clean_stale_partials(tmp_path / "shared") == [] and all(p.exists() for p in fresh)
 
 
 def test_a_render_cleans_partials_in_its_cache(tmp_path, monkeypatch):

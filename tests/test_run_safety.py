@@ -8,11 +8,12 @@ import textwrap
 import numpy as np
 import pytest
 
-from longslam.run import engine, folder
+from longslam.run import engine
 from longslam.cli import main
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
 from longslam.geometry import camera_poses_from_planar
+from longslam.io.atomic import name_final_folder
 from longslam.io.sequence import SequenceWriter
 from longslam.run.engine import run_sequence
 from longslam.trajectory import Trajectory
@@ -77,7 +78,7 @@ def test_overwrite_replaces_a_finished_folder(sequence, tmp_path):
 
 def test_stats_name_the_final_folder_not_the_partial_one(tmp_path):
     figures = {"method_stats": {"database": str(tmp_path / ".run.partial-7" / "memory.db"), "n": 3}, "x": ["a"]}
-    named = folder.name_final_folder(figures, tmp_path / ".run.partial-7", tmp_path / "run")
+    named = name_final_folder(figures, tmp_path / ".run.partial-7", tmp_path / "run")
     assert named["method_stats"]["database"] == str(tmp_path / "run" / "memory.db")
     assert named["x"] == ["a"] and named["method_stats"]["n"] == 3
 

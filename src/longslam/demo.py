@@ -8,6 +8,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
 from longslam.run.folder import TRAJECTORY
 from longslam.run.isolate import run_and_score
+from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
@@ -47,7 +48,7 @@ def run_demo(
     progress: bool = True,
 ) -> tuple[list[dict], Path]:
     """Simulate, run each method in its own process, evaluate. Returns the table rows and the plot path."""
-    out = Path(out)
+    out = check_output_folder(out, "demo folder")
     out.mkdir(parents=True, exist_ok=True)
     route, noise = get_route(route_name), get_noise(noise_name)
     methods = methods or method_names()

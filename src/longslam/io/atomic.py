@@ -10,6 +10,7 @@ import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 from longslam.errors import InputError
 
@@ -104,3 +105,20 @@ def write_text(path: str | Path, text: str) -> None:
 def write_bytes(path: str | Path, data: bytes) -> None:
     with naming_the_file(path):
         Path(path).write_bytes(data)
+
+
+def name_final_folder(figures: dict[str, Any], tmp: Path, out: Path) -> dict[str, Any]:
+    """The figures with every path into the temporary folder `tmp` (a method's database, say)
+    named by where it will be, in `out`, once the run folder is renamed."""
+    prefix = str(tmp)
+
+    def rename(value: Any) -> Any:
+        if isinstance(value, str) and (value == prefix or value.startswith(prefix + "/")):
+            return str(out) + value[len(prefix):]
+        if isinstance(value, dict):
+            return {k: rename(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return type(value)(rename(v) for v in value)
+        return value
+
+    return rename(figures)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import time
 from pathlib import Path
 
 _PARTIAL = re.compile(r"^\..+\.partial-(?P<pid>\d+)(-[^/]*)?$")
@@ -25,8 +26,14 @@ def process_alive(pid: int) -> bool:
     return True
 
 
-def clean_stale_partials(folder: str | Path) -> list[Path]:
-    """Remove the partial files and folders in `folder` whose writing process is gone; returns them.
+# A partial touched this recently is left alone even if its PID is gone here: on a folder shared
+# between machines (NFS) the PID may be another machine's live writer.
+IDLE_SECONDS = 60.0
+
+
+def clean_stale_partials(folder: str | Path, idle_seconds: float = IDLE_SECONDS) -> list[Path]:
+    """Remove the partial files and folders in `folder` whose writing process is gone (and that
+    no one has modified for `idle_seconds`); returns them.
 
     A partial of a live process (this one's too) is left alone, as is anything not named like one.
     """
@@ -38,7 +45,7 @@ def clean_stale_partials(folder: str | Path) -> list[Path]:
         return removed
     for path in entries:
         match = _PARTIAL.match(path.name)
-        if match is None or process_alive(int(match["pid"])):
+        if match is None or process_alive(int(match["pid"])) or _recently_modified(path, idle_seconds):
             continue
         if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path, ignore_errors=True)
@@ -46,6 +53,13 @@ def clean_stale_partials(folder: str | Path) -> list[Path]:
             path.unlink(missing_ok=True)
         removed.append(path)
     return removed
+
+
+def _recently_modified(path: Path, seconds: float) -> bool:
+    try:
+        return time.time() - path.lstat().st_mtime < seconds
+    except OSError:  # removed meanwhile
+        return True
 
 
 def current_umask() -> int:

@@ -18,11 +18,11 @@ from tqdm import tqdm
 from longslam.errors import InputError
 from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
 from longslam.frame import Frame
-from longslam.io.atomic import atomic_path
+from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
-from longslam.run.folder import name_final_folder, write_result
+from longslam.run.folder import write_result
 from longslam.settings import to_mapping
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.catalog import get_spec

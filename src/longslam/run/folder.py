@@ -64,20 +64,3 @@ def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> Non
     # stats.json, written last, is tiny.
     measurements["peak_rss_bytes"] = peak_rss_bytes()
     write_text(out / STATS, json.dumps(measurements, indent=2, default=json_default) + "\n")
-
-
-def name_final_folder(measurements: dict[str, Any], tmp: Path, out: Path) -> dict[str, Any]:
-    """The measurements with every path into the temporary folder `tmp` (a method's database, say)
-    named by where it will be, in `out`, once the run folder is renamed."""
-    prefix = str(tmp)
-
-    def rename(value: Any) -> Any:
-        if isinstance(value, str) and (value == prefix or value.startswith(prefix + "/")):
-            return str(out) + value[len(prefix):]
-        if isinstance(value, dict):
-            return {k: rename(v) for k, v in value.items()}
-        if isinstance(value, (list, tuple)):
-            return type(value)(rename(v) for v in value)
-        return value
-
-    return rename(measurements)

@@ -14,11 +14,11 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from longslam.io.atomic import atomic_path
+from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.sequence import SequenceReader
 from longslam.jsonable import json_default
 from longslam.run.engine import run_frames
-from longslam.run.folder import RECORD, RUN_FILES, name_final_folder, write_result
+from longslam.run.folder import RECORD, RUN_FILES, write_result
 from longslam.run.score import TruthLoader, score_run
 from longslam.recording import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
