@@ -29,28 +29,9 @@ def test_evaluate_json_never_prints_nan_or_infinity(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["ate"] == 0.0
 
 
-def _tiny_sequence(path):
-    import numpy as np
-
-    from longslam.frame import Intrinsics
-    from longslam.geometry import camera_poses_from_planar
-    from longslam.io.sequence import SequenceWriter
-    from longslam.trajectory import Trajectory
-
-    n = 30
-    stamps = 0.1 * np.arange(n)
-    poses = camera_poses_from_planar(np.column_stack([0.1 * np.arange(n), np.zeros(n), np.zeros(n)]), 1.25)
-    with SequenceWriter(path, Intrinsics.from_fov(16, 12, 90.0), 8.0, {"route": "t"}) as writer:
-        for t in stamps:
-            writer.add(t, np.zeros((12, 16, 3), np.uint8), np.ones((12, 16), np.float32))
-        writer.set_ground_truth(Trajectory(stamps, poses))
-        writer.set_odometry(Trajectory(stamps, poses))
-    return path
-
-
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    return _tiny_sequence(tmp_path_factory.mktemp("tiny") / "seq")
+def tiny(tiny_sequence):
+    return tiny_sequence
 
 
 def test_bad_out_for_simulate_is_refused_before_rendering(tmp_path, monkeypatch, capsys):

@@ -5,35 +5,21 @@ import subprocess
 import sys
 import textwrap
 
-import numpy as np
 import pytest
 
 from longslam.run import engine
 from longslam.cli import main
 from longslam.errors import InputError
-from longslam.frame import Intrinsics
-from longslam.geometry import camera_poses_from_planar
 from longslam.io.atomic import name_final_folder
-from longslam.io.sequence import SequenceWriter
 from longslam.run.engine import run_sequence
-from longslam.trajectory import Trajectory
 
-N = 20
+N = 20  # frames of the tiny sequence (conftest.tiny_sequence)
+
 
 
 @pytest.fixture(scope="module")
-def sequence(tmp_path_factory):
-    path = tmp_path_factory.mktemp("seq") / "seq"
-    rng = np.random.default_rng(0)
-    stamps = 0.1 * np.arange(N)
-    xyyaw = np.column_stack([0.15 * np.arange(N), np.zeros(N), np.zeros(N)])
-    poses = camera_poses_from_planar(xyyaw, 1.25)
-    with SequenceWriter(path, Intrinsics.from_fov(16, 12, 90.0), 8.0, {"route": "test"}) as writer:
-        for t in stamps:
-            writer.add(t, rng.integers(0, 255, (12, 16, 3), dtype=np.uint8), rng.uniform(0.5, 4, (12, 16)).astype(np.float32))
-        writer.set_ground_truth(Trajectory(stamps, poses))
-        writer.set_odometry(Trajectory(stamps, poses))
-    return path
+def sequence(tiny_sequence):
+    return tiny_sequence
 
 
 def test_a_run_never_replaces_a_folder_another_run_finished_meanwhile(sequence, tmp_path, monkeypatch):
