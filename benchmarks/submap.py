@@ -34,7 +34,7 @@ from longslam.slam.catalog import method_names
 
 def run(work: Path, seq: Path, method: str, params: dict, tag: str) -> dict:
     metrics, measurements = run_and_score(method, seq, work / "runs" / f"{seq.name}-{method}-{tag}", params)
-    return {"metrics": metrics, "figures": measurements}
+    return {"metrics": metrics, "measurements": measurements}
 
 
 def odometry_metrics(seq: Path) -> dict:
@@ -63,14 +63,14 @@ def table_300m(work: Path, noises: list[str], seeds: int, params: dict, with_key
         for method, tag, p in variants:
             runs = [run(work, s, method, p, tag) for s in seqs]
             ates = [r["metrics"]["ate"] for r in runs]
-            rtf = np.mean([r["figures"]["real_time_factor"] for r in runs])
+            rtf = np.mean([r["measurements"]["real_time_factor"] for r in runs])
             label = f"{method} {tag}" if method == "submap" else method
             print(f"{noise:>7} | {label:>18} | {mean_std(ates)} | {mean_std([r['metrics']['e_trans'] for r in runs])} | "
                   f"{mean_std([r['metrics']['e_rot'] for r in runs])} | {rtf:6.1f} | {np.mean(ates) / odo_ate:.2f}", flush=True)
             for r in runs:
-                stats = r["figures"]["method_stats"]
-                rows.append({"noise": noise, "method": label, "ate": r["metrics"]["ate"], "rtf": r["figures"]["real_time_factor"],
-                             "peak_rss_mb": r["figures"]["peak_rss_bytes"] / 1e6,
+                stats = r["measurements"]["method_stats"]
+                rows.append({"noise": noise, "method": label, "ate": r["metrics"]["ate"], "rtf": r["measurements"]["real_time_factor"],
+                             "peak_rss_mb": r["measurements"]["peak_rss_bytes"] / 1e6,
                              "registrations": (stats.get("registrations_accepted"), stats.get("registrations_rejected")),
                              "loops": (stats.get("loops_accepted"), stats.get("loops_rejected"))})
     return rows
@@ -99,7 +99,7 @@ def table_1km(work: Path, params: dict, with_keyframe: bool) -> None:
     methods = [("submap", {**params, "loop_closure": False})] + ([("keyframe", {})] if with_keyframe else [])
     for method, p in methods:
         r = run(work, seq, method, p, "1km")
-        f, stats = r["figures"], r["figures"]["method_stats"]
+        f, stats = r["measurements"], r["measurements"]["method_stats"]
         print(f"{method}: ATE {r['metrics']['ate']:.2f} m, E_trans {r['metrics']['e_trans']:.4f}, "
               f"E_rot {r['metrics']['e_rot']:.3f} deg/m, real-time factor {f['real_time_factor']:.1f}, "
               f"peak RSS {f['peak_rss_bytes'] / 1e6:.0f} MB")

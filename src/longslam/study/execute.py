@@ -19,6 +19,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.jsonable import json_default
 from longslam.run.engine import run_frames
 from longslam.run.folder import RECORD, RUN_FILES, write_result
+from longslam.run.record import OK, RunRecord
 from longslam.run.score import TruthLoader, score_run
 from longslam.recording import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
@@ -35,22 +36,23 @@ def _json_default(value: Any) -> Any:
         return repr(value)
 
 
-def to_json(record: dict[str, Any]) -> str:
+def to_json(record: RunRecord) -> str:
     """JSON text of a record; numpy values become numbers, anything else unknown its repr."""
-    return json.dumps(record, default=_json_default)
+    return json.dumps(record.to_dict(), default=_json_default)
 
 
-def error_record(err: BaseException) -> dict[str, Any]:
+def from_json(text: str) -> RunRecord:
+    return RunRecord.from_dict(json.loads(text))
+
+
+def error_record(err: BaseException) -> RunRecord:
     """The record of a run that raised."""
-    return {
-        "status": "error",
-        "error": f"{type(err).__name__}: {err}",
-        "traceback": "".join(traceback.format_exception(err)),
-        "host": socket.gethostname(),
-    }
+    return RunRecord.failed(
+        f"{type(err).__name__}: {err}", traceback="".join(traceback.format_exception(err)), host=socket.gethostname(),
+    )
 
 
-def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | None = None, progress: bool = False) -> dict[str, Any]:
+def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | None = None, progress: bool = False) -> RunRecord:
     """Do the run and write its folder `run_dir` (replacing an unfinished one). Returns its record.
 
     `load_truth` gives the world's ground-truth occupancy grid and the mask of observed walls;
@@ -76,12 +78,11 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
         measurements = name_final_folder(measurements, tmp, run_dir)
         write_result(tmp, result, measurements)
         scores = score_run(result, measurements, truth, spec.align, load_truth, spec.map_tolerance_cells)
-        record = {
-            "status": "ok",
-            **scores,
-            "figures": {k: v for k, v in measurements.items() if k != "rss_samples"},
-            "host": socket.gethostname(),
-            "files": {kind: name for kind, name in RUN_FILES.items() if (tmp / name).is_file()},
-        }
+        record = RunRecord(
+            OK, **scores,
+            measurements={k: v for k, v in measurements.items() if k != "rss_samples"},
+            host=socket.gethostname(),
+            files={kind: name for kind, name in RUN_FILES.items() if (tmp / name).is_file()},
+        )
         (tmp / RECORD).write_text(to_json(record) + "\n")
     return record

@@ -118,13 +118,13 @@ def _run_locked(
                         started[spec.key] = time.perf_counter()
                         pool.submit(_task(out, spec))
                     for task, record in pool.wait(timeout=0.5):
-                        record["elapsed_s"] = time.perf_counter() - started.pop(task.spec.key)
-                        run_dir = str(task.run_dir.relative_to(out)) if record.get("status") == "ok" else None
+                        record.elapsed_s = time.perf_counter() - started.pop(task.spec.key)
+                        run_dir = str(task.run_dir.relative_to(out)) if record.ok else None
                         db.record(task.spec, record, run_dir, executor)
                         ran += 1
-                        if record.get("status") != "ok":
+                        if not record.ok:
                             failed += 1
-                            say(f"run {task.spec.key} failed: {record.get('error')}")
+                            say(f"run {task.spec.key} failed: {record.error}")
                         bar.update(1)
                     bar.set_postfix_str(f"running {pool.running}, left {len(pending)}, failed {failed}", refresh=True)
             finally:
