@@ -48,6 +48,16 @@ def _read_list(path: Path) -> list[tuple[float, str]]:
     return rows
 
 
+def _read_json_object(file: Path) -> dict:
+    try:
+        data = json.loads(file.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise InputError(f"{file} cannot be read as JSON: {err}") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{file} must hold a JSON object, got {type(data).__name__}")
+    return data
+
+
 def _read_image(path: Path, flags: int) -> np.ndarray:
     try:
         data = np.fromfile(path, dtype=np.uint8)
@@ -126,15 +136,7 @@ class SequenceReader:
 
     def _read_meta(self) -> dict:
         file = self.path / META
-        if not file.exists():
-            return {}
-        try:
-            meta = json.loads(file.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-            raise InputError(f"{file} cannot be read as JSON: {err}") from None
-        if not isinstance(meta, dict):
-            raise InputError(f"{file} must hold a JSON object, got {type(meta).__name__}")
-        return meta
+        return _read_json_object(file) if file.exists() else {}
 
     def _read_camera(self) -> tuple[Intrinsics, float, float | None]:
         file = self.path / CAMERA
@@ -150,12 +152,7 @@ class SequenceReader:
         return self._read_camera_json(file)
 
     def _read_camera_json(self, file: Path) -> tuple[Intrinsics, float, float | None]:
-        try:
-            data = json.loads(file.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-            raise InputError(f"{file} cannot be read as JSON: {err}") from None
-        if not isinstance(data, dict):
-            raise InputError(f"{file} must hold a JSON object, got {type(data).__name__}")
+        data = _read_json_object(file)
         intr = Intrinsics.from_dict(data, source=str(file))
         if intr.width <= 0 or intr.height <= 0:
             raise InputError(f"{file}: width and height must be positive, got {intr.width} x {intr.height}")
