@@ -308,7 +308,7 @@ def test_errors_name_the_file(tmp_path):
     original = missing.read_bytes()
     missing.write_bytes(b"not a png")
     with pytest.raises(InputError, match=rf"{missing.name}.*cannot be decoded"):
-        SequenceReader(folder).frame(2)
+        SequenceReader(folder).frame(2).rgb  # images are read when first looked at
     missing.write_bytes(original)
 
     # malformed line, named file:line
@@ -340,4 +340,4 @@ def test_errors_name_the_file(tmp_path):
     (folder / "camera.json").write_text(json.dumps(camera))
     reader = SequenceReader(folder)
     with pytest.raises(InputError, match=rf"{rgb_stamps[0]:.6f}\.png is {W} x {H}.*camera\.json"):
-        reader.frame(0)
+        reader.frame(0).rgb

@@ -195,22 +195,41 @@ class SequenceReader:
         return self.path / self._depth_files[i]
 
     def frame(self, i: int) -> Frame:
+        """Frame i. Its images are read from disk when the method first looks at them."""
         n = len(self)
         if not -n <= i < n:
             raise IndexError(f"frame index {i} out of range for {self.path} ({n} frames)")
         i = int(i) % n
-        h, w = self.intrinsics.height, self.intrinsics.width
-        size_source = str(self.path / CAMERA) if (self.path / CAMERA).exists() else "the first rgb image"
+        odometry = None
+        if self.odometry is not None:
+            odometry = self.odometry.poses[self._odometry_index[i]].copy()
+        return Frame(
+            index=i,
+            timestamp=float(self.timestamps[i]),
+            rgb=lambda: self.read_rgb(i),
+            depth=lambda: self.read_depth(i),
+            odometry=odometry,
+            intrinsics=self.intrinsics,
+        )
 
+    def _size_source(self) -> str:
+        return str(self.path / CAMERA) if (self.path / CAMERA).exists() else "the first rgb image"
+
+    def read_rgb(self, i: int) -> np.ndarray:
+        """Frame i's colour image, (H, W, 3) uint8 RGB."""
+        h, w = self.intrinsics.height, self.intrinsics.width
         rgb_file = self.rgb_path(i)
         bgr = _read_image(rgb_file, cv2.IMREAD_COLOR)
         if bgr.shape[:2] != (h, w):
             raise InputError(
-                f"image {rgb_file} is {bgr.shape[1]} x {bgr.shape[0]}, but {size_source} "
+                f"image {rgb_file} is {bgr.shape[1]} x {bgr.shape[0]}, but {self._size_source()} "
                 f"says {w} x {h}"
             )
-        rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
+    def read_depth(self, i: int) -> np.ndarray:
+        """Frame i's depth, (H, W) float32 metres, 0 where there is no return."""
+        h, w = self.intrinsics.height, self.intrinsics.width
         depth_file = self.depth_path(i)
         raw = _read_image(depth_file, cv2.IMREAD_UNCHANGED)
         if raw.ndim != 2 or raw.dtype != np.uint16:
@@ -220,22 +239,10 @@ class SequenceReader:
             )
         if raw.shape != (h, w):
             raise InputError(
-                f"depth image {depth_file} is {raw.shape[1]} x {raw.shape[0]}, but {size_source} "
+                f"depth image {depth_file} is {raw.shape[1]} x {raw.shape[0]}, but {self._size_source()} "
                 f"says {w} x {h}"
             )
-        depth = (raw.astype(np.float32) / np.float32(self.depth_scale)).astype(np.float32)
-
-        odometry = None
-        if self.odometry is not None:
-            odometry = self.odometry.poses[self._odometry_index[i]].copy()
-        return Frame(
-            index=i,
-            timestamp=float(self.timestamps[i]),
-            rgb=rgb,
-            depth=depth,
-            odometry=odometry,
-            intrinsics=self.intrinsics,
-        )
+        return (raw.astype(np.float32) / np.float32(self.depth_scale)).astype(np.float32)
 
     def __getitem__(self, i: int) -> Frame:
         return self.frame(i)
