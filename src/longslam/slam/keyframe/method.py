@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +53,7 @@ class KeyframeMethod:
             "nodes_transferred": 0, "nodes_retrieved": 0, stats.OPTIMIZATIONS: 0,
             "neighbor_links_refined": 0, "neighbor_links_odometry": 0, "neighbor_links_rejected": 0,
         }
-        vocabulary = Vocabulary(self.config.word_distance, self.config.max_words)
+        vocabulary = Vocabulary(self.config.word_distance, self.config.max_words, self.config.vocabulary_index)
         self.memory = KeyframeMemory(self.config, self.db, vocabulary, self._node_camera_poses, self.counts)
         self.loops: LoopCloser | None = None  # made at the first frame, when the camera mount is known
         self._mount: CameraMount | None = None
@@ -62,6 +63,7 @@ class KeyframeMethod:
         self._frame_node: list[int] = []
         self._frame_odom: list[np.ndarray] = []
         self._online: list[np.ndarray] = []
+        self._node_seconds: list[float] = []  # time to make each node (features, loops, memory)
 
     @property
     def nodes(self) -> dict[int, Node]:
@@ -78,7 +80,9 @@ class KeyframeMethod:
         odom = self._corrected_odometry(frame_odometry(frame, self.name))
         self.counts[stats.FRAMES] += 1
         if self._is_new_node(frame.timestamp, odom):
+            started = time.perf_counter()
             self._add_node(frame, odom)
+            self._node_seconds.append(time.perf_counter() - started)
         node = self._last_node
         xyyaw = compose_xyyaw(self.graph.estimate(node.id), relative_xyyaw(node.odom, odom))
         pose = self._mount.to_camera(xyyaw[None])[0]
@@ -244,6 +248,8 @@ class KeyframeMethod:
             stats.CAMERA_HEIGHT: self._mount.camera_height,
             **census,
             "vocabulary_words": self.memory.vocabulary.n_words, "graph_loops": self.graph.num_loops,
+            # Per node, so that a benchmark can tell whether its cost grows with the route.
+            "node_time_ms": [round(1000.0 * t, 3) for t in self._node_seconds],
             "database": str(self.db_path) if self._own_dir is None else None,
         })
         self.db.set_statistics(run_stats)
