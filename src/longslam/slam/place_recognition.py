@@ -76,7 +76,7 @@ class Vocabulary:
     memory must quantise to the same words it had.
     """
 
-    def __init__(self, max_distance: int = 40, max_words_per_image: int = 500, index: str = "bruteforce"):
+    def __init__(self, max_distance: int = 40, max_words_per_image: int = 500, index: str = "hnsw"):
         if not 0 <= max_distance <= 8 * DESCRIPTOR_BYTES:
             raise InputError(f"max_distance must be in [0, 256] bits, got {max_distance}")
         if max_words_per_image <= 0:

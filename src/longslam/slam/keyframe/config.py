@@ -23,7 +23,7 @@ class KeyframeConfig:
     # How a descriptor finds its nearest word (place_recognition.WORD_INDEXES): "bruteforce"
     # (OpenCV, exact), "flat" (faiss, exact, faster), "hnsw" (faiss, approximate, cost ~ log of
     # the dictionary's size).
-    vocabulary_index: str = "bruteforce"
+    vocabulary_index: str = "hnsw"
     # Memory (Mem/STMSize, Rtabmap/MemoryThr, Rtabmap/MaxRetrieved).
     stm_size: int = 10
     wm_max_nodes: int = 150  # nodes searched for loop closure; 0 = unbounded
