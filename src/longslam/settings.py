@@ -103,7 +103,7 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
         try:
             converted[key] = convert(raw, kind, optional)
         except ValueError as err:
-            raise InputError(f"{what}: parameter {key}={raw!r}: {err} (expected {getattr(kind, '__name__', kind)})") from None
+            raise InputError(f"{what}: parameter {key}={raw!r}: {err}") from None
     if base is not None:
         return dataclasses.replace(base, **converted)
     return cls(**converted)
