@@ -51,6 +51,25 @@ class Intrinsics:
             raise InputError(f"{source}: intrinsics fields must be numbers ({err})") from None
 
 
+class _LoadedOnUse:
+    """A Frame attribute given as an array, or as a function that loads it when first read."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    def __get__(self, frame: "Frame | None", owner: type | None = None):
+        if frame is None:
+            return self
+        value = getattr(frame, self.slot)
+        if callable(value):
+            value = value()
+            setattr(frame, self.slot, value)
+        return value
+
+    def __set__(self, frame: "Frame", value) -> None:
+        setattr(frame, self.slot, value)
+
+
 class Frame:
     """One RGB-D frame: index, timestamp (s), rgb (H, W, 3) uint8, depth (H, W) float32 metres (0
     where there is no return), the odometry's (4, 4) camera-in-world pose (None for a recorded
@@ -62,6 +81,8 @@ class Frame:
     """
 
     __slots__ = ("index", "timestamp", "odometry", "intrinsics", "_rgb", "_depth")
+    rgb = _LoadedOnUse()
+    depth = _LoadedOnUse()
 
     def __init__(
         self,
@@ -74,30 +95,10 @@ class Frame:
     ):
         self.index = index
         self.timestamp = timestamp
-        self._rgb = rgb
-        self._depth = depth
+        self.rgb = rgb
+        self.depth = depth
         self.odometry = odometry
         self.intrinsics = intrinsics
-
-    @property
-    def rgb(self) -> np.ndarray:
-        if callable(self._rgb):
-            self._rgb = self._rgb()
-        return self._rgb
-
-    @rgb.setter
-    def rgb(self, value: np.ndarray) -> None:
-        self._rgb = value
-
-    @property
-    def depth(self) -> np.ndarray:
-        if callable(self._depth):
-            self._depth = self._depth()
-        return self._depth
-
-    @depth.setter
-    def depth(self, value: np.ndarray) -> None:
-        self._depth = value
 
     def __repr__(self) -> str:
         return f"Frame(index={self.index}, timestamp={self.timestamp:.6f})"
