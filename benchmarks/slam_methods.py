@@ -12,18 +12,14 @@ render cache); each run is a separate process (clean peak memory). Prints:
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
 
-from longslam.eval.metrics import evaluate
+from common import run_and_score, sequence
 from longslam.io.sequence import SequenceReader
-from longslam.io.trajectory_files import read_tum
-from longslam.pipeline import run_sequence_isolated
-from longslam.recording import simulate
-from longslam.sim.noise import get_noise
-from longslam.sim.routes import get_route
+from longslam.run.score import score
+from longslam.settings import parse_key_values
 
 COUNTERS = ("nodes", "submaps", "loops_accepted", "loops_rejected", "appearance_accepted",
             "appearance_rejected_verification", "appearance_rejected_graph",
@@ -32,19 +28,8 @@ COUNTERS = ("nodes", "submaps", "loops_accepted", "loops_rejected", "appearance_
             "nodes_transferred", "nodes_retrieved", "vocabulary_words")
 
 
-def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
-    path = work / f"{route}-{noise}-{seed}"
-    if not path.exists():
-        simulate(get_route(route), get_noise(noise), seed, path, progress=False)
-    return path
-
-
 def run(work: Path, method: str, seq: Path, params: dict, tag: str) -> tuple[dict, dict]:
-    out = work / "runs" / f"{seq.name}-{method}{tag}"
-    figures = run_sequence_isolated(method, seq, out, params, overwrite=True, progress=False)
-    truth = SequenceReader(seq).ground_truth
-    scores = evaluate(truth, read_tum(out / "trajectory.txt"))
-    return scores, figures
+    return run_and_score(method, seq, work / "runs" / f"{seq.name}-{method}{tag}", params)
 
 
 def rss_at_distances(figures: dict, truth, marks=(250, 500, 750, 1000)) -> list[str]:
@@ -75,13 +60,7 @@ def main() -> None:
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--tag", default="", help="suffix for run folders of a parameter variant")
     args = parser.parse_args()
-    params = {}
-    for pair in args.param:
-        key, value = pair.split("=", 1)
-        try:
-            params[key] = json.loads(value)
-        except json.JSONDecodeError:
-            params[key] = value
+    params = parse_key_values(args.param)
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
     seeds = range(args.seeds)
@@ -97,7 +76,7 @@ def main() -> None:
                 scores, figures = run(work, args.method, seq, params, args.tag)
                 rows["m"].append(scores)
                 rtf.append(figures["real_time_factor"])
-                rows["o"].append(evaluate(SequenceReader(seq).ground_truth, SequenceReader(seq).odometry))
+                rows["o"].append(score(SequenceReader(seq).ground_truth, SequenceReader(seq).odometry))
             mean = lambda who, key: float(np.mean([s[key] for s in rows[who]]))  # noqa: E731
             print(
                 f"{noise:>7} | {mean('m', 'ate'):5.2f} / {mean('o', 'ate'):5.2f} | {mean('m', 'e_trans'):.4f}/{mean('o', 'e_trans'):.4f} | "
@@ -110,7 +89,7 @@ def main() -> None:
             seq = sequence(work, "paper-1km", "large", seed)
             truth = SequenceReader(seq).ground_truth
             scores, figures = run(work, args.method, seq, params, args.tag)
-            odom = evaluate(truth, SequenceReader(seq).odometry)
+            odom = score(truth, SequenceReader(seq).odometry)
             stats = figures["method_stats"]
             counters = ", ".join(f"{k} {stats[k]}" for k in COUNTERS if k in stats)
             print(f"seed {seed}: ATE {scores['ate']:.2f} m (odometry {odom['ate']:.2f}), E_trans {scores['e_trans']:.4f}, "

@@ -25,34 +25,21 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.eval.metrics import evaluate
+from common import run_and_score, sequence
 from longslam.io.sequence import SequenceReader
-from longslam.io.trajectory_files import read_tum
-from longslam.pipeline import run_sequence_isolated
-from longslam.recording import simulate
-from longslam.sim.noise import get_noise
-from longslam.sim.routes import get_route
+from longslam.run.score import score
+from longslam.settings import parse_key_values
 from longslam.slam.catalog import method_names
 
 
-def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
-    path = work / f"{route}-{noise}-{seed}"
-    if not path.exists():
-        simulate(get_route(route), get_noise(noise), seed, path, progress=False)
-    return path
-
-
 def run(work: Path, seq: Path, method: str, params: dict, tag: str) -> dict:
-    out = work / "runs" / f"{seq.name}-{method}-{tag}"
-    figures = run_sequence_isolated(method, seq, out, params, overwrite=True, progress=False)
-    reader = SequenceReader(seq)
-    metrics = evaluate(reader.ground_truth, read_tum(out / "trajectory.txt"))
-    return {"metrics": metrics, "figures": figures}
+    metrics, measurements = run_and_score(method, seq, work / "runs" / f"{seq.name}-{method}-{tag}", params)
+    return {"metrics": metrics, "measurements": measurements}
 
 
 def odometry_metrics(seq: Path) -> dict:
     reader = SequenceReader(seq)
-    return evaluate(reader.ground_truth, reader.odometry)
+    return score(reader.ground_truth, reader.odometry)
 
 
 def mean_std(values: list[float]) -> str:
@@ -76,14 +63,14 @@ def table_300m(work: Path, noises: list[str], seeds: int, params: dict, with_key
         for method, tag, p in variants:
             runs = [run(work, s, method, p, tag) for s in seqs]
             ates = [r["metrics"]["ate"] for r in runs]
-            rtf = np.mean([r["figures"]["real_time_factor"] for r in runs])
+            rtf = np.mean([r["measurements"]["real_time_factor"] for r in runs])
             label = f"{method} {tag}" if method == "submap" else method
             print(f"{noise:>7} | {label:>18} | {mean_std(ates)} | {mean_std([r['metrics']['e_trans'] for r in runs])} | "
                   f"{mean_std([r['metrics']['e_rot'] for r in runs])} | {rtf:6.1f} | {np.mean(ates) / odo_ate:.2f}", flush=True)
             for r in runs:
-                stats = r["figures"]["method_stats"]
-                rows.append({"noise": noise, "method": label, "ate": r["metrics"]["ate"], "rtf": r["figures"]["real_time_factor"],
-                             "peak_rss_mb": r["figures"]["peak_rss_bytes"] / 1e6,
+                stats = r["measurements"]["method_stats"]
+                rows.append({"noise": noise, "method": label, "ate": r["metrics"]["ate"], "rtf": r["measurements"]["real_time_factor"],
+                             "peak_rss_mb": r["measurements"]["peak_rss_bytes"] / 1e6,
                              "registrations": (stats.get("registrations_accepted"), stats.get("registrations_rejected")),
                              "loops": (stats.get("loops_accepted"), stats.get("loops_rejected"))})
     return rows
@@ -112,7 +99,7 @@ def table_1km(work: Path, params: dict, with_keyframe: bool) -> None:
     methods = [("submap", {**params, "loop_closure": False})] + ([("keyframe", {})] if with_keyframe else [])
     for method, p in methods:
         r = run(work, seq, method, p, "1km")
-        f, stats = r["figures"], r["figures"]["method_stats"]
+        f, stats = r["measurements"], r["measurements"]["method_stats"]
         print(f"{method}: ATE {r['metrics']['ate']:.2f} m, E_trans {r['metrics']['e_trans']:.4f}, "
               f"E_rot {r['metrics']['e_rot']:.3f} deg/m, real-time factor {f['real_time_factor']:.1f}, "
               f"peak RSS {f['peak_rss_bytes'] / 1e6:.0f} MB")
@@ -134,13 +121,7 @@ def main() -> None:
     parser.add_argument("--with-keyframe", action="store_true", help="also run the keyframe method")
     parser.add_argument("--work", default=None, help="folder for sequences and runs (default: a temporary one)")
     args = parser.parse_args()
-    params = {}
-    for pair in args.param:
-        key, _, value = pair.partition("=")
-        try:
-            params[key] = json.loads(value)
-        except json.JSONDecodeError:
-            params[key] = value
+    params = parse_key_values(args.param)
     with_keyframe = args.with_keyframe
     if with_keyframe and "keyframe" not in method_names():
         parser.error("the keyframe method is not registered")

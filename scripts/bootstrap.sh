@@ -33,13 +33,18 @@ if ((${#missing[@]})); then
   fi
 fi
 
-extras=""
-[ "$task" = test ] && extras="[test]"
-stamp="$VENV/.installed$extras"
-if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+# The same pinned versions on every machine: requirements.lock (made for Python 3.11, test extras
+# included, so `demo` and `test` share one environment), then longslam itself without resolving
+# its ranges again.
+LOCK=requirements.lock
+stamp="$VENV/.installed-lock"
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ "$LOCK" -nt "$stamp" ]; then
   [ -x "$VENV/bin/python" ] || "$PYTHON" -m venv "$VENV"
+  version="$("$VENV/bin/python" -c 'import sys; print("%d.%d" % sys.version_info[:2])')"
+  [ "$version" = 3.11 ] || echo "warning: $LOCK pins versions for Python 3.11; $VENV has Python $version" >&2
   "$VENV/bin/python" -m pip install -q --upgrade pip
-  "$VENV/bin/python" -m pip install -q -e ".$extras"
+  "$VENV/bin/python" -m pip install -q -r "$LOCK"
+  "$VENV/bin/python" -m pip install -q --no-deps -e .
   touch "$stamp"
 fi
 

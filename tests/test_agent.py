@@ -8,10 +8,10 @@ import pytest
 from longslam.errors import InputError, UnknownNameError
 from longslam.geometry import wrap_angle
 from longslam.gridmap import OCCUPIED
-from longslam.sim.follower import FollowerSettings, follow_paths
+from longslam.sim.follower import follow_paths
 from longslam.sim.navigation import NavigationGrid
 from longslam.sim.noise import NOISE_LEVELS, BiasNoise, get_noise
-from longslam.sim.routes import ROUTES, get_route, load_route_file
+from longslam.sim.routes import get_route, load_route_file
 from longslam.world.university import university_plan
 
 

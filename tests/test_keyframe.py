@@ -14,7 +14,7 @@ from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
 from longslam.slam.api import MethodContext
-from longslam.slam.keyframe import KeyframeConfig, KeyframeMethod
+from longslam.slam.keyframe import KeyframeConfig
 from longslam.slam.memory_db import MemoryDatabase
 from longslam.slam.catalog import check_params, create_method
 from longslam.world import get_world

@@ -8,33 +8,19 @@ import pytest
 from longslam.cli import main
 from longslam.errors import InputError, UnknownNameError
 from longslam.frame import Frame, Intrinsics
-from longslam.geometry import camera_poses_from_planar
-from longslam.io.sequence import SequenceWriter
 from longslam.io.trajectory_files import read_tum, write_kitti, write_tum
-from longslam.pipeline import run_sequence, run_sequence_isolated
+from longslam.run.engine import run_sequence
+from longslam.run.isolate import run_sequence_isolated
 from longslam.slam.api import Method, MethodContext
 from longslam.slam.catalog import create_method, method_names
-from longslam.trajectory import Trajectory
+from conftest import write_tiny_sequence
 
 N = 30
 
 
 @pytest.fixture(scope="module")
 def sequence(tmp_path_factory):
-    path = tmp_path_factory.mktemp("seq") / "seq"
-    rng = np.random.default_rng(0)
-    stamps = 0.1 * np.arange(N)
-    xyyaw = np.column_stack([0.15 * np.arange(N), np.zeros(N), np.linspace(0, 0.3, N)])
-    truth = Trajectory(stamps, camera_poses_from_planar(xyyaw, 1.25))
-    noisy = xyyaw.copy()
-    noisy[:, 0] *= 1.05
-    odometry = Trajectory(stamps, camera_poses_from_planar(noisy, 1.25))
-    with SequenceWriter(path, Intrinsics.from_fov(16, 12, 90.0), 8.0, {"route": "test"}) as writer:
-        for t in stamps:
-            writer.add(t, rng.integers(0, 255, (12, 16, 3), dtype=np.uint8), rng.uniform(0.5, 4, (12, 16)).astype(np.float32))
-        writer.set_ground_truth(truth)
-        writer.set_odometry(odometry)
-    return path, truth, odometry
+    return write_tiny_sequence(tmp_path_factory.mktemp("seq") / "seq", n=N, turn=0.3, odometry_scale=1.05)
 
 
 def test_odometry_method_returns_the_odometry(sequence, tmp_path):
@@ -52,6 +38,20 @@ def test_odometry_method_returns_the_odometry(sequence, tmp_path):
     assert abs(stats["sequence_duration_s"] - N * 0.1) < 1e-6
     assert figures["real_time_factor"] > 1.0
     assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no temporary folder left
+
+
+def test_the_run_folder_keeps_the_config_it_ran_with(sequence, tmp_path):
+    import tomllib
+
+    from longslam.settings import from_mapping
+    from longslam.slam.submap.config import SubmapConfig
+
+    path, _, _ = sequence
+    run_sequence("submap", path, tmp_path / "run", {"submap_interval": "1.5", "registration": False}, progress=False)
+    written = tomllib.loads((tmp_path / "run" / "config.toml").read_text())
+    assert written["run"]["method"] == "submap" and written["run"]["sequence"] == str(path.resolve())
+    # Every field, defaults included, so the run can be repeated from its folder alone.
+    assert from_mapping(SubmapConfig, written["params"], "config.toml") == SubmapConfig(submap_interval=1.5, registration=False)
 
 
 def test_existing_run_folder_is_refused(sequence, tmp_path):

@@ -6,6 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
+from longslam.errors import InputError
 from longslam.frame import Intrinsics
 from longslam.slam.features import Features, extract
 from longslam.slam.place_recognition import Vocabulary, verify
@@ -115,8 +116,9 @@ def test_blank_image_gives_no_features_and_is_rejected(scenes):
     assert len(extract(rgb, np.zeros_like(depth), INTR)) == 0
 
 
-def test_vocabulary_ranks_revisit_first(scenes):
-    vocab = Vocabulary()
+@pytest.mark.parametrize("index", ["bruteforce", "flat", "hnsw"])
+def test_vocabulary_ranks_revisit_first(scenes, index):
+    vocab = Vocabulary(index=index)
     for node, canvas in enumerate(scenes[:11]):
         words = vocab.add(node, feats(canvas).descriptors)
         assert len(words) <= vocab.max_words_per_image
@@ -160,3 +162,17 @@ def test_vocabulary_caps_words_per_image(scenes):
     assert len(words) == 50 and vocab.n_words <= 50
     assert vocab.query(np.zeros((0, 32), np.uint8)) == []
     assert Vocabulary().query(f.descriptors) == []
+
+
+def test_the_faiss_indexes_find_the_words_brute_force_finds(scenes):
+    descriptors = [feats(canvas).descriptors for canvas in scenes]
+    vocabularies = {index: Vocabulary(index=index) for index in ("bruteforce", "flat", "hnsw")}
+    words = {index: [v.add(node, d) for node, d in enumerate(descriptors)] for index, v in vocabularies.items()}
+    # The exact index gives the same words (ties between equally near words aside: none here).
+    assert all(np.array_equal(a, b) for a, b in zip(words["bruteforce"], words["flat"]))
+    # The approximate one gives almost all of them; a miss founds a new word.
+    same = np.mean(np.concatenate([a == b for a, b in zip(words["bruteforce"], words["hnsw"])]))
+    assert same > 0.95, same
+    assert vocabularies["hnsw"].n_words >= vocabularies["bruteforce"].n_words
+    with pytest.raises(InputError, match="vocabulary index"):
+        Vocabulary(index="lsh")

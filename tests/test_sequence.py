@@ -13,7 +13,8 @@ import longslam
 from longslam.errors import InputError
 from longslam.frame import Frame, Intrinsics
 from longslam.geometry import camera_poses_from_planar
-from longslam.io.sequence import SequenceReader, SequenceWriter, associate, derive_sequence
+from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
+from longslam.timestamps import associate_lists
 from longslam.trajectory import Trajectory
 
 W, H, N = 32, 24, 20
@@ -225,12 +226,16 @@ def make_tum_folder(folder, n=10, offset=0.01):
 def test_read_real_tum_folder(tmp_path):
     folder = tmp_path / "rgbd_dataset_freiburg1_xyz"
     rgb_stamps, rgbs, depths = make_tum_folder(folder)
-    reader = SequenceReader(folder)
+    # Freiburg 1's calibration is for 640 x 480 images: on these it is not guessed.
+    with pytest.raises(InputError, match=r"freiburg1.*640 x 480.*32 x 24.*--intrinsics fx,fy,cx,cy"):
+        SequenceReader(folder)
+    reader = SequenceReader(folder, intrinsics="16,16,15.5,11.5")
+    assert reader.intrinsics_source == "given (--intrinsics)"
     assert len(reader) == len(rgb_stamps)
     np.testing.assert_allclose(reader.timestamps, rgb_stamps, atol=1e-6)
     assert reader.ground_truth is None and reader.odometry is None
     assert reader.meta == {} and reader.max_depth is None and reader.depth_scale == 5000.0
-    assert reader.intrinsics == Intrinsics(W, H, 525.0, 525.0, 319.5, 239.5)
+    assert reader.intrinsics == Intrinsics(W, H, 16.0, 16.0, 15.5, 11.5)
     for i, frame in enumerate(reader):
         assert frame.odometry is None
         np.testing.assert_array_equal(frame.rgb, rgbs[i])
@@ -240,14 +245,39 @@ def test_read_real_tum_folder(tmp_path):
 
 def test_association_is_one_to_one():
     # two rgb stamps near one depth stamp: only the closer one gets it
-    pairs = associate([1.000, 1.015, 2.0], [1.012, 2.005, 5.0], max_diff=0.02)
+    pairs = associate_lists([1.000, 1.015, 2.0], [1.012, 2.005, 5.0], max_diff=0.02)
     assert pairs == [(1, 0), (2, 1)]
-    assert associate([1.0], [1.5], max_diff=0.02) == []
+    assert associate_lists([1.0], [1.5], max_diff=0.02) == []
+
+
+def test_a_folder_without_camera_json_is_never_guessed(tmp_path):
+    folder = tmp_path / "my_sequence"
+    make_tum_folder(folder, n=2)
+    with pytest.raises(InputError, match=r"my_sequence has no camera.json.*--intrinsics fx,fy,cx,cy.*camera.json"):
+        SequenceReader(folder)
+    for bad in ("1,2,3", "0,1,2,3", "nan,1,2,3", "a,b,c,d"):
+        with pytest.raises(InputError, match="expected fx,fy,cx,cy"):
+            SequenceReader(folder, intrinsics=bad)
+
+
+@pytest.mark.parametrize("camera, expected", [(1, (517.3, 516.5, 318.6, 255.3)), (3, (535.4, 539.2, 320.1, 247.6))])
+def test_a_freiburg_folder_gets_its_cameras_calibration(tmp_path, camera, expected):
+    folder = tmp_path / f"rgbd_dataset_freiburg{camera}_desk"
+    (folder / "rgb").mkdir(parents=True)
+    (folder / "depth").mkdir()
+    cv2.imwrite(str(folder / "rgb" / "1.0.png"), np.zeros((480, 640, 3), np.uint8))
+    cv2.imwrite(str(folder / "depth" / "1.0.png"), np.zeros((480, 640), np.uint16))
+    (folder / "rgb.txt").write_text("1.0 rgb/1.0.png\n")
+    (folder / "depth.txt").write_text("1.0 depth/1.0.png\n")
+    reader = SequenceReader(folder)
+    assert reader.intrinsics == Intrinsics(640, 480, *expected)
+    assert f"freiburg{camera}" in reader.intrinsics_source
 
 
 def test_odometry_nearest_match_and_missing(tmp_path):
     folder = tmp_path / "tum"
     rgb_stamps, _, _ = make_tum_folder(folder, n=5)
+    (folder / "camera.json").write_text(json.dumps({"width": W, "height": H, "fx": 16, "fy": 16, "cx": 16, "cy": 12}))
     poses = camera_poses_from_planar(np.zeros((5, 3)), 1.25)
     odom = Trajectory(rgb_stamps + 0.005, poses)
     from longslam.io.trajectory_files import write_tum
@@ -265,6 +295,7 @@ def test_errors_name_the_file(tmp_path):
 
     folder = tmp_path / "tum"
     rgb_stamps, _, _ = make_tum_folder(folder, n=5)
+    (folder / "camera.json").write_text(json.dumps({"width": W, "height": H, "fx": 16, "fy": 16, "cx": 16, "cy": 12}))
 
     # missing image file
     missing = folder / "rgb" / f"{rgb_stamps[2]:.6f}.png"
@@ -277,7 +308,7 @@ def test_errors_name_the_file(tmp_path):
     original = missing.read_bytes()
     missing.write_bytes(b"not a png")
     with pytest.raises(InputError, match=rf"{missing.name}.*cannot be decoded"):
-        SequenceReader(folder).frame(2)
+        SequenceReader(folder).frame(2).rgb  # images are read when first looked at
     missing.write_bytes(original)
 
     # malformed line, named file:line
@@ -309,4 +340,4 @@ def test_errors_name_the_file(tmp_path):
     (folder / "camera.json").write_text(json.dumps(camera))
     reader = SequenceReader(folder)
     with pytest.raises(InputError, match=rf"{rgb_stamps[0]:.6f}\.png is {W} x {H}.*camera\.json"):
-        reader.frame(0)
+        reader.frame(0).rgb

@@ -239,6 +239,38 @@ def test_a_killed_study_resumes_and_runs_everything_exactly_once(env):
     assert (again.skipped, again.ran) == (4, 0)
 
 
+def test_a_second_study_into_a_busy_folder_stops_with_a_clear_message(study, env, capsys):
+    from longslam.study.lock import study_lock
+
+    out, _ = study
+    before = _rows(out)
+    file = _study(env, "main", ["odometry", "gridded", "crashy", "dies"], ["large"], [0, 1])
+    with study_lock(out):  # another study holds the folder
+        assert main(["study", str(file), "--out", str(out), "--retry-failed", "--no-report"]) == 2
+    err = capsys.readouterr().err
+    assert "in use by another study" in err and str(os.getpid()) in err and "Traceback" not in err
+    assert _rows(out) == before  # nothing recorded again, nothing overwritten
+
+
+def test_a_study_that_fails_validation_leaves_nothing_behind(study, env, tmp_path, capsys):
+    (env / "walled.txt").write_text("20 31.25\n-40 -40\n")  # the second waypoint is outside the building
+    file = env / "walled.toml"
+    file.write_text('name = "walled"\nroutes = ["walled.txt"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = 1\n')
+    fresh = tmp_path / "fresh"
+    assert main(["study", str(file), "--out", str(fresh)]) == 2
+    assert "walled" in capsys.readouterr().err
+    assert not fresh.exists()
+    # Into an existing study folder: its stored config and its files stay as they were.
+    out, _ = study
+    with sqlite3.connect(out / DB_NAME) as conn:
+        config = conn.execute("SELECT value FROM study WHERE key = 'config'").fetchone()
+    listing = sorted(p.relative_to(out) for p in out.rglob("*"))
+    assert main(["study", str(file), "--out", str(out)]) == 2
+    with sqlite3.connect(out / DB_NAME) as conn:
+        assert conn.execute("SELECT value FROM study WHERE key = 'config'").fetchone() == config
+    assert sorted(p.relative_to(out) for p in out.rglob("*")) == listing
+
+
 def test_ray_executor_against_a_local_ray(env):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)

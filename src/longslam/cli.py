@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
+from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
 from longslam.errors import LongslamError
 
 
@@ -36,24 +36,19 @@ def _camera(args: argparse.Namespace):
 
 
 def _params(pairs: list[str]) -> dict:
-    params = {}
-    for pair in pairs:
-        if "=" not in pair:
-            raise LongslamError(f"--param {pair!r}: expected KEY=VALUE")
-        key, value = pair.split("=", 1)
-        try:
-            params[key] = json.loads(value)
-        except json.JSONDecodeError:
-            params[key] = value
-    return params
+    from longslam.settings import parse_key_values
+
+    return parse_key_values(pairs)
 
 
 def cmd_world(args: argparse.Namespace) -> None:
     from longslam.sim.drive import drive_route
     from longslam.sim.routes import get_route
-    from longslam.study.plots import plot_plan
+    from longslam.io.paths import PLOT_SUFFIXES, check_output_file
+    from longslam.viz.plots import plot_plan
     from longslam.world import get_world, load_mesh_world
 
+    check_output_file(args.out, PLOT_SUFFIXES, "--out")
     world = load_mesh_world(args.mesh, args.floor) if args.mesh else get_world(args.world)
     paths, waypoints, title = {}, None, f"world {world.name}"
     if args.route:
@@ -77,39 +72,22 @@ def cmd_simulate(args: argparse.Namespace) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> None:
-    from longslam.pipeline import run_sequence
+    from longslam.run.engine import run_sequence
 
-    figures = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite)
+    measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
+                                intrinsics=args.intrinsics)
     print(
-        f"wrote {args.out}: {figures['frames']} frames, real-time factor {figures['real_time_factor']:.1f}, "
-        f"peak RSS {figures['peak_rss_bytes'] / 1e6:.0f} MB"
+        f"wrote {args.out}: {measurements['frames']} frames, real-time factor {measurements['real_time_factor']:.1f}, "
+        f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
     )
 
 
-def _trajectory_path(path: Path, names: tuple[str, ...]) -> Path:
-    """A trajectory file, or the usual file inside a run or sequence folder."""
-    if path.is_dir():
-        for name in names:
-            if (path / name).is_file():
-                return path / name
-        raise LongslamError(f"{path} is a folder without {' or '.join(names)}")
-    return path
-
-
 def cmd_evaluate(args: argparse.Namespace) -> None:
-    from longslam.eval.metrics import evaluate
-    from longslam.eval.sync import associate, associate_by_index
-    from longslam.io.trajectory_files import KITTI, read_trajectory
+    from longslam.run.score import score_files
 
-    estimate, est_fmt = read_trajectory(_trajectory_path(Path(args.estimate), ("trajectory.txt",)))
-    truth, gt_fmt = read_trajectory(_trajectory_path(Path(args.groundtruth), ("groundtruth.txt",)))
-    if KITTI in (est_fmt, gt_fmt):
-        ref, est = associate_by_index(truth, estimate)
-    else:
-        ref, est = associate(truth, estimate, max_diff=args.max_diff)
-    scores = evaluate(ref, est, align=args.align)
+    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff)
     if args.json:
-        print(json.dumps(scores))
+        print(json.dumps(scores, allow_nan=False))
         return
     for key, value in scores.items():
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
@@ -164,6 +142,7 @@ def cmd_report(args: argparse.Namespace) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
+    parser.add_argument("--debug", action="store_true", help="show the full traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("world", help="draw a world's floor plan, optionally with a route")
@@ -189,6 +168,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="run folder to write")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="method parameter (repeatable)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
+                   help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("evaluate", help="score a trajectory (TUM or KITTI) against ground truth")
@@ -223,6 +204,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")
     p.set_defaults(func=cmd_list)
+    for command in sub.choices.values():  # --debug also after the command; SUPPRESS keeps the top-level value
+        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the full traceback of an error")
     return parser
 
 
@@ -230,8 +213,13 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         args.func(args)
-    except LongslamError as err:
-        print(f"longslam {args.command}: error: {err}", file=sys.stderr)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handlers below
+    except BrokenPipeError:
+        return quiet_broken_pipe()
+    except EXPECTED_FAILURES as err:
+        if getattr(args, "debug", False):
+            raise
+        print(f"longslam {args.command}: error: {describe_failure(err, getattr(args, 'out', None))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"longslam {args.command}: interrupted", file=sys.stderr)

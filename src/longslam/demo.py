@@ -4,17 +4,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from longslam.eval.metrics import evaluate
-from longslam.eval.sync import associate
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
-from longslam.pipeline import run_sequence_isolated
+from longslam.run.folder import TRAJECTORY
+from longslam.run.isolate import run_and_score
+from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.recording import simulate
 from longslam.slam.catalog import method_names
-from longslam.study.plots import plot_plan
+from longslam.viz.plots import plot_plan
 from longslam.world import get_world
 
 COLUMNS = ("method", "ATE [m]", "E_trans", "E_rot [deg/m]", "peak RSS [MB]", "real-time factor")
@@ -48,7 +48,7 @@ def run_demo(
     progress: bool = True,
 ) -> tuple[list[dict], Path]:
     """Simulate, run each method in its own process, evaluate. Returns the table rows and the plot path."""
-    out = Path(out)
+    out = check_output_folder(out, "demo folder")
     out.mkdir(parents=True, exist_ok=True)
     route, noise = get_route(route_name), get_noise(noise_name)
     methods = methods or method_names()
@@ -59,11 +59,9 @@ def run_demo(
     rows, paths = [], {"ground truth": truth.positions[:, :2]}
     for name in methods:
         run_dir = out / "runs" / name
-        figures = run_sequence_isolated(name, sequence, run_dir, overwrite=True, progress=progress)
-        estimate = read_tum(run_dir / "trajectory.txt")
-        ref, est = associate(truth, estimate)
-        scores = evaluate(ref, est)
-        rows.append({"method": name, **scores, **{k: figures[k] for k in ("peak_rss_bytes", "real_time_factor")}})
+        scores, measurements = run_and_score(name, sequence, run_dir, progress=progress)
+        estimate = read_tum(run_dir / TRAJECTORY)
+        rows.append({"method": name, **scores, **{k: measurements[k] for k in ("peak_rss_bytes", "real_time_factor")}})
         paths[name] = estimate.positions[:, :2]
     world = get_world(route.world)
     plot = out / "trajectories.png"

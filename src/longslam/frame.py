@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import math
 from dataclasses import asdict, dataclass
 
@@ -49,13 +51,54 @@ class Intrinsics:
             raise InputError(f"{source}: intrinsics fields must be numbers ({err})") from None
 
 
-@dataclass
+class _LoadedOnUse:
+    """A Frame attribute given as an array, or as a function that loads it when first read."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    def __get__(self, frame: "Frame | None", owner: type | None = None):
+        if frame is None:
+            return self
+        value = getattr(frame, self.slot)
+        if callable(value):
+            value = value()
+            setattr(frame, self.slot, value)
+        return value
+
+    def __set__(self, frame: "Frame", value) -> None:
+        setattr(frame, self.slot, value)
+
+
 class Frame:
-    index: int
-    timestamp: float  # seconds
-    rgb: np.ndarray  # (H, W, 3) uint8
-    depth: np.ndarray  # (H, W) float32 metres, 0 where there is no return
-    # (4, 4) camera-in-world pose reported by the odometry; None for a recorded sequence that
-    # has none (real TUM sequences carry no odometry).
-    odometry: np.ndarray | None
-    intrinsics: Intrinsics
+    """One RGB-D frame: index, timestamp (s), rgb (H, W, 3) uint8, depth (H, W) float32 metres (0
+    where there is no return), the odometry's (4, 4) camera-in-world pose (None for a recorded
+    sequence without one: real TUM sequences carry no odometry) and the intrinsics.
+
+    rgb and depth may be given as arrays or as functions that load them on first use, so that a
+    method that looks at the images of one frame in ten (a keyframe graph on wheel odometry) makes
+    the reader decode one in ten.
+    """
+
+    __slots__ = ("index", "timestamp", "odometry", "intrinsics", "_rgb", "_depth")
+    rgb = _LoadedOnUse()
+    depth = _LoadedOnUse()
+
+    def __init__(
+        self,
+        index: int,
+        timestamp: float,
+        rgb: np.ndarray | Callable[[], np.ndarray],
+        depth: np.ndarray | Callable[[], np.ndarray],
+        odometry: np.ndarray | None,
+        intrinsics: Intrinsics,
+    ):
+        self.index = index
+        self.timestamp = timestamp
+        self.rgb = rgb
+        self.depth = depth
+        self.odometry = odometry
+        self.intrinsics = intrinsics
+
+    def __repr__(self) -> str:
+        return f"Frame(index={self.index}, timestamp={self.timestamp:.6f})"

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from longslam.errors import InputError
+from longslam.io.atomic import atomic_path, naming_the_file
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 100
 
@@ -60,9 +60,9 @@ class GridMap:
     def save(self, path: str | Path) -> None:
         """Write as .npz (data, resolution, origin), via a temporary name."""
         path = Path(path)
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(tmp, data=self.data, resolution=self.resolution, origin=np.asarray(self.origin))
-        os.replace(tmp, path)
+        # Through an open file: np.savez would add ".npz" to a temporary name without it.
+        with atomic_path(path) as tmp, naming_the_file(path), open(tmp, "wb") as file:
+            np.savez_compressed(file, data=self.data, resolution=self.resolution, origin=np.asarray(self.origin))
 
     @classmethod
     def load(cls, path: str | Path) -> "GridMap":

@@ -22,6 +22,7 @@ import longslam
 from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import camera_poses_from_planar, planar_from_camera_poses
+from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
@@ -44,7 +45,7 @@ def cache_key(route: Route, camera: CameraSettings, follower: FollowerSettings) 
         {
             "render_version": RENDER_VERSION,
             "world": route.world,
-            "waypoints": [list(w) if not isinstance(w, str) else w for w in route.waypoints],
+            "waypoints": route.waypoints_json(),
             "camera": asdict(camera),
             "follower": asdict(follower),
         },
@@ -78,7 +79,7 @@ def rendered_sequence(
     meta = {
         "world": route.world,
         "route": route.name,
-        "waypoints": [list(w) if not isinstance(w, str) else w for w in route.waypoints],
+        "waypoints": route.waypoints_json(),
         "camera": asdict(camera),
         "follower": asdict(follower),
         "route_length_m": driven.length,
@@ -94,9 +95,16 @@ def rendered_sequence(
     return path
 
 
+def check_seed(seed: int) -> int:
+    """numpy's generators take whole numbers from 0 up; say so before any rendering."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed {seed!r}: expected a whole number >= 0")
+    return int(seed)
+
+
 def noisy_odometry(truth: Trajectory, noise: BiasNoise, seed: int, camera_height: float) -> Trajectory:
     """Camera-in-world odometry poses for a ground-truth camera trajectory of a planar robot."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_seed(seed))
     xyyaw = planar_from_camera_poses(truth.poses, camera_height)
     floor_z = float(truth.poses[0, 2, 3]) - camera_height
     noisy = noise.apply(truth.timestamps, xyyaw, rng)
@@ -114,9 +122,10 @@ def simulate(
     progress: bool = True,
 ) -> Path:
     """Write a sequence for (route, noise, seed) to `out`, rendering the route only if not cached."""
-    out = Path(out)
+    out = check_output_folder(out, "sequence folder")
     if out.exists() and not overwrite:
         raise InputError(f"output {out} exists already; choose another path or pass --overwrite")
+    check_seed(seed)
     rendered = rendered_sequence(route, camera, follower, progress=progress)
     reader = SequenceReader(rendered)
     truth = reader.ground_truth

@@ -12,6 +12,7 @@ settings it ran with (`config.toml`).
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import types
 import typing
@@ -35,6 +36,18 @@ def _field_type(cls: type, name: str) -> tuple[Any, bool]:
     return kind, False
 
 
+def _finite_number(raw: Any, expected: str) -> float:
+    if isinstance(raw, bool):  # True is an int to Python, not a number to a user
+        raise ValueError(expected)
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        raise ValueError(expected) from None
+    if not math.isfinite(value):
+        raise ValueError(expected)
+    return value
+
+
 def convert(raw: Any, kind: Any, optional: bool = False) -> Any:
     """`raw` (a string from the command line, or a TOML/JSON value) as a value of type `kind`.
 
@@ -53,25 +66,12 @@ def convert(raw: Any, kind: Any, optional: bool = False) -> Any:
             return raw.lower() in TRUE_WORDS
         raise ValueError("expected true or false")
     if kind is int:
-        if isinstance(raw, bool):
-            raise ValueError("expected a whole number")
-        try:
-            value = float(raw)
-        except (TypeError, ValueError):
-            raise ValueError("expected a whole number") from None
-        if not math.isfinite(value) or not value.is_integer():
+        value = _finite_number(raw, "expected a whole number")
+        if not value.is_integer():
             raise ValueError("expected a whole number")
         return int(value)
     if kind is float:
-        if isinstance(raw, bool):
-            raise ValueError("expected a number")
-        try:
-            value = float(raw)
-        except (TypeError, ValueError):
-            raise ValueError("expected a number") from None
-        if not math.isfinite(value):
-            raise ValueError("expected a finite number")
-        return value
+        return _finite_number(raw, "expected a finite number")
     if kind is str:
         if not isinstance(raw, (str, int, float)) or isinstance(raw, bool):
             raise ValueError("expected a string")
@@ -103,7 +103,7 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
         try:
             converted[key] = convert(raw, kind, optional)
         except ValueError as err:
-            raise InputError(f"{what}: parameter {key}={raw!r}: {err} (expected {getattr(kind, '__name__', kind)})") from None
+            raise InputError(f"{what}: parameter {key}={raw!r}: {err}") from None
     if base is not None:
         return dataclasses.replace(base, **converted)
     return cls(**converted)
@@ -139,3 +139,19 @@ def to_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
                 lines.append(f"{key} = {_toml_value(value)}")
         lines.append("")
     return "\n".join(lines)
+
+
+def parse_key_values(pairs: list[str], option: str = "--param") -> dict[str, Any]:
+    """`KEY=VALUE` strings (repeatable command-line options) as a dict; a value is JSON when it
+    parses as JSON (numbers, true/false, lists), else the string itself, converted later by
+    `from_mapping` to the field's type."""
+    params: dict[str, Any] = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise InputError(f"{option} {pair!r}: expected KEY=VALUE")
+        key, value = pair.split("=", 1)
+        try:
+            params[key] = json.loads(value)
+        except json.JSONDecodeError:
+            params[key] = value
+    return params

@@ -9,9 +9,9 @@ KITTI files, which carry no timestamps.
 
 from __future__ import annotations
 
-import numpy as np
 
 from longslam.errors import InputError, TrajectoryError
+from longslam.timestamps import one_to_one_nearest
 from longslam.trajectory import Trajectory
 
 # Fewer matches than this fraction of the shorter trajectory means the stamps are in different
@@ -35,39 +35,6 @@ def require_same_length(reference: Trajectory, estimate: Trajectory, minimum: in
         raise TrajectoryError(f"need at least {minimum} associated poses, got {len(reference)}")
 
 
-def matching_indices(
-    short_stamps: np.ndarray, long_stamps: np.ndarray, max_diff: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Indices (into short, into long) of one-to-one nearest-stamp matches within max_diff.
-
-    Both stamp arrays must be sorted. Each short stamp takes its nearest long stamp (the earlier
-    one on a tie, as evo does); when several short stamps take the same long stamp only the
-    closest keeps it (the earliest on a tie), so the result is one-to-one and stays sorted.
-    """
-    short_stamps = np.asarray(short_stamps, dtype=np.float64)
-    long_stamps = np.asarray(long_stamps, dtype=np.float64)
-    if not len(short_stamps) or not len(long_stamps):
-        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-    above = np.searchsorted(long_stamps, short_stamps, side="right")
-    upper = np.minimum(above, len(long_stamps) - 1)
-    lower = np.maximum(above - 1, 0)
-    diff_upper = np.abs(long_stamps[upper] - short_stamps)
-    diff_lower = np.where(above > 0, np.abs(short_stamps - long_stamps[lower]), np.inf)
-    take_upper = diff_upper < diff_lower
-    nearest = np.where(take_upper, upper, lower)
-    diff = np.where(take_upper, diff_upper, diff_lower)
-
-    short_idx = np.flatnonzero(diff <= max_diff)
-    if not len(short_idx):
-        return short_idx, short_idx.copy()
-    long_idx, diff = nearest[short_idx], diff[short_idx]
-    # Sorted by long index, then by time difference: the first of each run is the one to keep.
-    order = np.lexsort((diff, long_idx))
-    first = np.r_[True, long_idx[order][1:] != long_idx[order][:-1]]
-    keep = np.sort(order[first])
-    return short_idx[keep], long_idx[keep]
-
-
 def associate(
     reference: Trajectory, estimate: Trajectory, max_diff: float = 0.01, offset: float = 0.0
 ) -> tuple[Trajectory, Trajectory]:
@@ -83,9 +50,9 @@ def associate(
     # other one's stamps; doing the same keeps the rounding, and so the matches, identical.
     estimate_short = len(estimate) <= len(reference)
     if estimate_short:
-        est_idx, ref_idx = matching_indices(estimate.timestamps, reference.timestamps - offset, max_diff)
+        est_idx, ref_idx = one_to_one_nearest(estimate.timestamps, reference.timestamps - offset, max_diff)
     else:
-        ref_idx, est_idx = matching_indices(reference.timestamps, estimate.timestamps + offset, max_diff)
+        ref_idx, est_idx = one_to_one_nearest(reference.timestamps, estimate.timestamps + offset, max_diff)
 
     shorter = min(len(reference), len(estimate))
     if shorter == 0 or len(ref_idx) < MIN_MATCHED_FRACTION * shorter:

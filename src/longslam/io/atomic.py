@@ -2,21 +2,42 @@
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import os
 import shutil
+import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
+
+from longslam.errors import InputError
+
+_AT_FDCWD, _RENAME_NOREPLACE = -100, 1
 
 
 @contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary sibling path; on success rename it to `path`, on failure remove it."""
+def atomic_path(path: str | Path, overwrite: bool = True) -> Iterator[Path]:
+    """Yield a temporary sibling path; on success rename it to `path`, on failure remove it.
+
+    With `overwrite=False` an existing `path` is never replaced, even one that another process
+    wrote while this one worked: the rename fails, this output is discarded, InputError is raised.
+    """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
     try:
         yield tmp
-        os.replace(tmp, path)
+        if overwrite:
+            _replace(tmp, path)
+        else:
+            try:
+                rename_no_replace(tmp, path)
+            except FileExistsError:
+                raise InputError(
+                    f"{path} was written by another process while this one ran; it was left as it is "
+                    "and this output discarded (pass --overwrite to replace it)"
+                ) from None
     except BaseException:
         if tmp.is_dir():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -25,6 +46,79 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise
 
 
+def rename_no_replace(src: str | Path, dst: str | Path) -> None:
+    """Rename `src` to `dst` atomically, or raise FileExistsError if `dst` exists (even a folder
+    or file made a moment before by another process): Linux renameat2(RENAME_NOREPLACE)."""
+    renameat2 = getattr(ctypes.CDLL(None, use_errno=True), "renameat2", None)
+    if renameat2 is not None:
+        if renameat2(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst), _RENAME_NOREPLACE) == 0:
+            return
+        code = ctypes.get_errno()
+        if code == errno.EEXIST:
+            raise FileExistsError(code, os.strerror(code), str(dst))
+        if code not in (errno.ENOSYS, errno.EINVAL):  # EINVAL: a filesystem without the flag
+            raise OSError(code, os.strerror(code), str(dst))
+    # Elsewhere: a check, then a rename that refuses a non-empty folder anyway.
+    if os.path.lexists(dst):
+        raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(dst))
+    os.rename(src, dst)
+
+
+def _replace(tmp: Path, path: Path) -> None:
+    """Put `tmp` in place of `path`; an existing folder is moved aside first and removed after,
+    so `path` is never missing its complete contents for longer than two renames."""
+    if not path.is_dir() or path.is_symlink():
+        os.replace(tmp, path)
+        return
+    backup = path.with_name(f".{path.name}.old-{uuid.uuid4().hex[:12]}")
+    os.rename(path, backup)
+    try:
+        os.rename(tmp, path)
+    except BaseException:
+        os.rename(backup, path)
+        raise
+    shutil.rmtree(backup, ignore_errors=True)
+
+
 def write_text_atomic(path: str | Path, text: str) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
+    with atomic_path(path) as tmp, naming_the_file(path):  # the file the user asked for, not its partial
+        Path(tmp).write_text(text)
+
+
+@contextmanager
+def naming_the_file(path: str | Path) -> Iterator[None]:
+    """An OSError from writing an open file (a full disk, `ulimit -f`) carries no file name:
+    give it `path`, so the user learns which file could not be written."""
+    try:
+        yield
+    except OSError as err:
+        if err.filename is None:
+            raise OSError(err.errno, err.strerror or str(err), str(path)) from err
+        raise
+
+
+def write_text(path: str | Path, text: str) -> None:
+    with naming_the_file(path):
+        Path(path).write_text(text)
+
+
+def write_bytes(path: str | Path, data: bytes) -> None:
+    with naming_the_file(path):
+        Path(path).write_bytes(data)
+
+
+def name_final_folder(figures: dict[str, Any], tmp: Path, out: Path) -> dict[str, Any]:
+    """The figures with every path into the temporary folder `tmp` (a method's database, say)
+    named by where it will be, in `out`, once the run folder is renamed."""
+    prefix = str(tmp)
+
+    def rename(value: Any) -> Any:
+        if isinstance(value, str) and (value == prefix or value.startswith(prefix + "/")):
+            return str(out) + value[len(prefix):]
+        if isinstance(value, dict):
+            return {k: rename(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return type(value)(rename(v) for v in value)
+        return value
+
+    return rename(figures)

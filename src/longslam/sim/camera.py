@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import open3d as o3d
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
@@ -75,6 +74,11 @@ class RGBDCamera:
         self.settings = settings
         self.intrinsics = settings.intrinsics
         self.nthreads = int(nthreads)
+        # Imported here: Open3D costs about 220 MB of resident memory, which a run that only reads
+        # camera settings (every `longslam` command) should not pay.
+        import open3d as o3d
+
+        self._o3d = o3d
         self._scene = o3d.t.geometry.RaycastingScene()
         self._scene.add_triangles(
             o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.triangles.astype(np.uint32))
@@ -130,7 +134,7 @@ class RGBDCamera:
         dirs_world = cv2.transform(self._dirs_cam, pose[:3, :3].astype(np.float32)).reshape(-1, 3)
         self._rays[:, :3] = pose[:3, 3]
         self._rays[:, 3:] = dirs_world
-        hits = self._scene.cast_rays(o3d.core.Tensor.from_numpy(self._rays), nthreads=self.nthreads)
+        hits = self._scene.cast_rays(self._o3d.core.Tensor.from_numpy(self._rays), nthreads=self.nthreads)
         t_hit = hits["t_hit"].numpy()
         depth = np.where(t_hit <= self.settings.max_depth, t_hit, np.float32(0.0))  # inf (no hit) fails the test
 

@@ -87,7 +87,11 @@ def follow_paths(paths: list[np.ndarray], settings: FollowerSettings = FollowerS
     poses = [(x, y, yaw)]
     reached = [0]
     for path in paths:
-        line = _Polyline(np.asarray(path, dtype=np.float64))
+        path = np.asarray(path, dtype=np.float64)
+        if _already_there(path, (x, y), settings.goal_tolerance):  # a repeated waypoint, or one a few cm on
+            reached.append(len(poses) - 1)
+            continue
+        line = _Polyline(path)
         s = 0.0
         while True:
             p = np.array([x, y])
@@ -126,3 +130,9 @@ def follow_paths(paths: list[np.ndarray], settings: FollowerSettings = FollowerS
         reached.append(len(poses) - 1)
     xyyaw = np.asarray(poses)
     return DrivenPath(np.arange(len(xyyaw)) * dt, xyyaw, reached)
+
+
+def _already_there(path: np.ndarray, position: tuple[float, float], tolerance: float) -> bool:
+    """A leg whose goal is within the goal tolerance of where the robot stands has nothing to
+    drive (and a one-point path has no segment to follow)."""
+    return len(path) < 2 or float(np.linalg.norm(path[-1] - np.asarray(position))) < tolerance

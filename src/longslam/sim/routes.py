@@ -24,6 +24,18 @@ class Route:
     world: str
     waypoints: tuple[Waypoint, ...]
 
+    def waypoints_json(self) -> list:
+        """The waypoints as JSON values: place names as they are, coordinates as [x, y]."""
+        return [w if isinstance(w, str) else list(w) for w in self.waypoints]
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "world": self.world, "waypoints": self.waypoints_json()}
+
+    @classmethod
+    def from_json(cls, name: str, world: str, waypoints: list) -> "Route":
+        """The inverse of `waypoints_json`: [x, y] lists become tuples again."""
+        return cls(name, world, tuple(w if isinstance(w, str) else tuple(w) for w in waypoints))
+
     def resolve(self, places: dict[str, tuple[float, float]]) -> list[tuple[float, float]]:
         """Waypoints as (x, y), place names looked up in the world's places."""
         out = []

@@ -8,9 +8,11 @@ once in WAL mode, so a run killed mid-way leaves a database that opens with what
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import sqlite3
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -74,16 +76,27 @@ class MemoryDatabase:
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.executescript(_SCHEMA)
             version = self._db.execute("SELECT value FROM Admin WHERE key='schema_version'").fetchone()
+        except sqlite3.OperationalError as err:  # a full disk, a size limit, no permission
+            raise InputError(f"{self.path} cannot be written: {err}") from None
         except sqlite3.DatabaseError as err:
             raise InputError(f"{self.path} is not a longslam memory database: {err}") from None
         if version is None:
-            with self._db:
+            with self._writing():
                 self._db.execute("INSERT INTO Admin VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
         elif int(version[0]) != SCHEMA_VERSION:
             raise InputError(f"{self.path}: schema version {version[0]}, this longslam reads {SCHEMA_VERSION}")
 
     def close(self) -> None:
         self._db.close()
+
+    @contextlib.contextmanager
+    def _writing(self) -> Iterator[None]:
+        """One transaction; SQLite's errors name no file, so name this one."""
+        try:
+            with self._db:
+                yield
+        except sqlite3.OperationalError as err:
+            raise InputError(f"{self.path} cannot be written: {err}") from None
 
     def __enter__(self) -> "MemoryDatabase":
         return self
@@ -94,7 +107,7 @@ class MemoryDatabase:
     def put_node(self, node_id: int, stamp: float, pose: np.ndarray, odometry: np.ndarray, arrays: dict[str, np.ndarray], weight: int = 0) -> None:
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **arrays)
-        with self._db:
+        with self._writing():
             self._db.execute(
                 "INSERT OR REPLACE INTO Node VALUES (?, ?, ?, ?, ?)",
                 (node_id, float(stamp), _blob(pose), _blob(odometry), int(weight)),
@@ -102,7 +115,7 @@ class MemoryDatabase:
             self._db.execute("INSERT OR REPLACE INTO Data VALUES (?, ?)", (node_id, buffer.getvalue()))
 
     def update_poses(self, poses: dict[int, np.ndarray]) -> None:
-        with self._db:
+        with self._writing():
             self._db.executemany("UPDATE Node SET pose=? WHERE id=?", [(_blob(p), int(i)) for i, p in poses.items()])
 
     def get_node(self, node_id: int) -> StoredNode:
@@ -124,7 +137,7 @@ class MemoryDatabase:
 
     def put_link(self, from_id: int, to_id: int, kind: str, transform: np.ndarray, information: np.ndarray) -> None:
         info = np.asarray(information, dtype=np.float64)
-        with self._db:
+        with self._writing():
             self._db.execute(
                 "INSERT OR REPLACE INTO Link VALUES (?, ?, ?, ?, ?)",
                 (int(from_id), int(to_id), kind, _blob(transform), _blob(info)),
@@ -136,7 +149,7 @@ class MemoryDatabase:
         return [(a, b, t, _matrix(m, (4, 4))) for a, b, t, m in rows]
 
     def set_statistics(self, stats: dict[str, Any]) -> None:
-        with self._db:
+        with self._writing():
             self._db.executemany(
                 "INSERT OR REPLACE INTO Statistics VALUES (?, ?)", [(k, json.dumps(v)) for k, v in stats.items()]
             )

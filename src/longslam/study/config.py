@@ -82,7 +82,7 @@ class StudyConfig:
         return {
             "name": self.name,
             "world": self.world,
-            "routes": [{"name": r.name, "world": r.world, "waypoints": [w if isinstance(w, str) else list(w) for w in r.waypoints]} for r in self.routes],
+            "routes": [r.to_dict() for r in self.routes],
             "noise": list(self.noise),
             "methods": [asdict(m) for m in self.methods],
             "seeds": list(self.seeds),

@@ -18,27 +18,32 @@ from pathlib import Path
 from typing import Any
 
 from longslam.errors import InputError
+from longslam.run.folder import RUN_FILES
+from longslam.run.record import HEADLINE, JSON_PARTS, RunRecord
 
 DB_NAME = "results.sqlite"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: the harness's figures column is `measurements`
 
-RUN_COLUMNS = {
+# The run's identity and configuration (from its RunSpec), what happened, the headline values of
+# its record (run/record.py decides which), whole parts of the record as JSON, and its files.
+SPEC_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
     "study": "TEXT", "world": "TEXT", "route": "TEXT", "noise": "TEXT", "method": "TEXT",
     "method_name": "TEXT", "params": "TEXT", "seed": "INTEGER", "camera": "TEXT", "follower": "TEXT",
     "align": "TEXT", "config_hash": "TEXT", "spec": "TEXT",
+}
+OUTCOME_COLUMNS = {
     "status": "TEXT NOT NULL", "error": "TEXT", "traceback": "TEXT",
     "finished_at": "TEXT", "elapsed_s": "REAL", "host": "TEXT", "executor": "TEXT",
-    "frames": "INTEGER", "path_length_m": "REAL", "wall_time_s": "REAL", "method_time_s": "REAL",
-    "real_time_factor": "REAL", "peak_rss_bytes": "INTEGER", "baseline_rss_bytes": "INTEGER",
-    "ate": "REAL", "e_trans": "REAL", "e_rot": "REAL", "ape_rmse": "REAL", "rpe_trans": "REAL",
-    "rpe_rot": "REAL", "ate_online": "REAL",
-    "map_precision": "REAL", "map_recall": "REAL", "map_f1": "REAL",
-    "metrics": "TEXT", "map_quality": "TEXT", "figures": "TEXT", "error_curve": "TEXT", "memory_curve": "TEXT",
-    "run_dir": "TEXT", "trajectory_path": "TEXT", "online_path": "TEXT", "grid_path": "TEXT",
-    "map_path": "TEXT", "stats_path": "TEXT", "log_path": "TEXT",
 }
-JSON_COLUMNS = ("params", "camera", "follower", "spec", "metrics", "map_quality", "figures", "error_curve", "memory_curve")
+FILE_COLUMNS = {f"{kind}_path": "TEXT" for kind in RUN_FILES} | {"run_dir": "TEXT", "log_path": "TEXT"}
+RUN_COLUMNS = {
+    **SPEC_COLUMNS, **OUTCOME_COLUMNS,
+    **{c.name: c.sql_type for c in HEADLINE},
+    **{part: "TEXT" for part in JSON_PARTS},
+    **FILE_COLUMNS,
+}
+JSON_COLUMNS = ("params", "camera", "follower", "spec", *JSON_PARTS)
 
 
 def _finite(value: Any) -> Any:
@@ -97,39 +102,22 @@ class ResultsDB:
         """run key -> (config hash, status) of every recorded run."""
         return {r["key"]: (r["config_hash"], r["status"]) for r in self._conn.execute("SELECT key, config_hash, status FROM runs")}
 
-    def record(self, spec: Any, record: dict[str, Any], run_dir: str | None, executor: str = "") -> None:
+    def record(self, spec: Any, record: RunRecord, run_dir: str | None, executor: str = "") -> None:
         """Store one finished run (replacing an older row of the same key), committed at once."""
         row: dict[str, Any] = {
             "key": spec.key, "study": spec.study, "world": spec.world, "route": spec.route, "noise": spec.noise,
             "method": spec.method, "method_name": spec.method_name, "params": spec.params, "seed": spec.seed,
             "camera": spec.camera, "follower": spec.follower, "align": spec.align,
             "config_hash": spec.config_hash, "spec": spec.describe(),
-            "status": record.get("status", "error"), "error": record.get("error"),
-            "traceback": record.get("traceback"),
+            "status": record.status, "error": record.error, "traceback": record.traceback,
             "finished_at": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
-            "elapsed_s": record.get("elapsed_s"), "host": record.get("host"), "executor": executor, "log_path": record.get("log"),
+            "elapsed_s": record.elapsed_s, "host": record.host, "executor": executor, "log_path": record.log,
         }
-        if row["status"] == "ok":
-            metrics, figures = record.get("metrics", {}), record.get("figures", {})
-            quality = record.get("map_quality") or {}
-            files = record.get("files", {})
-            row.update(
-                frames=figures.get("frames"), path_length_m=metrics.get("path_length"),
-                wall_time_s=figures.get("wall_time_s"), method_time_s=figures.get("method_time_s"),
-                real_time_factor=figures.get("real_time_factor"), peak_rss_bytes=figures.get("peak_rss_bytes"),
-                baseline_rss_bytes=figures.get("baseline_rss_bytes"),
-                ate=metrics.get("ate"), e_trans=metrics.get("e_trans"), e_rot=metrics.get("e_rot"),
-                ape_rmse=metrics.get("ape_rmse"), rpe_trans=metrics.get("rpe_trans"), rpe_rot=metrics.get("rpe_rot"),
-                ate_online=metrics.get("ate_online"),
-                map_precision=quality.get("map_precision"), map_recall=quality.get("map_recall"),
-                map_f1=quality.get("map_f1"),
-                metrics=metrics, map_quality=record.get("map_quality"), figures=figures,
-                error_curve=record.get("error_curve"), memory_curve=record.get("memory_curve"),
-                run_dir=run_dir,
-                trajectory_path=_in(run_dir, files.get("trajectory")), online_path=_in(run_dir, files.get("online")),
-                grid_path=_in(run_dir, files.get("grid")), map_path=_in(run_dir, files.get("map")),
-                stats_path=_in(run_dir, files.get("stats")),
-            )
+        if record.ok:
+            row.update({c.name: c.value(record) for c in HEADLINE})
+            row.update({part: getattr(record, part) for part in JSON_PARTS})
+            row["run_dir"] = run_dir
+            row.update({f"{kind}_path": _in(run_dir, record.files.get(kind)) for kind in RUN_FILES})
         values = {k: (json.dumps(v, default=str) if k in JSON_COLUMNS and v is not None else _finite(v)) for k, v in row.items()}
         names = ", ".join(values)
         marks = ", ".join(f":{k}" for k in values)

@@ -11,32 +11,21 @@ import json
 import shutil
 import socket
 import traceback
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from longslam.jsonable import json_default
-from longslam.eval.align import alignment
-from longslam.eval.map_quality import map_quality
-from longslam.eval.metrics import ape_errors, ate, evaluate
-from longslam.eval.sync import associate
-from longslam.gridmap import GridMap
-from longslam.io.atomic import atomic_path
+from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.sequence import SequenceReader
-from longslam.pipeline import run_frames, write_result
+from longslam.jsonable import json_default
+from longslam.run.engine import run_frames
+from longslam.run.folder import RECORD, RUN_FILES, write_result
+from longslam.run.record import OK, RunRecord
+from longslam.run.score import TruthLoader, score_run
 from longslam.recording import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
-from longslam.slam.api import MethodContext, Result
+from longslam.slam.api import MethodContext
 from longslam.study.prepare import render_once
 from longslam.study.spec import RunSpec
-from longslam.trajectory import Trajectory
-
-CURVE_POINTS = 600  # at most this many points of each curve (error, memory) are kept per run
-RUN_FILES = {"trajectory": "trajectory.txt", "online": "online.txt", "grid": "grid.npz", "map": "map.ply", "stats": "stats.json"}
-
-TruthLoader = Callable[[], tuple[GridMap, np.ndarray]]
 
 
 def _json_default(value: Any) -> Any:
@@ -47,22 +36,23 @@ def _json_default(value: Any) -> Any:
         return repr(value)
 
 
-def to_json(record: dict[str, Any]) -> str:
+def to_json(record: RunRecord) -> str:
     """JSON text of a record; numpy values become numbers, anything else unknown its repr."""
-    return json.dumps(record, default=_json_default)
+    return json.dumps(record.to_dict(), default=_json_default)
 
 
-def error_record(err: BaseException) -> dict[str, Any]:
+def from_json(text: str) -> RunRecord:
+    return RunRecord.from_dict(json.loads(text))
+
+
+def error_record(err: BaseException) -> RunRecord:
     """The record of a run that raised."""
-    return {
-        "status": "error",
-        "error": f"{type(err).__name__}: {err}",
-        "traceback": "".join(traceback.format_exception(err)),
-        "host": socket.gethostname(),
-    }
+    return RunRecord.failed(
+        f"{type(err).__name__}: {err}", traceback="".join(traceback.format_exception(err)), host=socket.gethostname(),
+    )
 
 
-def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | None = None, progress: bool = False) -> dict[str, Any]:
+def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | None = None, progress: bool = False) -> RunRecord:
     """Do the run and write its folder `run_dir` (replacing an unfinished one). Returns its record.
 
     `load_truth` gives the world's ground-truth occupancy grid and the mask of observed walls;
@@ -83,56 +73,16 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
         tmp.mkdir()
         context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
         frames = frames_with_odometry(reader, odometry)
-        result, figures = run_frames(spec.method_name, frames, context, spec.params, total=len(reader), progress=progress)
-        figures.update(sequence=str(rendered), route=spec.route, noise=spec.noise, seed=spec.seed, label=spec.method)
-        write_result(tmp, result, figures)
-        record = score_run(spec, result, figures, truth, load_truth)
-        record["files"] = {kind: name for kind, name in RUN_FILES.items() if (tmp / name).is_file()}
-        (tmp / "record.json").write_text(to_json(record) + "\n")
-    return record
-
-
-def _thin(points: list[tuple[float, float]]) -> list[list[float]]:
-    if len(points) <= CURVE_POINTS:
-        return [list(map(float, p)) for p in points]
-    idx = np.unique(np.linspace(0, len(points) - 1, CURVE_POINTS).round().astype(int))
-    return [list(map(float, points[i])) for i in idx]
-
-
-def score_run(
-    spec: RunSpec,
-    result: Result,
-    figures: dict[str, Any],
-    truth: Trajectory,
-    load_truth: TruthLoader | None,
-) -> dict[str, Any]:
-    """Metrics, curves against distance travelled, and map quality of a finished run."""
-    ref, est = associate(truth, result.trajectory)
-    metrics = evaluate(ref, est, align=spec.align)
-    ref_online, est_online = associate(truth, result.online)
-    metrics["ate_online"] = ate(ref_online, est_online)
-
-    travelled = truth.distances()
-    at = np.clip(np.searchsorted(truth.timestamps, ref.timestamps), 0, len(truth) - 1)
-    errors = ape_errors(ref, est, "translation")  # the ATE's per-pose term: no alignment
-    error_curve = _thin(list(zip(travelled[at], errors)))
-    memory_curve = _thin([(travelled[min(int(i), len(truth) - 1)], rss) for i, rss in figures["rss_samples"]])
-
-    quality = None
-    if result.grid is not None and load_truth is not None:
-        grid, observed = load_truth()
-        rotation, translation, scale = alignment(est, ref, spec.align)
-        quality = map_quality(
-            result.grid, grid, spec.map_tolerance_cells, observed,
-            rotation, translation, scale, height=float(np.mean(est.positions[:, 2])),
+        result, measurements = run_frames(spec.method_name, frames, context, spec.params, total=len(reader), progress=progress)
+        measurements.update(sequence=str(rendered), route=spec.route, noise=spec.noise, seed=spec.seed, label=spec.method)
+        measurements = name_final_folder(measurements, tmp, run_dir)
+        write_result(tmp, result, measurements)
+        scores = score_run(result, measurements, truth, spec.align, load_truth, spec.map_tolerance_cells)
+        record = RunRecord(
+            OK, **scores,
+            measurements={k: v for k, v in measurements.items() if k != "rss_samples"},
+            host=socket.gethostname(),
+            files={kind: name for kind, name in RUN_FILES.items() if (tmp / name).is_file()},
         )
-    summary = {k: v for k, v in figures.items() if k not in ("rss_samples",)}
-    return {
-        "status": "ok",
-        "metrics": metrics,
-        "map_quality": quality,
-        "figures": summary,
-        "error_curve": error_curve,
-        "memory_curve": memory_curve,
-        "host": socket.gethostname(),
-    }
+        (tmp / RECORD).write_text(to_json(record) + "\n")
+    return record

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from longslam.errors import LongslamError
+from longslam.run.record import RunRecord
 
 EXECUTORS = ("local", "ray")
 
@@ -80,7 +81,7 @@ def _local_child(task: Task, result_path: str, parent_pid: int) -> None:
         record = execute_run(task.spec, task.run_dir, load_truth)
     except BaseException as err:  # recorded; the study goes on
         record = error_record(err)
-        print(record["traceback"], file=sys.stderr, flush=True)
+        print(record.traceback, file=sys.stderr, flush=True)
     tmp = f"{result_path}.tmp"
     with open(tmp, "w") as handle:
         handle.write(to_json(record))
@@ -118,7 +119,7 @@ class LocalExecutor:
         process.start()
         self._running[process.sentinel] = (task, process, result_path)
 
-    def wait(self, timeout: float) -> list[tuple[Task, dict]]:
+    def wait(self, timeout: float) -> list[tuple[Task, RunRecord]]:
         if not self._running:
             return []
         done = []
@@ -127,15 +128,15 @@ class LocalExecutor:
             process.join()
             try:
                 with open(result_path) as handle:
-                    record = json.load(handle)
+                    record = RunRecord.from_dict(json.load(handle))
                 os.unlink(result_path)
             except (OSError, ValueError):
-                record = {"status": "error", "error": f"{_death_message(process.exitcode)}; see {task.log_path}"}
+                record = RunRecord.failed(f"{_death_message(process.exitcode)}; see {task.log_path}")
                 # The unfinished run folder of the dead process (see longslam.io.atomic).
                 partial = task.run_dir.with_name(f".{task.run_dir.name}.partial-{process.pid}")
                 if partial.exists():
                     shutil.rmtree(partial, ignore_errors=True)
-            record.setdefault("log", str(task.log_path))
+            record.log = record.log or str(task.log_path)
             done.append((task, record))
         return done
 
@@ -153,6 +154,7 @@ class LocalExecutor:
 
 
 def _ray_run(spec: Any, truth_refs: list) -> tuple[dict, dict[str, bytes]]:
+    # The record travels as its JSON form: Ray then needs no longslam class to unpickle it.
     """A run on a Ray worker: in a temporary folder of that node; the files come back as bytes,
     so the cluster needs no file system shared with the study folder."""
     import tempfile
@@ -213,7 +215,7 @@ class RayExecutor:
         ref = self._remote.remote(task.spec, self._truth(task))
         self._running[ref] = task
 
-    def wait(self, timeout: float) -> list[tuple[Task, dict]]:
+    def wait(self, timeout: float) -> list[tuple[Task, RunRecord]]:
         if not self._running:
             return []
         ready, _ = self._ray.wait(list(self._running), num_returns=1, timeout=timeout)
@@ -224,10 +226,11 @@ class RayExecutor:
         for ref in ready:
             task = self._running.pop(ref)
             try:
-                record, files = self._ray.get(ref)
+                data, files = self._ray.get(ref)
+                record = RunRecord.from_dict(data)
             except Exception as err:  # the worker died, or Ray could not run the task
-                record, files = {"status": "error", "error": f"Ray task failed: {type(err).__name__}: {err}"}, {}
-            if record.get("status") == "ok":
+                record, files = RunRecord.failed(f"Ray task failed: {type(err).__name__}: {err}"), {}
+            if record.ok:
                 _write_files(task.run_dir, files)
             done.append((task, record))
         return done

@@ -118,7 +118,7 @@ def prepare_route(
 
 
 def _waypoints_json(route: Route) -> list:
-    return [w if isinstance(w, str) else list(map(float, w)) for w in route.waypoints]
+    return route.waypoints_json()
 
 
 def load_route_data(out: Path, route: str) -> RouteData:
@@ -151,3 +151,19 @@ def clean_partials(folder: Path) -> int:
                     os.unlink(path)
             removed += 1
     return removed
+
+
+def check_routes(config) -> None:
+    """Drive every route of a study on its world (a second or two each), so that a route through
+    a wall or to an unknown place is refused before anything is written."""
+    from longslam.world import get_world
+
+    for route in config.routes:
+        drive_route(get_world(route.world), route, config.follower)
+
+
+def check_out_folder(out: Path) -> None:
+    """A study folder must be a folder (new or existing) that can be written."""
+    from longslam.io.paths import check_output_folder
+
+    check_output_folder(out, "study folder")

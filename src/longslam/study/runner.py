@@ -21,7 +21,10 @@ from tqdm import tqdm
 from longslam.study.config import StudyConfig, check_method_params
 from longslam.study.database import DB_NAME, ResultsDB
 from longslam.study.executors import Task, make_executor
-from longslam.study.prepare import clean_partials, prepare_route, render_once, route_dir, world_grid_path
+from longslam.study.lock import study_lock
+from longslam.study.prepare import (
+    check_out_folder, check_routes, clean_partials, prepare_route, render_once, route_dir, world_grid_path,
+)
 from longslam.study.spec import RunSpec, plan_runs
 
 
@@ -69,9 +72,20 @@ def run_study(
     """Run every run of `config` not yet in `out`'s database, then write the report."""
     start = time.perf_counter()
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    # Everything that can be wrong with the study is found before its folder is touched.
     check_method_params(config)
     specs = plan_runs(config)
+    check_routes(config)
+    check_out_folder(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with study_lock(out):
+        return _run_locked(config, out, specs, start, executor, address, jobs, retry_failed, report, progress)
+
+
+def _run_locked(
+    config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, address: str | None,
+    jobs: int | None, retry_failed: bool, report: bool, progress: bool,
+) -> StudySummary:
     say = tqdm.write if progress else (lambda *a, **k: None)
 
     with ResultsDB(out / DB_NAME) as db:
@@ -104,13 +118,13 @@ def run_study(
                         started[spec.key] = time.perf_counter()
                         pool.submit(_task(out, spec))
                     for task, record in pool.wait(timeout=0.5):
-                        record["elapsed_s"] = time.perf_counter() - started.pop(task.spec.key)
-                        run_dir = str(task.run_dir.relative_to(out)) if record.get("status") == "ok" else None
+                        record.elapsed_s = time.perf_counter() - started.pop(task.spec.key)
+                        run_dir = str(task.run_dir.relative_to(out)) if record.ok else None
                         db.record(task.spec, record, run_dir, executor)
                         ran += 1
-                        if record.get("status") != "ok":
+                        if not record.ok:
                             failed += 1
-                            say(f"run {task.spec.key} failed: {record.get('error')}")
+                            say(f"run {task.spec.key} failed: {record.error}")
                         bar.update(1)
                     bar.set_postfix_str(f"running {pool.running}, left {len(pending)}, failed {failed}", refresh=True)
             finally:

@@ -46,11 +46,11 @@ class RunSpec:
 
     def describe(self) -> dict[str, Any]:
         data = asdict(self)
-        data["waypoints"] = [w if isinstance(w, str) else list(w) for w in self.waypoints]
+        data["waypoints"] = self.route_object().waypoints_json()
         return data
 
     def route_object(self) -> Route:
-        return Route(self.route, self.world, tuple(w if isinstance(w, str) else tuple(w) for w in self.waypoints))
+        return Route.from_json(self.route, self.world, list(self.waypoints))
 
     def camera_settings(self) -> CameraSettings:
         return CameraSettings(**self.camera)

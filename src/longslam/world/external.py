@@ -46,6 +46,8 @@ def load_mesh(path: str | Path) -> WorldMesh:
     import open3d as o3d  # here, not at the top: importing longslam.world should not cost a second
 
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"mesh file {path} is a folder; expected a mesh file (PLY, OBJ or GLB)")
     if not path.is_file():
         raise InputError(f"mesh file {path} does not exist")
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):

@@ -6,6 +6,7 @@ from dataclasses import dataclass, fields
 
 from longslam.errors import InputError
 from longslam.slam.frontend.frontend import MODES as FRONTEND_MODES
+from longslam.slam.place_recognition import WORD_INDEXES
 
 
 @dataclass(frozen=True)
@@ -20,6 +21,10 @@ class KeyframeConfig:
     # Hamming bits to join an existing word: ORB descriptors of one 3D point seen again mostly
     # differ by under 64 bits, unrelated ones by about 128, so 64 lets revisits share words.
     word_distance: int = 64
+    # How a descriptor finds its nearest word (place_recognition.WORD_INDEXES): "bruteforce"
+    # (OpenCV, exact), "flat" (faiss, exact, faster), "hnsw" (faiss, approximate, cost ~ log of
+    # the dictionary's size).
+    vocabulary_index: str = "hnsw"
     # Memory (Mem/STMSize, Rtabmap/MemoryThr, Rtabmap/MaxRetrieved).
     stm_size: int = 10
     wm_max_nodes: int = 150  # nodes searched for loop closure; 0 = unbounded
@@ -87,6 +92,9 @@ class KeyframeConfig:
             value = getattr(self, name)
             if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
                 raise InputError(f"method 'keyframe': parameter {name} must not be negative, got {value}")
+        if self.vocabulary_index not in WORD_INDEXES:
+            raise InputError(f"method 'keyframe': parameter vocabulary_index must be one of {', '.join(WORD_INDEXES)}, "
+                             f"got {self.vocabulary_index!r}")
         if self.obstacle_max_height <= self.obstacle_min_height:
             raise InputError("method 'keyframe': obstacle_max_height must exceed obstacle_min_height")
         if self.frontend not in FRONTEND_MODES:

@@ -8,6 +8,8 @@ and is kept only if the optimised graph agrees with it (RGBD/OptimizeMaxError).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from longslam.frame import Intrinsics
@@ -31,15 +33,14 @@ def counter_names() -> list[str]:
             for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")]
 
 
+@dataclass
 class LoopCloser:
-    def __init__(self, config: KeyframeConfig, intrinsics: Intrinsics, graph: PoseGraph, memory: KeyframeMemory,
-                 camera_in_base: np.ndarray, counts: dict[str, int]):
-        self.config = config
-        self.intrinsics = intrinsics
-        self.graph = graph
-        self.memory = memory
-        self.camera_in_base = camera_in_base
-        self.counts = counts
+    config: KeyframeConfig
+    intrinsics: Intrinsics
+    graph: PoseGraph  # the keyframe graph, whose verdict keeps or drops a closure
+    memory: KeyframeMemory  # whose working memory is searched and whose database keeps the links
+    camera_in_base: np.ndarray  # (4, 4)
+    counts: dict[str, int]  # the method's counters, which this updates
 
     def detect(self, node: Node, words: np.ndarray) -> None:
         """Try the new node against working memory: the best appearance hypotheses (one loop at

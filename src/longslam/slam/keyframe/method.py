@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +54,7 @@ class KeyframeMethod:
             "nodes_transferred": 0, "nodes_retrieved": 0, stats.OPTIMIZATIONS: 0,
             "neighbor_links_refined": 0, "neighbor_links_odometry": 0, "neighbor_links_rejected": 0,
         }
-        vocabulary = Vocabulary(self.config.word_distance, self.config.max_words)
+        vocabulary = Vocabulary(self.config.word_distance, self.config.max_words, self.config.vocabulary_index)
         self.memory = KeyframeMemory(self.config, self.db, vocabulary, self._node_camera_poses, self.counts)
         self.loops: LoopCloser | None = None  # made at the first frame, when the camera mount is known
         self._mount: CameraMount | None = None
@@ -70,6 +71,7 @@ class KeyframeMethod:
         self._frame_node: list[int] = []
         self._frame_odom: list[np.ndarray] = []
         self._online: list[np.ndarray] = []
+        self._node_seconds: list[float] = []  # time to make each node (features, loops, memory)
 
     @property
     def nodes(self) -> dict[int, Node]:
@@ -90,7 +92,9 @@ class KeyframeMethod:
         self.counts[stats.FRAMES] += 1
         if self._is_new_node(frame.timestamp, odom):
             self._node_frame[len(self.nodes)] = len(self._frame_stamps)
+            started = time.perf_counter()
             self._add_node(frame, odom)
+            self._node_seconds.append(time.perf_counter() - started)
         node = self._last_node
         xyyaw = compose_xyyaw(self.graph.estimate(node.id), relative_xyyaw(node.odom, odom))
         pose = self._mount.to_camera(xyyaw[None])[0]
@@ -280,6 +284,8 @@ class KeyframeMethod:
             stats.CAMERA_HEIGHT: self._mount.camera_height,
             **census,
             "vocabulary_words": self.memory.vocabulary.n_words, "graph_loops": self.graph.num_loops,
+            # Per node, so that a benchmark can tell whether its cost grows with the route.
+            "node_time_ms": [round(1000.0 * t, 3) for t in self._node_seconds],
             "database": str(self.db_path) if self._own_dir is None else None,
         })
         if self.frontend is not None:

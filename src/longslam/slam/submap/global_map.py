@@ -97,14 +97,14 @@ def mesh_arrays(tsdf: TSDF) -> tuple[np.ndarray, np.ndarray]:
 
 
 def write_mesh(tsdf: TSDF, path: Path) -> Path | None:
-    """Write the TSDF's mesh as PLY; None when there is no surface."""
-    import open3d as o3d
+    """Write the TSDF's mesh as PLY (vertices shared between triangles merged, vertex normals);
+    None when there is no surface. trimesh rather than Open3D: see run.folder.write_point_cloud."""
+    import trimesh
 
     verts, tris = mesh_arrays(tsdf)
     if not len(tris):
         return None
-    mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(verts), o3d.utility.Vector3iVector(tris.astype(np.int32)))
-    mesh.merge_close_vertices(1e-6)
-    mesh.compute_vertex_normals()
-    o3d.io.write_triangle_mesh(str(path), mesh)
+    mesh = trimesh.Trimesh(vertices=verts, faces=tris.astype(np.int64), process=False)
+    mesh.merge_vertices(digits_vertex=6)
+    mesh.export(str(path), vertex_normal=True)
     return path

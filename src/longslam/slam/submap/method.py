@@ -15,7 +15,7 @@
   origin. `step` returns it with the estimate of the moment; `finish` recomputes every frame with
   the final estimates.
 - The global map: the optimised submaps fused into one TSDF, its iso-surface points as the
-  result's cloud (the pipeline writes it as map.ply), a marching-cubes mesh (mesh.ply in the run
+  result's cloud (the run engine writes it as map.ply), a marching-cubes mesh (mesh.ply in the run
   folder), and a 2D grid sliced between 0.2 and 1.5 m above the floor.
 - Poses are planar, (x, y, yaw) with z the floor's: Voxgraph's (x, y, z, yaw) on a robot that
   drives on one floor.

@@ -1,0 +1,75 @@
+"""Temporary folders of killed processes: `.NAME.partial-PID[-...]` siblings whose PID is gone.
+
+Output is written under such a name and renamed when complete (see `longslam.io.atomic`); a
+process killed outright (SIGKILL, out of memory) cannot remove its own, so the next writer into
+the same folder does.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import time
+from pathlib import Path
+
+_PARTIAL = re.compile(r"^\..+\.partial-(?P<pid>\d+)(-[^/]*)?$")
+
+
+def process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process: alive
+        return True
+    return True
+
+
+# A partial touched this recently is left alone even if its PID is gone here: on a folder shared
+# between machines (NFS) the PID may be another machine's live writer.
+IDLE_SECONDS = 60.0
+
+
+def clean_stale_partials(folder: str | Path, idle_seconds: float = IDLE_SECONDS) -> list[Path]:
+    """Remove the partial files and folders in `folder` whose writing process is gone (and that
+    no one has modified for `idle_seconds`); returns them.
+
+    A partial of a live process (this one's too) is left alone, as is anything not named like one.
+    """
+    folder = Path(folder)
+    removed: list[Path] = []
+    try:
+        entries = list(folder.iterdir())
+    except OSError:  # no folder yet, or not readable: nothing of ours there
+        return removed
+    for path in entries:
+        match = _PARTIAL.match(path.name)
+        if match is None or process_alive(int(match["pid"])) or _recently_modified(path, idle_seconds):
+            continue
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+        removed.append(path)
+    return removed
+
+
+def _recently_modified(path: Path, seconds: float) -> bool:
+    try:
+        return time.time() - path.lstat().st_mtime < seconds
+    except OSError:  # removed meanwhile
+        return True
+
+
+def current_umask() -> int:
+    """The process's umask (read by setting it and back: there is no other portable way)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def make_public_like_mkdir(path: str | Path) -> None:
+    """Give a folder from `tempfile.mkdtemp` (always 0700) the mode `mkdir` would have given it,
+    so sequences and the render cache can be shared like any other folder."""
+    os.chmod(path, 0o777 & ~current_umask())

@@ -1,0 +1,123 @@
+"""The run engine: feed frames to a method, time and measure it, and write its run folder.
+
+Every run longslam makes goes through `run_frames` (frames in, result and measurements out):
+`longslam run` and the demo through `run_sequence` (a sequence folder in, a run folder out), a
+study's runs through `study/execute.py` (frames with odometry drawn on the fly).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from longslam.errors import InputError
+from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
+from longslam.frame import Frame
+from longslam.io.atomic import atomic_path, name_final_folder
+from longslam.io.partials import clean_stale_partials
+from longslam.io.paths import check_output_folder
+from longslam.io.sequence import SequenceReader
+from longslam.run.folder import write_result
+from longslam.settings import to_mapping
+from longslam.slam.api import MethodContext, Result
+from longslam.slam.catalog import get_spec
+
+RSS_SAMPLE_EVERY = 50  # frames between samples of resident memory
+
+
+def run_frames(
+    method_name: str,
+    frames: Iterable[Frame],
+    context: MethodContext,
+    params: dict[str, Any] | None = None,
+    total: int | None = None,
+    progress: bool = True,
+) -> tuple[Result, dict[str, Any]]:
+    """Feed every frame to a new method and finish it. Returns its result and the harness's
+    measurements (times, memory, the config the method ran with and the method's own stats)."""
+    baseline_rss = current_rss_bytes()
+    spec = get_spec(method_name)
+    config = spec.config(params)
+    method = spec.build(context, config)
+    step_times: list[float] = []
+    rss_samples: list[tuple[int, int]] = []
+    first_t = last_t = None
+    wall_start = time.perf_counter()
+    count = 0
+    for frame in tqdm(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
+        t0 = time.perf_counter()
+        pose = method.step(frame)
+        step_times.append(time.perf_counter() - t0)
+        if np.shape(pose) != (4, 4):
+            raise InputError(f"method {method_name!r} returned a pose of shape {np.shape(pose)} for frame {frame.index}; expected (4, 4)")
+        if first_t is None:
+            first_t = frame.timestamp
+        last_t = frame.timestamp
+        if count % RSS_SAMPLE_EVERY == 0:
+            rss_samples.append((count, current_rss_bytes()))
+        count += 1
+    if count == 0:
+        raise InputError("the sequence has no frames")
+    t0 = time.perf_counter()
+    result = method.finish()
+    finish_time = time.perf_counter() - t0
+    wall_time = time.perf_counter() - wall_start
+    rss_samples.append((count, current_rss_bytes()))
+
+    steps = np.array(step_times)
+    method_time = float(steps.sum() + finish_time)
+    duration = float(last_t - first_t) + (float(last_t - first_t) / max(count - 1, 1))
+    measurements = {
+        "method": method_name,
+        "params": dict(params or {}),
+        "config": to_mapping(config) if spec.config_type is not None else dict(config),
+        "frames": count,
+        "sequence_duration_s": duration,
+        "wall_time_s": wall_time,
+        "method_time_s": method_time,
+        "finish_time_s": finish_time,
+        "step_time_mean_s": float(steps.mean()),
+        "step_time_p95_s": float(np.percentile(steps, 95)),
+        "step_time_max_s": float(steps.max()),
+        # Simulated seconds per second of the method's own processing (reading frames excluded).
+        "real_time_factor": duration / method_time if method_time > 0 else float("inf"),
+        "peak_rss_bytes": peak_rss_bytes(),
+        "baseline_rss_bytes": baseline_rss,
+        "rss_samples": rss_samples,
+        "method_stats": result.stats,
+    }
+    return result, measurements
+
+
+def run_sequence(
+    method_name: str,
+    sequence: str | Path,
+    out: str | Path,
+    params: dict[str, Any] | None = None,
+    overwrite: bool = False,
+    progress: bool = True,
+    intrinsics: str | tuple[float, float, float, float] | None = None,
+) -> dict[str, Any]:
+    """Run a method over a sequence on disk and write the run folder `out`. Returns the measurements.
+
+    `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one."""
+    out = check_output_folder(out, "run folder")
+    if (out.exists() or out.is_symlink()) and not overwrite:
+        raise InputError(f"run folder {out} exists already; choose another path or pass --overwrite")
+    reader = SequenceReader(sequence, intrinsics=intrinsics)
+    clean_stale_partials(out.parent)  # run folders of runs that were killed
+    # Without --overwrite the final rename refuses a folder another run finished meanwhile.
+    with atomic_path(out, overwrite=overwrite) as tmp:
+        tmp.mkdir(parents=True)
+        context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
+        result, measurements = run_frames(method_name, reader, context, params, total=len(reader), progress=progress)
+        measurements["sequence"] = str(Path(sequence).resolve())
+        measurements["intrinsics"] = {**reader.intrinsics.to_dict(), "source": reader.intrinsics_source}
+        measurements = name_final_folder(measurements, tmp, out)
+        write_result(tmp, result, measurements)
+    return measurements

@@ -1,0 +1,72 @@
+"""A run folder: the names of its files, and writing a method's result into it.
+
+    trajectory.txt  final trajectory (TUM), one pose per frame
+    online.txt      what the method returned frame by frame (TUM)
+    stats.json      the harness's measurements (times, memory) and the method's own stats
+    config.toml     the method and the parameters it ran with (every field, defaults included)
+    grid.npz        2D occupancy grid, if the method builds one
+    map.ply         3D map points, if the method builds them
+    record.json     a study run's scores (study runs only)
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from longslam.eval.resources import peak_rss_bytes
+from longslam.io.atomic import naming_the_file, write_text
+from longslam.io.trajectory_files import write_tum
+from longslam.jsonable import json_default
+from longslam.settings import to_toml
+from longslam.slam.api import Result
+
+TRAJECTORY = "trajectory.txt"
+ONLINE = "online.txt"
+STATS = "stats.json"
+CONFIG = "config.toml"
+GRID = "grid.npz"
+MAP = "map.ply"
+RECORD = "record.json"
+# The files a study's database points at, by kind.
+RUN_FILES = {"trajectory": TRAJECTORY, "online": ONLINE, "grid": GRID, "map": MAP, "stats": STATS}
+
+
+def write_point_cloud(path: Path, points: np.ndarray) -> None:
+    """A binary PLY of (N, 3) points. With trimesh: Open3D would do it too, but importing it costs
+    about 220 MB of resident memory, which would be the run's peak."""
+    import trimesh
+
+    with naming_the_file(path):
+        trimesh.PointCloud(points).export(str(path))
+
+
+def write_config(out: Path, measurements: dict[str, Any]) -> None:
+    """config.toml: the method and every parameter it ran with, as KISS-ICP keeps its config
+    beside its results, so a run can be repeated from its folder alone."""
+    run = {"method": measurements["method"]}
+    if "sequence" in measurements:
+        run["sequence"] = measurements["sequence"]
+    text = "# written by longslam: the method and the parameters this run used\n" + to_toml(
+        {"run": run, "params": measurements.get("config") or {}}
+    )
+    write_text(out / CONFIG, text)
+
+
+def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> None:
+    """Write a result's files into an existing folder; stats.json last, with the peak memory of
+    the whole run (this writing included)."""
+    write_tum(out / TRAJECTORY, result.trajectory)
+    write_tum(out / ONLINE, result.online)
+    write_config(out, measurements)
+    if result.grid is not None:
+        result.grid.save(out / GRID)
+    if result.cloud is not None and len(result.cloud):
+        write_point_cloud(out / MAP, np.asarray(result.cloud, dtype=np.float64))
+    # The peak so far covers writing every other file (Open3D's import and the map included):
+    # stats.json, written last, is tiny.
+    measurements["peak_rss_bytes"] = peak_rss_bytes()
+    write_text(out / STATS, json.dumps(measurements, indent=2, default=json_default) + "\n")

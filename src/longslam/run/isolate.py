@@ -1,0 +1,67 @@
+"""A run in a process of its own, so that its peak memory is the run's alone."""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+from collections.abc import Callable
+from pathlib import Path
+from queue import Empty
+from typing import Any
+
+from longslam.errors import InputError
+from longslam.io.sequence import SequenceReader
+from longslam.io.trajectory_files import read_tum
+from longslam.run.engine import run_sequence
+from longslam.run.folder import TRAJECTORY
+from longslam.run.score import score
+
+
+def _child(queue: mp.Queue, function: Callable[..., Any], args: tuple, kwargs: dict) -> None:
+    try:
+        queue.put(("ok", function(*args, **kwargs)))
+    except BaseException as err:  # reported to the parent, which re-raises
+        queue.put(("error", f"{type(err).__name__}: {err}"))
+
+
+def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """`function(*args, **kwargs)` in a fresh (spawned) process; its return value comes back.
+    `function` must be importable by name (a module-level function)."""
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=_child, args=(queue, function, args, kwargs))
+    proc.start()
+    # Poll rather than block: a child killed outright (out of memory, a signal) never reports.
+    while True:
+        try:
+            status, payload = queue.get(timeout=1.0)
+            break
+        except Empty:
+            if proc.is_alive():
+                continue
+            try:  # it may have reported just before it ended
+                status, payload = queue.get(timeout=1.0)
+                break
+            except Empty:
+                proc.join()
+                raise RuntimeError(f"run failed in its process: it died with exit code {proc.exitcode} before reporting") from None
+    proc.join()
+    if status != "ok":
+        raise RuntimeError(f"run failed in its process: {payload}")
+    return payload
+
+
+def run_sequence_isolated(*args: Any, **kwargs: Any) -> dict[str, Any]:
+    """`run_sequence` in a fresh process, so its peak memory is the run's alone."""
+    return run_isolated(run_sequence, *args, **kwargs)
+
+
+def run_and_score(
+    method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None, progress: bool = False,
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Run a method over a sequence in its own process, then score its final trajectory against the
+    sequence's ground truth. Returns (scores, measurements): what the demo and benchmarks print."""
+    measurements = run_sequence_isolated(method, sequence, out, params, overwrite=True, progress=progress)
+    truth = SequenceReader(sequence).ground_truth
+    if truth is None:
+        raise InputError(f"sequence {sequence} has no groundtruth.txt to score against")
+    return score(truth, read_tum(Path(out) / TRAJECTORY)), measurements

@@ -1,0 +1,105 @@
+"""The one scorer: a trajectory against the ground truth, and a finished run with its curves and
+map quality. `longslam evaluate`, the demo, studies and the benchmarks all score through here, so
+a figure means the same wherever it is printed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from longslam.errors import InputError
+from longslam.eval.align import alignment
+from longslam.eval.map_quality import map_quality
+from longslam.eval.metrics import ape_errors, ate, evaluate
+from longslam.eval.sync import associate, associate_by_index
+from longslam.gridmap import GridMap
+from longslam.io.trajectory_files import KITTI, read_trajectory
+from longslam.run.folder import TRAJECTORY
+from longslam.slam.api import Result
+from longslam.trajectory import Trajectory
+
+CURVE_POINTS = 600  # at most this many points of each curve (error, memory) are kept per run
+MAX_DIFF = 0.01  # seconds between matched stamps (the CLI's --max-diff default)
+TruthLoader = Callable[[], tuple[GridMap, np.ndarray]]
+
+
+def score(
+    truth: Trajectory, estimate: Trajectory, align: str = "none", max_diff: float = MAX_DIFF,
+    by_index: bool = False, what: str = "the estimate",
+) -> dict[str, Any]:
+    """The paper's metrics and the field's (see `eval.metrics.evaluate`) of `estimate` against
+    `truth`, poses matched by timestamp (or by index). A metric that overflowed is an error: it
+    measures nothing, and JSON could not hold it."""
+    ref, est = associate_by_index(truth, estimate) if by_index else associate(truth, estimate, max_diff=max_diff)
+    with np.errstate(all="ignore"):  # overflow is reported below, as one error
+        scores = evaluate(ref, est, align=align)
+    bad = [key for key, value in scores.items() if isinstance(value, float) and not math.isfinite(value)]
+    if bad:
+        raise InputError(
+            f"{what}: {', '.join(bad)} overflowed to NaN or infinity; "
+            "the poses hold coordinates too large to score (expected metres)"
+        )
+    return scores
+
+
+def trajectory_file(path: str | Path, names: tuple[str, ...]) -> Path:
+    """A trajectory file, or the usual file inside a run or sequence folder."""
+    path = Path(path)
+    if path.is_dir():
+        for name in names:
+            if (path / name).is_file():
+                return path / name
+        raise InputError(f"{path} is a folder without {' or '.join(names)}")
+    return path
+
+
+def score_files(estimate: str | Path, truth: str | Path, align: str = "none", max_diff: float = MAX_DIFF) -> dict[str, Any]:
+    """Score trajectory files (TUM or KITTI) or run / sequence folders. KITTI files have no stamps,
+    so they are matched by index."""
+    est, est_format = read_trajectory(trajectory_file(estimate, (TRAJECTORY,)))
+    ref, ref_format = read_trajectory(trajectory_file(truth, ("groundtruth.txt",)))
+    return score(ref, est, align, max_diff, by_index=KITTI in (est_format, ref_format), what=f"{estimate} against {truth}")
+
+
+def _thin(points: list[tuple[float, float]]) -> list[list[float]]:
+    if len(points) <= CURVE_POINTS:
+        return [list(map(float, p)) for p in points]
+    idx = np.unique(np.linspace(0, len(points) - 1, CURVE_POINTS).round().astype(int))
+    return [list(map(float, points[i])) for i in idx]
+
+
+def score_run(
+    result: Result,
+    measurements: dict[str, Any],
+    truth: Trajectory,
+    align: str = "none",
+    load_truth: TruthLoader | None = None,
+    map_tolerance_cells: float = 2.0,
+) -> dict[str, Any]:
+    """Metrics, the online trajectory's ATE, curves of error and memory against distance travelled,
+    and the map's quality (when the method built a grid and `load_truth` gives the world's)."""
+    metrics = score(truth, result.trajectory, align)
+    ref, est = associate(truth, result.trajectory)
+    ref_online, est_online = associate(truth, result.online)
+    metrics["ate_online"] = ate(ref_online, est_online)
+
+    travelled = truth.distances()
+    at = np.clip(np.searchsorted(truth.timestamps, ref.timestamps), 0, len(truth) - 1)
+    errors = ape_errors(ref, est, "translation")  # the ATE's per-pose term: no alignment
+    error_curve = _thin(list(zip(travelled[at], errors)))
+    memory_curve = _thin([(travelled[min(int(i), len(truth) - 1)], rss) for i, rss in measurements["rss_samples"]])
+
+    quality = None
+    if result.grid is not None and load_truth is not None:
+        grid, observed = load_truth()
+        rotation, translation, scale = alignment(est, ref, align)
+        quality = map_quality(
+            result.grid, grid, map_tolerance_cells, observed,
+            rotation, translation, scale, height=float(np.mean(est.positions[:, 2])),
+        )
+    return {"metrics": metrics, "map_quality": quality, "error_curve": error_curve, "memory_curve": memory_curve}

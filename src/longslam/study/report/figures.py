@@ -1,0 +1,117 @@
+"""The report's figures: trajectories over the floor plan, error and memory against distance
+travelled, and each method's map beside the ground truth."""
+
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from longslam.errors import InputError
+from longslam.study.report.results import StudyResults
+
+FIGURES_DIR = "report_files"
+
+
+@dataclass
+class Figure:
+    path: Path  # relative to the study folder
+    caption: str
+
+
+def _first_seed_runs(results: StudyResults, route: str, noise: str) -> dict[str, dict]:
+    chosen: dict[str, dict] = {}
+    for run in sorted(results.ok, key=lambda r: r["seed"]):
+        if (run["route"], run["noise"]) == (route, noise) and run["method"] not in chosen:
+            chosen[run["method"]] = run
+    return {m: chosen[m] for m in results.methods if m in chosen}
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
+
+
+def make_figures(results: StudyResults) -> list[Figure]:
+    from longslam.gridmap import GridMap
+    from longslam.io.trajectory_files import read_tum
+    from longslam.viz.plots import plot_curves_by_distance, plot_maps, plot_plan
+    from longslam.study.prepare import load_route_data, load_world_grid
+
+    out = results.out
+    folder = out / FIGURES_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.glob("*.png"):
+        old.unlink()
+    figures: list[Figure] = []
+    world = results.config.get("world", "university")
+    try:
+        truth_grid = load_world_grid(out, world)
+    except InputError:
+        return figures
+    for route in results.routes:
+        try:
+            data = load_route_data(out, route)
+        except (OSError, InputError):
+            continue
+        truth_xy = data.truth.positions[:, :2]
+        noises = [n for n in results.noise if any(r["route"] == route and r["noise"] == n for r in results.ok)]
+        for noise in noises:
+            runs = _first_seed_runs(results, route, noise)
+            paths = {"ground truth": truth_xy}
+            seeds = set()
+            for method, run in runs.items():
+                try:
+                    paths[f"{method}"] = read_tum(out / run["trajectory_path"]).positions[:, :2]
+                    seeds.add(run["seed"])
+                except (OSError, InputError, TypeError):
+                    continue
+            name = Path(FIGURES_DIR) / f"trajectories-{_safe(route)}-{_safe(noise)}.png"
+            seed_text = ", ".join(str(s) for s in sorted(seeds))
+            plot_plan(truth_grid, out / name, paths, waypoints=data.waypoints, zoom_margin=6.0,
+                      title=f"route {route} ({data.length_m:.0f} m), noise {noise}, seed {seed_text}")
+            figures.append(Figure(name, f"Estimated trajectories over the floor plan with the ground truth: route {route}, noise {noise}, seed {seed_text}."))
+
+        for column, ylabel, scale, what in (
+            ("error_curve", "position error [m]", 1.0, "ATE (position error, no alignment)"),
+            ("memory_curve", "resident memory [MB]", 1e-6, "Resident memory of the run's process"),
+        ):
+            panels: dict[str, dict[str, list[np.ndarray]]] = {}
+            for noise in noises:
+                curves: dict[str, list[np.ndarray]] = defaultdict(list)
+                for run in results.ok:
+                    if (run["route"], run["noise"]) == (route, noise) and run[column]:
+                        curve = np.asarray(run[column], dtype=np.float64)
+                        curve[:, 1] *= scale
+                        curves[run["method"]].append(curve)
+                panels[f"noise {noise}"] = {m: curves[m] for m in results.methods if m in curves}
+            if any(panels.values()):
+                kind = "ate" if column == "error_curve" else "memory"
+                name = Path(FIGURES_DIR) / f"{kind}-{_safe(route)}.png"
+                plot_curves_by_distance(panels, out / name, ylabel, title=f"route {route}")
+                figures.append(Figure(name, f"{what} against distance travelled, route {route}: mean over the seeds, band from the lowest to the highest run."))
+
+        # The maps are shown over the walls the camera could see from the route, and the route.
+        seen = truth_grid.cell_to_world(np.argwhere(data.observed)) if data.observed.shape == truth_grid.data.shape else np.zeros((0, 2))
+        extent = np.vstack([truth_xy, seen])
+        lo, hi = extent.min(axis=0) - 1.0, extent.max(axis=0) + 1.0
+        view = (lo[0], hi[0], lo[1], hi[1])
+        for noise in noises:
+            maps, captions = {}, {}
+            for method, run in _first_seed_runs(results, route, noise).items():
+                if not run.get("grid_path"):
+                    continue
+                try:
+                    maps[method] = GridMap.load(out / run["grid_path"])
+                except InputError:
+                    continue
+                p, r = run.get("map_precision"), run.get("map_recall")
+                captions[method] = f"precision {p:.2f}, recall {r:.2f}" if p is not None and r is not None else ""
+            if maps:
+                name = Path(FIGURES_DIR) / f"maps-{_safe(route)}-{_safe(noise)}.png"
+                plot_maps(truth_grid, maps, out / name, view=view, path=truth_xy, captions=captions,
+                          title=f"occupancy maps, route {route}, noise {noise}, first seed")
+                figures.append(Figure(name, f"Each method's occupancy grid beside the ground truth: route {route}, noise {noise} (first seed)."))
+    return figures

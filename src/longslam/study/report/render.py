@@ -1,0 +1,181 @@
+"""The report as Markdown (`report.md`, images in `report_files/`) and as one self-contained HTML
+page (`report.html`, images embedded)."""
+
+from __future__ import annotations
+
+import base64
+import html
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+from longslam.io.atomic import write_text_atomic
+from longslam.study.database import DB_NAME
+from longslam.study.paper import CITATION
+from longslam.study.report.figures import Figure, make_figures
+from longslam.study.report.results import load_results
+from longslam.study.report.tables import (
+    Table, _paper_columns, accuracy_table, map_table, memory_table, paper_tables, runs_table,
+)
+
+
+def _column_title(column: tuple[str, str]) -> str:
+    route, noise = column
+    return f"{route}: {noise}" if route else noise
+
+
+def table_markdown(table: Table) -> str:
+    has_metric = any(label[1] for label in table.row_labels)
+    header = ["method"] + (["metric"] if has_metric else []) + [_column_title(c) for c in table.columns]
+    lines = [f"### {table.title}", "", table.caption, "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    previous = None
+    for (method, metric), cells in zip(table.row_labels, table.rows):
+        shown = method if method != previous else ""
+        previous = method
+        texts = [f"**{c.text}**" if c.best else c.text for c in cells]
+        lines.append("| " + " | ".join([shown] + ([metric] if has_metric else []) + texts) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def table_html(table: Table) -> str:
+    esc = html.escape
+    has_metric = any(label[1] for label in table.row_labels)
+    lead = 2 if has_metric else 1
+    routes: list[tuple[str, int]] = []
+    for route, _ in table.columns:
+        if routes and routes[-1][0] == route:
+            routes[-1] = (route, routes[-1][1] + 1)
+        else:
+            routes.append((route, 1))
+    parts = [f'<h3>{esc(table.title)}</h3><p class="caption">{esc(table.caption)}</p>'
+             f'<table class="results" data-title="{esc(table.title)}"><thead>']
+    if any(route for route, _ in routes):
+        parts.append(f'<tr><th colspan="{lead}"></th>' + "".join(f'<th colspan="{n}">{esc(r)}</th>' for r, n in routes) + "</tr>")
+    parts.append("<tr><th>method</th>" + ("<th>metric</th>" if has_metric else "")
+                 + "".join(f"<th>{esc(noise)}</th>" for _, noise in table.columns) + "</tr></thead><tbody>")
+    counts: dict[str, int] = defaultdict(int)
+    for method, _ in table.row_labels:
+        counts[method] += 1
+    previous = None
+    for (method, metric), cells in zip(table.row_labels, table.rows):
+        row = "<tr>"
+        if method != previous:
+            row += f'<th rowspan="{counts[method]}" class="method">{esc(method)}</th>'
+        previous = method
+        if has_metric:
+            row += f"<td class='metric'>{esc(metric)}</td>"
+        row += "".join(f"<td><strong>{esc(c.text)}</strong></td>" if c.best else f"<td>{esc(c.text)}</td>" for c in cells)
+        parts.append(row + "</tr>")
+    parts.append("</tbody></table>")
+    return "".join(parts)
+
+
+CSS = """
+body { font-family: sans-serif; max-width: 1400px; margin: 2em auto; padding: 0 1em; color: #222; }
+table.results { border-collapse: collapse; margin: 1em 0 2em; font-size: 13px; }
+p.caption { font-size: 13px; max-width: 1000px; margin: .2em 0; }
+h3 { margin: 1.5em 0 .3em; }
+table.results th, table.results td { border: 1px solid #bbb; padding: 3px 8px; text-align: right; }
+table.results th.method, table.results td.metric { text-align: left; }
+table.results thead th { background: #eee; text-align: center; }
+figure { margin: 1em 0 2em; } figure img { max-width: min(100%, 1100px); border: 1px solid #ddd; }
+figcaption { font-size: 13px; color: #444; }
+pre { background: #f6f6f6; padding: .6em; overflow-x: auto; font-size: 12px; }
+"""
+
+
+@dataclass
+class Report:
+    title: str
+    intro: list[str]
+    tables: list[Table]
+    figures: list[Figure]
+    failures: list[str]
+    appendix: list[Table]
+    notes: list[str]
+
+
+def build_report(out: str | Path, figures: bool = True) -> Report:
+    results = load_results(out)
+    config = results.config
+    name = config.get("name", Path(out).name)
+    seeds = config.get("seeds", [])
+    camera = config.get("camera", {})
+    intro = [
+        f"Study `{name}` ({config.get('source', '')}): world {config.get('world', '?')}, "
+        f"routes {', '.join(results.routes)}, noise levels {', '.join(results.noise)}, "
+        f"methods {', '.join(results.methods)}, seeds {', '.join(map(str, seeds))}.",
+        f"Camera {camera.get('width', '?')} x {camera.get('height', '?')}, {camera.get('hfov_deg', '?')} degree field "
+        f"of view, depth to {camera.get('max_depth', '?')} m. {len(results.ok)} runs ok, "
+        f"{len(results.runs) - len(results.ok)} failed, in `{DB_NAME}`.",
+    ]
+    tables = [accuracy_table(results), memory_table(results)]
+    quality = map_table(results)
+    if quality is not None:
+        tables.append(quality)
+    tables.append(runs_table(results))
+    notes = []
+    if _paper_columns(results.columns):
+        notes.append(f"Rows marked (paper) are the paper's own numbers for its route of the same length ({CITATION}); "
+                     "its building and systems differ from longslam's, so they are a reference, not a target.")
+    if quality is None:
+        notes.append("No method of this study builds an occupancy grid, so there is no map quality table or map figure.")
+    appendix = [] if _paper_columns(results.columns) else paper_tables()
+    failures = [f"{r['key']}: {r['error']}" for r in results.runs if r["status"] != "ok"]
+    figs = make_figures(results) if figures else []
+    return Report(f"longslam study report: {name}", intro, tables, figs, failures, appendix, notes)
+
+
+def render_markdown(report: Report) -> str:
+    parts = [f"# {report.title}", "", *report.intro, ""]
+    parts += [table_markdown(t) for t in report.tables]
+    parts += [f"- {n}" for n in report.notes] + [""] if report.notes else []
+    if report.failures:
+        parts += ["### Failed runs", ""] + [f"- `{f}`" for f in report.failures] + [""]
+    if report.figures:
+        parts += ["## Figures", ""]
+        for fig in report.figures:
+            parts += [f"![{fig.caption}]({fig.path.as_posix()})", "", f"*{fig.caption}*", ""]
+    if report.appendix:
+        parts += ["## The paper's numbers", "",
+                  "No route of this study is one of the paper's (paper-300m, paper-1km), so its numbers are given "
+                  "here as published, for reference.", ""]
+        parts += [table_markdown(t) for t in report.appendix]
+    return "\n".join(parts).rstrip() + "\n"
+
+
+def render_html(report: Report, out: Path) -> str:
+    esc = html.escape
+    parts = [
+        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{esc(report.title)}</title><style>{CSS}</style></head><body>",
+        f"<h1>{esc(report.title)}</h1>",
+    ]
+    parts += [f"<p>{esc(p)}</p>" for p in report.intro]
+    parts += ["<h2>Tables</h2>"] + [table_html(t) for t in report.tables]
+    if report.notes:
+        parts.append("<ul>" + "".join(f"<li>{esc(n)}</li>" for n in report.notes) + "</ul>")
+    if report.failures:
+        parts.append("<h3>Failed runs</h3><pre>" + esc("\n".join(report.failures)) + "</pre>")
+    if report.figures:
+        parts.append("<h2>Figures</h2>")
+        for fig in report.figures:
+            data = base64.b64encode((out / fig.path).read_bytes()).decode("ascii")
+            parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{esc(fig.caption)}">'
+                         f"<figcaption>{esc(fig.caption)}</figcaption></figure>")
+    if report.appendix:
+        parts.append("<h2>The paper's numbers</h2><p>No route of this study is one of the paper's (paper-300m, "
+                     "paper-1km), so its numbers are given here as published, for reference.</p>")
+        parts += [table_html(t) for t in report.appendix]
+    parts.append("</body></html>")
+    return "\n".join(parts) + "\n"
+
+
+def write_report(out: str | Path, figures: bool = True) -> Path:
+    """Write DIR/report.md (+ DIR/report_files/*.png) and DIR/report.html; returns the HTML's path."""
+    out = Path(out)
+    report = build_report(out, figures)
+    write_text_atomic(out / "report.md", render_markdown(report))
+    page = out / "report.html"
+    write_text_atomic(page, render_html(report, out))
+    return page

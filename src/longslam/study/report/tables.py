@@ -1,0 +1,202 @@
+"""The report's tables: Table 1 (accuracy) and Table 2 (memory) beside the paper's numbers, map
+quality, the runs, and the paper's tables as published; numbers formatted the one way."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from longslam.study.paper import (
+    ACCURACY_METRICS, CITATION, PAPER_METHODS, PAPER_NOISE, PAPER_ROUTES, paper_accuracy, paper_memory_gb, paper_route,
+)
+from longslam.study.report.results import StudyResults
+
+METRIC_LABELS = {"e_trans": "E_trans", "e_rot": "E_rot [deg/m]", "ate": "ATE [m]"}
+
+
+def format_number(value: float, significant: int = 3) -> str:
+    """A number with `significant` digits ('0.0487', '4.14', '10.6'), whole above 10**significant."""
+    if value == 0:
+        return "0"
+    if abs(value) >= 10**significant:
+        return f"{value:.0f}"
+    if abs(value) < 1e-6:
+        return f"{value:.{significant - 1}e}"
+    decimals = max(0, significant - 1 - math.floor(math.log10(abs(value))))
+    return f"{value:.{decimals}f}"
+
+
+def format_mean_std(values: list[float]) -> str:
+    """'mean ± std' (sample std over the runs): three significant digits on the mean, two on the std;
+    the mean alone for one value, '–' for none."""
+    values = [v for v in values if v is not None and math.isfinite(v)]
+    if not values:
+        return "–"
+    mean = float(np.mean(values))
+    if len(values) == 1:
+        return format_number(mean)
+    return f"{format_number(mean)} ± {format_number(float(np.std(values, ddof=1)), 2)}"
+
+
+@dataclass
+class Cell:
+    text: str
+    value: float | None = None  # the mean, for choosing the best
+    best: bool = False
+
+
+@dataclass
+class Table:
+    title: str
+    caption: str
+    columns: list[tuple[str, str]]  # (route, noise)
+    row_labels: list[tuple[str, str]]  # (method, metric); metric may be ""
+    rows: list[list[Cell]] = field(default_factory=list)
+
+    def add_row(self, label: tuple[str, str], cells: list[Cell]) -> None:
+        self.row_labels.append(label)
+        self.rows.append(cells)
+
+    def mark_best(self, higher_is_better: bool = False) -> None:
+        """Bold the best mean of each column among the rows of each metric."""
+        metrics = {label[1] for label in self.row_labels}
+        for metric in metrics:
+            indices = [i for i, label in enumerate(self.row_labels) if label[1] == metric]
+            for c in range(len(self.columns)):
+                values = [(self.rows[i][c].value, i) for i in indices if self.rows[i][c].value is not None]
+                if len(values) < 2:
+                    continue
+                best = max(values)[0] if higher_is_better else min(values)[0]
+                for value, i in values:  # equal as shown is equal
+                    self.rows[i][c].best = format_number(value) == format_number(best)
+
+
+def _paper_columns(columns: list[tuple[str, str]]) -> bool:
+    return any(paper_route(route) and noise in PAPER_NOISE for route, noise in columns)
+
+
+def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0) -> list[Cell]:
+    """A method's mean ± std of one database column, per (route, noise) column of the table."""
+    cells = []
+    for route, noise in results.columns:
+        values = [scale * v for v in results.values(method, route, noise, column)]
+        cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
+    return cells
+
+
+def _paper_cells(columns: list[tuple[str, str]], lookup) -> list[Cell]:
+    """The paper's published value per column ('–' where it has none); lookup(route, noise)."""
+    cells = []
+    for route, noise in columns:
+        value = lookup(paper_route(route) or "", noise)
+        cells.append(Cell(value.text, value.mean) if value else Cell("–"))
+    return cells
+
+
+def _comparison_table(results: StudyResults, title: str, caption: str, metrics: list[tuple[str, str, float]],
+                      paper_numbers) -> Table:
+    """One row per (method, metric): ours (mean ± std of a database column times a scale), then
+    the paper's published rows where the table has the paper's routes. `paper_numbers()` gives
+    {(paper method, route, noise, column): value}."""
+    columns = results.columns
+    table = Table(title, caption, columns, [])
+    for method in results.methods:
+        for column, label, scale in metrics:
+            table.add_row((method, label), _our_cells(results, method, column, scale))
+    if _paper_columns(columns):
+        numbers = paper_numbers()
+        for key, name in PAPER_METHODS.items():
+            for column, label, _ in metrics:
+                cells = _paper_cells(columns, lambda route, noise: numbers.get((key, route, noise, column)))
+                table.add_row((f"{name} (paper)", label), cells)
+    table.mark_best()
+    return table
+
+
+def accuracy_table(results: StudyResults) -> Table:
+    return _comparison_table(
+        results, "Table 1: accuracy",
+        "E_trans (unitless), E_rot (deg/m) and ATE (m, no alignment): mean ± std over the seeds; "
+        "lower is better, the best of each column in bold.",
+        [(metric, METRIC_LABELS[metric], 1.0) for metric in ACCURACY_METRICS], paper_accuracy,
+    )
+
+
+def memory_table(results: StudyResults) -> Table:
+    return _comparison_table(
+        results, "Table 2: peak memory",
+        "Peak resident memory (GB) of the process that ran the method, measured from outside it; "
+        "mean ± std over the seeds; lower is better, the best of each column in bold.",
+        [("peak_rss_bytes", "", 1e-9)],
+        lambda: {(*key, "peak_rss_bytes"): value for key, value in paper_memory_gb().items()},
+    )
+
+
+def map_table(results: StudyResults) -> Table | None:
+    with_maps = [m for m in results.methods if any(r["map_precision"] is not None for r in results.ok if r["method"] == m)]
+    if not with_maps:
+        return None
+    tolerance = results.config.get("map_tolerance_cells", 2)
+    table = Table(
+        "Table 3: map quality",
+        f"Occupied cells of each method's 2D grid against the ground-truth grid, within {tolerance:g} cells "
+        "(of the coarser grid): precision (a fake corridor lowers it) and recall of the walls the camera "
+        "could see; mean ± std over the seeds; higher is better.",
+        results.columns, [],
+    )
+    for method in with_maps:
+        for column, label in (("map_precision", "precision"), ("map_recall", "recall")):
+            cells = []
+            for route, noise in results.columns:
+                values = results.values(method, route, noise, column)
+                cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
+            table.row_labels.append((method, label))
+            table.rows.append(cells)
+    table.mark_best(higher_is_better=True)
+    return table
+
+
+def runs_table(results: StudyResults) -> Table:
+    table = Table(
+        "Runs",
+        "Runs recorded per method (ok / failed); mean over the successful runs of: the time of a run "
+        "(its process from start to end: start-up, reading frames, the method, scoring), the method's "
+        "own processing time, the real-time factor (simulated seconds per second of the method's "
+        "processing) and the frames per run.",
+        [("", "runs ok / failed"), ("", "time per run [s]"), ("", "method time [s]"), ("", "real-time factor"), ("", "frames")], [],
+    )
+    for method in results.methods:
+        mine = [r for r in results.runs if r["method"] == method]
+        ok = [r for r in mine if r["status"] == "ok"]
+        def mean(column: str) -> str:
+            values = [r[column] for r in ok if r.get(column) is not None]
+            return format_number(float(np.mean(values))) if values else "–"
+        table.row_labels.append((method, ""))
+        table.rows.append([Cell(f"{len(ok)} / {len(mine) - len(ok)}"), Cell(mean("elapsed_s")), Cell(mean("method_time_s")),
+                           Cell(mean("real_time_factor")), Cell(mean("frames"))])
+    return table
+
+
+def paper_tables() -> list[Table]:
+    """The paper's Tables 1 and 2 as published."""
+    columns = [(route, noise) for route in PAPER_ROUTES.values() for noise in PAPER_NOISE]
+    accuracy = Table("The paper's Table 1 as published", f"{CITATION}, Table 1 (mean ± std over 5 runs).", columns, [])
+    numbers = paper_accuracy()
+    for key, name in PAPER_METHODS.items():
+        for metric in ACCURACY_METRICS:
+            cells = []
+            for route, noise in columns:
+                value = numbers[(key, route, noise, metric)]
+                cells.append(Cell(value.text, value.mean))
+            accuracy.row_labels.append((name, METRIC_LABELS[metric]))
+            accuracy.rows.append(cells)
+    accuracy.mark_best()
+    memory = Table("The paper's Table 2 as published", f"{CITATION}, Table 2: memory (GB).", columns, [])
+    mem = paper_memory_gb()
+    for key, name in PAPER_METHODS.items():
+        memory.row_labels.append((name, ""))
+        memory.rows.append([Cell(mem[(key, route, noise)].text, mem[(key, route, noise)].mean) for route, noise in columns])
+    memory.mark_best()
+    return [accuracy, memory]

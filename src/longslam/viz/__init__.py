@@ -1,0 +1,1 @@
+"""Plots shared by the CLI, the demo and the study report."""

@@ -1,0 +1,43 @@
+"""Shared test fixtures: tiny synthetic sequences, written in a moment, for tests of the run
+machinery (the engine, run folders, the CLI) that need frames but not a rendered building."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from longslam.frame import Intrinsics
+from longslam.geometry import camera_poses_from_planar
+from longslam.io.sequence import SequenceWriter
+from longslam.trajectory import Trajectory
+
+TINY_INTRINSICS = Intrinsics.from_fov(16, 12, 90.0)
+
+
+def write_tiny_sequence(
+    path: Path, n: int = 30, step: float = 0.15, turn: float = 0.0, odometry_scale: float = 1.0, seed: int = 0,
+) -> tuple[Path, Trajectory, Trajectory]:
+    """A 16 x 12 sequence of `n` frames at 10 Hz driving `step` m per frame (turning `turn` rad in
+    all), with random images and depth, ground truth, and an odometry whose forward steps are
+    scaled by `odometry_scale`. Returns (path, ground truth, odometry)."""
+    rng = np.random.default_rng(seed)
+    stamps = 0.1 * np.arange(n)
+    xyyaw = np.column_stack([step * np.arange(n), np.zeros(n), np.linspace(0.0, turn, n)])
+    truth = Trajectory(stamps, camera_poses_from_planar(xyyaw, 1.25))
+    noisy = xyyaw.copy()
+    noisy[:, 0] *= odometry_scale
+    odometry = Trajectory(stamps, camera_poses_from_planar(noisy, 1.25))
+    with SequenceWriter(path, TINY_INTRINSICS, 8.0, {"route": "tiny"}) as writer:
+        for t in stamps:
+            writer.add(t, rng.integers(0, 255, (12, 16, 3), dtype=np.uint8), rng.uniform(0.5, 4, (12, 16)).astype(np.float32))
+        writer.set_ground_truth(truth)
+        writer.set_odometry(odometry)
+    return path, truth, odometry
+
+
+@pytest.fixture(scope="module")
+def tiny_sequence(tmp_path_factory) -> Path:
+    """20 frames straight ahead, odometry exact."""
+    return write_tiny_sequence(tmp_path_factory.mktemp("tiny") / "seq", n=20)[0]
