@@ -114,9 +114,14 @@ def main() -> None:
     ap.add_argument("--work", type=Path, default=Path("/tmp/seqs"))
     ap.add_argument("--param", action="append", default=[], help="front-end parameter key=value (nested: registration.sigma=0.05)")
     ap.add_argument("--no-odometry", action="store_true")
+    ap.add_argument("--one-thread", action="store_true", help="OpenCV on one thread (with taskset -c 0: one core)")
     ap.add_argument("--methods", nargs="*", default=[])
     ap.add_argument("--frontends", nargs="+", default=["fused"])
     args = ap.parse_args()
+    if args.one_thread:
+        import cv2
+
+        cv2.setNumThreads(1)
     params = dict(p.split("=", 1) for p in args.param)
     config = FrontEndConfig().with_flat({k: parse_value(v) for k, v in params.items()})
     args.work.mkdir(parents=True, exist_ok=True)
