@@ -175,36 +175,82 @@ def _cells_to_world(cells: list[np.ndarray], poses: np.ndarray, cell: float) -> 
     return np.column_stack([x, y])
 
 
-def assemble(local_grids: list[LocalGrid], poses_xyyaw: np.ndarray, cell: float = 0.05) -> GridMap:
-    """Fuse local grids placed at their planar world poses into one GridMap.
+class GridVotes:
+    """Local grids placed at their planar world poses, voted into one world grid a grid at a time.
 
     Every placement votes: an obstacle cell is a hit, a free cell a miss. A world cell is
     occupied when its hits outnumber its misses, free when it was seen and not occupied, and
     unknown when never seen. Voting, rather than last-writer-wins, lets many views outvote a
-    spurious obstacle (a person walking by, a depth artefact).
+    spurious obstacle (a person walking by, a depth artefact). Only the vote counts are held (the
+    arrays grow as the grids reach further), so a kilometre of keyframes can be streamed from
+    long-term memory instead of held at once.
     """
+
+    GROW_CELLS = 256  # margin added whenever the arrays must grow, so they grow seldom
+
+    def __init__(self, cell: float = 0.05):
+        self.cell = float(cell)
+        self._lo: np.ndarray | None = None  # world cell index (col, row) of [0, 0]
+        self._hits = np.zeros((0, 0), np.int32)
+        self._misses = np.zeros((0, 0), np.int32)
+
+    def _cells(self, cells: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        return np.floor(_cells_to_world([cells], pose[None], self.cell) / self.cell).astype(np.int64)
+
+    def _cover(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Grow the arrays (with a margin) so that world cells lo..hi (inclusive) fit."""
+        margin = self.GROW_CELLS
+        if self._lo is None:
+            lo, hi = lo - margin, hi + margin
+        else:
+            old_hi = self._lo + np.array(self._hits.shape[::-1]) - 1
+            if np.all(lo >= self._lo) and np.all(hi <= old_hi):
+                return
+            # A margin only on the sides that grow: margins must not pile up on the others.
+            lo = np.where(lo < self._lo, lo - margin, self._lo)
+            hi = np.where(hi > old_hi, hi + margin, old_hi)
+        cols, rows = (hi - lo + 1).astype(np.int64)
+        hits, misses = np.zeros((rows, cols), np.int32), np.zeros((rows, cols), np.int32)
+        if self._lo is not None:
+            r0, c0 = (self._lo - lo)[::-1]
+            h, w = self._hits.shape
+            hits[r0:r0 + h, c0:c0 + w] = self._hits
+            misses[r0:r0 + h, c0:c0 + w] = self._misses
+        self._lo, self._hits, self._misses = lo, hits, misses
+
+    def add(self, grid: LocalGrid, pose_xyyaw) -> None:
+        pose = np.asarray(pose_xyyaw, dtype=np.float64).reshape(3)
+        hit_cells, miss_cells = self._cells(grid.obstacles, pose), self._cells(grid.free, pose)
+        both = np.vstack([hit_cells, miss_cells])
+        if not len(both):
+            return
+        self._cover(both.min(axis=0), both.max(axis=0))
+        for cells, votes in ((hit_cells, self._hits), (miss_cells, self._misses)):
+            local = cells - self._lo
+            np.add.at(votes, (local[:, 1], local[:, 0]), 1)
+
+    def grid(self) -> GridMap:
+        """The voted grid, cropped to the cells seen plus one cell all round."""
+        seen = (self._hits > 0) | (self._misses > 0)
+        if not seen.any():
+            return GridMap(np.full((1, 1), UNKNOWN, dtype=np.int8), self.cell, (0.0, 0.0))
+        rows, cols = np.flatnonzero(seen.any(axis=1)), np.flatnonzero(seen.any(axis=0))
+        r0, r1 = rows[0] - 1, rows[-1] + 2
+        c0, c1 = cols[0] - 1, cols[-1] + 2  # within the arrays: they carry a wide margin
+        hits, misses = self._hits[r0:r1, c0:c1], self._misses[r0:r1, c0:c1]
+        data = np.full(hits.shape, UNKNOWN, dtype=np.int8)
+        data[(misses > 0) | (hits > 0)] = FREE
+        data[hits > misses] = OCCUPIED
+        origin = (float((self._lo[0] + c0) * self.cell), float((self._lo[1] + r0) * self.cell))
+        return GridMap(data, self.cell, origin)
+
+
+def assemble(local_grids: list[LocalGrid], poses_xyyaw: np.ndarray, cell: float = 0.05) -> GridMap:
+    """Fuse local grids placed at their planar world poses into one GridMap (see `GridVotes`)."""
     poses = np.asarray(poses_xyyaw, dtype=np.float64).reshape(-1, 3)
     if len(poses) != len(local_grids):
         raise InputError(f"assemble: {len(local_grids)} local grids but {len(poses)} poses")
-    hits_xy = _cells_to_world([g.obstacles for g in local_grids], poses, cell)
-    miss_xy = _cells_to_world([g.free for g in local_grids], poses, cell)
-    all_xy = np.vstack([hits_xy, miss_xy])
-    if not len(all_xy):
-        return GridMap(np.full((1, 1), UNKNOWN, dtype=np.int8), float(cell), (0.0, 0.0))
-
-    # Snap the origin to the cell lattice so a map assembled twice lines up cell for cell.
-    lo = np.floor(all_xy.min(axis=0) / cell) - 1
-    hi = np.floor(all_xy.max(axis=0) / cell) + 1
-    cols, rows = (hi - lo + 1).astype(np.int64)
-    origin = (float(lo[0] * cell), float(lo[1] * cell))
-
-    def votes(xy: np.ndarray) -> np.ndarray:
-        idx = np.floor(xy / cell).astype(np.int64) - lo.astype(np.int64)
-        flat = idx[:, 1] * cols + idx[:, 0]
-        return np.bincount(flat, minlength=rows * cols).reshape(rows, cols)
-
-    hits, misses = votes(hits_xy), votes(miss_xy)
-    data = np.full((rows, cols), UNKNOWN, dtype=np.int8)
-    data[(misses > 0) | (hits > 0)] = FREE
-    data[hits > misses] = OCCUPIED
-    return GridMap(data, float(cell), origin)
+    votes = GridVotes(cell)
+    for grid, pose in zip(local_grids, poses):
+        votes.add(grid, pose)
+    return votes.grid()

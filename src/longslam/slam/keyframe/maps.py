@@ -8,7 +8,7 @@ import numpy as np
 
 from longslam.geometry import CameraMount
 from longslam.gridmap import GridMap
-from longslam.slam.occupancy import LocalGrid, assemble
+from longslam.slam.occupancy import GridVotes, LocalGrid
 
 
 def assemble_maps(
@@ -19,28 +19,38 @@ def assemble_maps(
     grid_cell: float,
     cloud_voxel: float,
 ) -> tuple[GridMap, np.ndarray]:
-    """The 2D occupancy grid (local grids at their nodes' poses) and the voxel-filtered 3D cloud."""
-    grids, clouds, node_poses = [], [], []
+    """The 2D occupancy grid (local grids at their nodes' poses) and the voxel-filtered 3D cloud.
+
+    Nodes are taken one at a time (from RAM or long-term memory), so only the grid's vote counts
+    and the cloud's points are held, never every node's local grid at once."""
+    votes = GridVotes(grid_cell)
+    clouds = []
     for node_id in node_ids:
         grid, points = grid_and_points(node_id)
-        grids.append(grid)
         xyyaw = estimate(node_id)
+        votes.add(grid, xyyaw)
         # Node points are in the robot base frame (z up from the floor), so they move with the
         # base's pose on the floor, not with the camera's.
         base = mount.base_pose(xyyaw)
-        clouds.append(points @ base[:3, :3].T + base[:3, 3])
-        node_poses.append(xyyaw)
-    grid_map = assemble(grids, np.array(node_poses), grid_cell)
-    cloud = voxel_filter(np.concatenate(clouds) if clouds else np.zeros((0, 3)), cloud_voxel)
-    return grid_map, cloud
+        clouds.append((points @ base[:3, :3].T + base[:3, 3]).astype(np.float32))
+    cloud = voxel_filter(np.concatenate(clouds).astype(np.float64) if clouds else np.zeros((0, 3)), cloud_voxel)
+    return votes.grid(), cloud
 
 
 def voxel_filter(points: np.ndarray, voxel: float) -> np.ndarray:
-    """One point (the centroid) per occupied voxel."""
+    """One point (the centroid) per occupied voxel.
+
+    Each voxel's three indices are packed into one int64, so finding the occupied voxels is a
+    sort of one integer per point (np.unique over rows would need several times the memory)."""
     if not len(points):
         return np.zeros((0, 3), np.float32)
-    keys = np.floor(points / voxel).astype(np.int64)
-    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-    sums = np.zeros((len(counts), 3))
-    np.add.at(sums, inverse.ravel(), points)
-    return (sums / counts[:, None]).astype(np.float32)
+    points = np.asarray(points, dtype=np.float64)
+    index = np.floor(points / voxel).astype(np.int64)
+    index -= index.min(axis=0)
+    span = index.max(axis=0) + 1
+    keys = (index[:, 0] * span[1] + index[:, 1]) * span[2] + index[:, 2]
+    del index
+    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    del keys
+    centroids = np.column_stack([np.bincount(inverse, weights=points[:, k], minlength=len(counts)) for k in range(3)])
+    return (centroids / counts[:, None]).astype(np.float32)
