@@ -24,33 +24,16 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.eval.metrics import evaluate
+from common import sequence
+from longslam.run.score import score
+from longslam.settings import from_mapping, parse_key_values
 from longslam.frame import Frame
 from longslam.io.sequence import SequenceReader
-from longslam.recording import simulate
-from longslam.sim.noise import get_noise
-from longslam.sim.routes import get_route
 from longslam.geometry import planar_from_camera_poses, relative_xyyaw, wrap_angle
 from longslam.slam.api import MethodContext
 from longslam.slam.catalog import create_method
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.trajectory import Trajectory
-
-
-def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
-    path = work / f"{route}-{noise}-{seed}"
-    if not path.exists():
-        simulate(get_route(route), get_noise(noise), seed, path, progress=False)
-    return path
-
-
-def parse_value(text: str):
-    for cast in (int, float):
-        try:
-            return cast(text)
-        except ValueError:
-            pass
-    return {"true": True, "false": False}.get(text.lower(), text)
 
 
 def run(path: Path, config: FrontEndConfig, no_odometry: bool) -> dict:
@@ -71,7 +54,7 @@ def run(path: Path, config: FrontEndConfig, no_odometry: bool) -> dict:
         trajs = {"dead reckoning": reader.odometry.poses, **trajs}
     for name, poses in trajs.items():
         est = Trajectory(stamps, poses, source=name)
-        out[name] = evaluate(gt, est, align="se3" if no_odometry else "none")
+        out[name] = score(gt, est, align="se3" if no_odometry else "none")
     return out
 
 
@@ -95,7 +78,7 @@ def run_method(path: Path, method: str, frontend: str) -> dict:
         m.step(frame)
     result = m.finish()
     seconds = time.perf_counter() - t0
-    out = evaluate(reader.ground_truth, result.trajectory)
+    out = score(reader.ground_truth, result.trajectory)
     stats = result.stats
     out["rtf"] = (reader.timestamps[-1] - reader.timestamps[0]) / seconds
     out["loops"] = stats.get("loops_accepted", 0) + stats.get("registrations_accepted", 0)
@@ -122,8 +105,7 @@ def main() -> None:
         import cv2
 
         cv2.setNumThreads(1)
-    params = dict(p.split("=", 1) for p in args.param)
-    config = FrontEndConfig().with_flat({k: parse_value(v) for k, v in params.items()})
+    config = from_mapping(FrontEndConfig, parse_key_values(args.param), "front end")
     args.work.mkdir(parents=True, exist_ok=True)
     header = f"{'sequence':28s} {'trajectory':15s} {'ATE m':>7s} {'ratio':>6s} {'E_trans':>8s} {'ratio':>6s} {'E_rot':>7s}"
     print(header + ("  ATE(se3)" if args.no_odometry else ""))

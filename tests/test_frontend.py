@@ -3,6 +3,8 @@
 import numpy as np
 import pytest
 
+from longslam.settings import from_mapping
+
 from longslam.errors import InputError
 from longslam.eval.metrics import evaluate
 from longslam.frame import Frame, Intrinsics
@@ -78,10 +80,13 @@ def test_scan_keeps_the_obstacle_band_only():
 
 def test_config_refuses_unknown_parameters():
     with pytest.raises(InputError, match="unknown parameter"):
-        FrontEndConfig().with_flat({"nope": 1})
+        from_mapping(FrontEndConfig, {"nope": 1}, "front end")
+    with pytest.raises(InputError, match="registration: unknown parameter.*sigma"):
+        from_mapping(FrontEndConfig, {"registration.sigmaa": 1}, "front end")
     with pytest.raises(InputError, match="mode"):
-        FrontEndConfig().with_flat({"mode": "magic"})
-    assert FrontEndConfig().with_flat({"registration.sigma": 0.05}).registration.sigma == 0.05
+        from_mapping(FrontEndConfig, {"mode": "magic"}, "front end")
+    assert from_mapping(FrontEndConfig, {"registration.sigma": "0.05"}, "front end").registration.sigma == 0.05
+    assert from_mapping(FrontEndConfig, {"registration": {"sigma": 0.05}}, "front end").registration.sigma == 0.05
 
 
 @pytest.fixture(scope="module")

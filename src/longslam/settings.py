@@ -86,32 +86,49 @@ def field_names(cls: type) -> list[str]:
 def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | None = None) -> C:
     """An instance of the dataclass `cls` with `values` over its defaults (or over `base`).
 
-    `what` names the owner in errors, e.g. "method 'keyframe'" or "camera". Unknown keys and
-    unconvertible values raise InputError naming the key, the value and what is valid; the
-    dataclass's own `__post_init__` then checks ranges.
+    `what` names the owner in errors, e.g. "method 'keyframe'" or "camera". A field that is itself
+    a dataclass takes a table (`registration = {sigma = 0.05}`) or dotted keys
+    (`registration.sigma=0.05`). Unknown keys and unconvertible values raise InputError naming the
+    key, the value and what is valid; the dataclass's own `__post_init__` then checks ranges.
     """
     if not isinstance(values, Mapping):
         raise InputError(f"{what}: expected a table of key = value, got {values!r}")
     names = field_names(cls)
-    unknown = sorted(set(values) - set(names))
+    flat: dict[str, Any] = {}
+    nested: dict[str, dict[str, Any]] = {}
+    for key, raw in values.items():
+        head, dot, tail = str(key).partition(".")
+        if head in names and (dot or isinstance(raw, Mapping)) and dataclasses.is_dataclass(_field_type(cls, head)[0]):
+            nested.setdefault(head, {}).update({tail: raw} if dot else dict(raw))
+        else:
+            flat[key] = raw
+    unknown = sorted(set(flat) - set(names))
     if unknown:
         valid = ", ".join(sorted(names)) if names else "none (it takes no parameters)"
         raise InputError(f"{what}: unknown parameter(s) {', '.join(map(str, unknown))}; valid parameters: {valid}")
     converted = {}
-    for key, raw in values.items():
+    for key, raw in flat.items():
         kind, optional = _field_type(cls, key)
         try:
             converted[key] = convert(raw, kind, optional)
         except ValueError as err:
             raise InputError(f"{what}: parameter {key}={raw!r}: {err}") from None
+    if nested:
+        start = base if base is not None else cls()
+        for head, sub in nested.items():
+            converted[head] = from_mapping(type(getattr(start, head)), sub, f"{what}: {head}", getattr(start, head))
     if base is not None:
         return dataclasses.replace(base, **converted)
     return cls(**converted)
 
 
 def to_mapping(config: Any) -> dict[str, Any]:
-    """The dataclass's fields and values (None values kept)."""
-    return {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}
+    """The dataclass's fields and values (None values kept; nested dataclasses as dicts)."""
+    out = {}
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        out[f.name] = to_mapping(value) if dataclasses.is_dataclass(value) else value
+    return out
 
 
 def _toml_value(value: Any) -> str:

@@ -17,7 +17,7 @@ Modes:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, fields, is_dataclass, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -78,35 +78,13 @@ class FrontEndConfig:
     noise: MotionNoise = field(default_factory=MotionNoise)
     smoother: SmootherConfig = field(default_factory=SmootherConfig)
 
-    def validate(self) -> None:
+    def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise InputError(f"front end: mode must be one of {', '.join(MODES)}, got {self.mode!r}")
         if not (self.jump_distance > 0 and self.jump_angle > 0):
             raise InputError("front end: jump_distance and jump_angle must be positive")
         if self.scan_anchor_lag < 1:
             raise InputError("front end: scan_anchor_lag must be at least 1")
-
-    def with_flat(self, params: dict[str, Any]) -> "FrontEndConfig":
-        """A copy with `params` applied; nested fields as 'registration.sigma' style keys."""
-        top: dict[str, Any] = {}
-        nested: dict[str, dict[str, Any]] = {}
-        names = {f.name for f in fields(self)}
-        for key, value in params.items():
-            head, _, tail = key.partition(".")
-            if head not in names:
-                raise InputError(f"front end: unknown parameter {key!r}; valid: {', '.join(sorted(names))}")
-            if tail:
-                nested.setdefault(head, {})[tail] = value
-            else:
-                top[head] = value
-        for head, values in nested.items():
-            sub = getattr(self, head)
-            if not is_dataclass(sub):
-                raise InputError(f"front end: {head!r} has no sub-parameters")
-            top[head] = replace(sub, **values)
-        out = replace(self, **top)
-        out.validate()
-        return out
 
 
 class FrontEnd:
@@ -115,7 +93,6 @@ class FrontEnd:
 
     def __init__(self, intrinsics: Intrinsics, config: FrontEndConfig | None = None):
         self.config = config or FrontEndConfig()
-        self.config.validate()
         self.intrinsics = intrinsics
         self.mount: CameraMount | None = None  # known at the first frame
         self._extract: ScanExtractor | None = None

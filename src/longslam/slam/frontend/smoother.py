@@ -13,7 +13,7 @@ final trajectory comes from it, so a loop correction spreads as smooth curvature
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
