@@ -76,6 +76,7 @@ def test_long_term_memory_holds_nodes_and_reopens(sequence, tmp_path):
         node = db.get_node(0)
         assert node.arrays["descriptors"].shape[1] == 32
         assert db.statistics()["nodes"] == stats["nodes"]
+        assert db.statistics()["database"] == "memory.db"  # never a run's temporary folder
 
 
 def test_bad_frames_are_counted_not_linked(sequence):

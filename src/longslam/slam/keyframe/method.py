@@ -290,7 +290,9 @@ class KeyframeMethod:
         })
         if self.frontend is not None:
             run_stats["frontend"] = self.frontend.stats
-        self.db.set_statistics(run_stats)
+        # The database names itself by file name: its folder is still a temporary one while the
+        # run is under way (stats.json gets the final path from the run engine).
+        self.db.set_statistics({**run_stats, "database": self.db_path.name})
         self.db.close()
         if self._own_dir is not None:
             shutil.rmtree(self._own_dir, ignore_errors=True)
