@@ -169,3 +169,15 @@ def test_a_loop_constraint_moves_the_final_trajectory_smoothly(demo):
     assert np.abs(np.diff(moved)).max() < 0.05
     with pytest.raises(InputError):
         fe.add_loop(0, n + 5, delta, np.eye(3))
+
+
+def test_the_planar_rigid_fit_recovers_a_known_motion():
+    from longslam.geometry import rigid_transform_2d
+
+    rng = np.random.default_rng(3)
+    source = rng.uniform(-2, 2, (30, 2))
+    c, s = np.cos(0.3), np.sin(0.3)
+    target = source @ np.array([[c, -s], [s, c]]).T + [0.5, -0.2]
+    rotation, translation = rigid_transform_2d(source, target)
+    np.testing.assert_allclose(rotation, [[c, -s], [s, c]], atol=1e-12)
+    np.testing.assert_allclose(translation, [0.5, -0.2], atol=1e-12)

@@ -5,7 +5,7 @@
 jump filter), `fit` (Umeyama's rigid / similarity fit).
 """
 
-from longslam.geometry.fit import rigid_transform, umeyama
+from longslam.geometry.fit import rigid_transform, rigid_transform_2d, umeyama
 from longslam.geometry.planar import (
     R_BASE_CAMERA,
     CameraMount,
@@ -27,6 +27,6 @@ from longslam.geometry.se3 import invert, poses_from_tum, rigidity_violation, ro
 __all__ = [
     "R_BASE_CAMERA", "CameraMount", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",
     "compose_xyyaw", "invert", "planar_from_camera_poses", "planar_pose", "planar_poses",
-    "pose_from_xyyaw", "poses_from_tum", "relative_xyyaw", "rigid_transform", "rigidity_violation",
+    "pose_from_xyyaw", "poses_from_tum", "relative_xyyaw", "rigid_transform", "rigid_transform_2d", "rigidity_violation",
     "rotation_angle", "tum_from_poses", "umeyama", "wrap_angle", "xyyaw_from_pose", "xyyaw_of_transform",
 ]

@@ -1,7 +1,8 @@
-"""One rigid (or similarity) fit between matched 3D point sets: Umeyama's least squares.
+"""Rigid (or similarity) fits between matched point sets: Umeyama's least squares in 3D, and its
+closed form in the plane.
 
-Used to align a trajectory to its reference (evaluation) and to polish a loop transform on
-matched 3D points (place recognition). Same definition as evo's `geometry.umeyama_alignment`.
+Used to align a trajectory to its reference (evaluation), to polish a loop transform on matched
+3D points (place recognition) and to fit the robot's step to tracked corners (the front end). Same definition as evo's `geometry.umeyama_alignment`.
 """
 
 from __future__ import annotations
@@ -62,3 +63,14 @@ def rigid_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     out[:3, :3] = rotation
     out[:3, 3] = translation
     return out
+
+
+def rigid_transform_2d(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R (2, 2), t (2,) minimising sum ||R source_i + t - target_i||^2 for (N, 2) points: the
+    planar case in closed form (one atan2, no SVD), cheap enough for a RANSAC loop."""
+    mean_source, mean_target = source.mean(axis=0), target.mean(axis=0)
+    h = (source - mean_source).T @ (target - mean_target)
+    angle = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+    c, s = np.cos(angle), np.sin(angle)
+    rotation = np.array([[c, -s], [s, c]])
+    return rotation, mean_target - rotation @ mean_source

@@ -17,6 +17,7 @@ Modes:
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,6 +26,7 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.frame import Frame, Intrinsics
 from longslam.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
+from longslam.slam.graph import Edge
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
@@ -301,6 +303,12 @@ class FrontEnd:
             raise InputError(f"front end: loop between frames {frame_i} and {frame_j}, but {n} frames seen")
         self._smoother.add_loop(frame_i, frame_j, delta_xyyaw, information)
         self.counts["loops"] += 1
+
+    def add_graph_edges(self, edges: Iterable[Edge], frame_of: Mapping[int, int] | Sequence[int]) -> None:
+        """A method's graph edges (between keyframes, submap origins...) as constraints between the
+        frames its nodes were made at: `frame_of[node]` is that frame's index."""
+        for edge in edges:
+            self.add_loop(frame_of[edge.a], frame_of[edge.b], np.array(edge.delta), edge.information)
 
     def online_trajectory(self) -> np.ndarray:
         return np.array(self._online).reshape(-1, 3)

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from longslam.frame import Intrinsics
+from longslam.geometry.fit import rigid_transform_2d
 
 
 @dataclass(frozen=True)
@@ -37,16 +38,6 @@ class VisualStep:
     step: np.ndarray  # (3,) current base pose in the previous base frame
     inliers: int
     rms: float  # m
-
-
-def _kabsch_2d(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """R, t minimising |R src + t - dst|."""
-    cs, cd = src.mean(axis=0), dst.mean(axis=0)
-    h = (src - cs).T @ (dst - cd)
-    angle = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
-    c, s = np.cos(angle), np.sin(angle)
-    rot = np.array([[c, -s], [s, c]])
-    return rot, cd - rot @ cs
 
 
 class VisualOdometry:
@@ -113,7 +104,7 @@ class VisualOdometry:
             inl = res < threshold
             if inl.sum() < cfg.min_inliers:
                 return None
-            rot, t = _kabsch_2d(b[inl], a[inl])
+            rot, t = rigid_transform_2d(b[inl], a[inl])
             threshold = cfg.inlier
         res = np.linalg.norm(b[inl] @ rot.T + t - a[inl], axis=1)
         step = np.array([t[0], t[1], np.arctan2(rot[1, 0], rot[0, 0])])

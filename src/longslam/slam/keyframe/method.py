@@ -26,7 +26,7 @@ from longslam.slam.features import Features, extract
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.slam.graph import ODOMETRY, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
-from longslam.slam.keyframe.loops import LoopCloser, counter_names
+from longslam.slam.keyframe.loops import SOURCES, LoopCloser, counter_names
 from longslam.slam.keyframe.maps import assemble_maps
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
 from longslam.slam.memory_db import MemoryDatabase
@@ -108,22 +108,24 @@ class KeyframeMethod:
         """The front end's online pose of this frame, used as the node's "odometry"."""
         pose = self.frontend.step(frame)
         if self._mount is None:
-            self._mount = self.frontend.mount
-            self._camera_in_base = self._mount.camera_in_base
-            self.loops = LoopCloser(self.config, self.intrinsics, self.graph, self.memory, self._camera_in_base, self.counts)
+            self._start(self.frontend.mount)
         self.counts[stats.ODOMETRY_JUMPS] = self.frontend.counts["odometry_jumps"]
         return pose
 
     def _corrected_odometry(self, camera_pose: np.ndarray) -> np.ndarray:
         """Planar odometry with jumps (a step no robot makes in one frame) replaced by no motion."""
         if self._odometry is None:
-            self._mount = CameraMount.from_first_pose(camera_pose, self.config.camera_height)
-            self._camera_in_base = self._mount.camera_in_base
+            self._start(CameraMount.from_first_pose(camera_pose, self.config.camera_height))
             self._odometry = PlanarOdometry(self._mount, self.config.jump_distance, self.config.jump_angle)
-            self.loops = LoopCloser(self.config, self.intrinsics, self.graph, self.memory, self._camera_in_base, self.counts)
         pose = self._odometry.update(camera_pose)
         self.counts[stats.ODOMETRY_JUMPS] = self._odometry.jumps
         return pose
+
+    def _start(self, mount: CameraMount) -> None:
+        """At the first frame: where the camera sits, and the loop closer that needs it."""
+        self._mount = mount
+        self._camera_in_base = mount.camera_in_base
+        self.loops = LoopCloser(self.config, self.intrinsics, self.graph, self.memory, self._camera_in_base, self.counts)
 
     def _is_new_node(self, stamp: float, odom: np.ndarray) -> bool:
         last = self._last_node
@@ -241,10 +243,7 @@ class KeyframeMethod:
     def _frontend_final(self) -> np.ndarray:
         """Every frame's pose from the front end's smoother, with the graph's accepted loop
         closures (node to node) added as constraints between the nodes' frames."""
-        for edge in self.graph.edges:
-            if edge.kind == ODOMETRY:
-                continue
-            self.frontend.add_loop(self._node_frame[edge.a], self._node_frame[edge.b], np.array(edge.delta), edge.information)
+        self.frontend.add_graph_edges([e for e in self.graph.edges if e.kind != ODOMETRY], self._node_frame)
         return self.frontend.final_trajectory()
 
     def memory_bytes(self) -> dict[str, int]:
@@ -277,9 +276,9 @@ class KeyframeMethod:
         counts = self.counts
         run_stats = dict(counts)
         run_stats.update({
-            stats.LOOP_HYPOTHESES: counts["appearance_hypotheses"] + counts["proximity_hypotheses"],
-            stats.LOOPS_ACCEPTED: counts["appearance_accepted"] + counts["proximity_accepted"],
-            stats.LOOPS_REJECTED: sum(counts[f"{p}_rejected_{why}"] for p in ("appearance", "proximity") for why in ("verification", "graph")),
+            stats.LOOP_HYPOTHESES: sum(counts[f"{p}_hypotheses"] for p in SOURCES),
+            stats.LOOPS_ACCEPTED: sum(counts[f"{p}_accepted"] for p in SOURCES),
+            stats.LOOPS_REJECTED: sum(counts[f"{p}_rejected_{why}"] for p in SOURCES for why in ("verification", "graph")),
             stats.MAP_BYTES: map_bytes,
             stats.CAMERA_HEIGHT: self._mount.camera_height,
             **census,

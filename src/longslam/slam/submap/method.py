@@ -127,12 +127,11 @@ class SubmapMethod:
         if self.frontend is not None:
             # The front end's online pose stands where the odometry stood.
             odometry = self.frontend.camera_poses(self.frontend.step(frame)[None])[0]
-            if self._mount is None:
-                self._mount = self.frontend.mount
+            self._mount = self.frontend.mount
         else:
             odometry = frame_odometry(frame, "submap")
-        if self._mount is None:
-            self._mount = CameraMount.from_first_pose(odometry, self.config.camera_height)
+            if self._mount is None:
+                self._mount = CameraMount.from_first_pose(odometry, self.config.camera_height)
         active = self.submaps[-1] if self.submaps else None
         if active is None:
             base = self._mount.to_planar(odometry[None])[0]
@@ -355,12 +354,13 @@ class SubmapMethod:
         (and, with `frontend_registrations`, its registration edges) between the submaps' first
         frames. An edge the optimised graph explains poorly (the robust kernel down-weighted it)
         is left out: the smoother has no kernel."""
-        for edge in self.graph.edges:
-            if edge.kind == ODOMETRY or (edge.kind == REGISTRATION and not self.config.frontend_registrations):
-                continue
-            if self.graph.edge_error(edge.edge_id) > self.config.frontend_max_edge_error:
-                continue
-            self.frontend.add_loop(self._submap_frame[edge.a], self._submap_frame[edge.b], np.array(edge.delta), edge.information)
+        c = self.config
+        edges = [
+            e for e in self.graph.edges
+            if e.kind != ODOMETRY and (e.kind != REGISTRATION or c.frontend_registrations)
+            and self.graph.edge_error(e.edge_id) <= c.frontend_max_edge_error
+        ]
+        self.frontend.add_graph_edges(edges, self._submap_frame)
         return self.frontend.final_trajectory()
 
 
