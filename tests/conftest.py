@@ -1,5 +1,6 @@
-"""Shared test fixtures: tiny synthetic sequences, written in a moment, for tests of the run
-machinery (the engine, run folders, the CLI) that need frames but not a rendered building."""
+"""Shared test helpers: tiny synthetic sequences, written in a moment, for tests of the run
+machinery (the engine, run folders, the CLI) that need frames but not a rendered building; and
+rendered sequences simulated into a cache of the test's own."""
 
 from __future__ import annotations
 
@@ -11,6 +12,10 @@ import pytest
 from longslam.frame import Intrinsics
 from longslam.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceWriter
+from longslam.recording import simulate
+from longslam.sim.camera import CameraSettings
+from longslam.sim.noise import get_noise
+from longslam.sim.routes import Route
 from longslam.trajectory import Trajectory
 
 TINY_INTRINSICS = Intrinsics.from_fov(16, 12, 90.0)
@@ -41,3 +46,12 @@ def write_tiny_sequence(
 def tiny_sequence(tmp_path_factory) -> Path:
     """20 frames straight ahead, odometry exact."""
     return write_tiny_sequence(tmp_path_factory.mktemp("tiny") / "seq", n=20)[0]
+
+
+def simulate_in_own_cache(root: Path, route: Route, noise: str, seed: int,
+                          camera: CameraSettings = CameraSettings(), name: str = "seq") -> Path:
+    """`root / name` simulated, rendering into `root / "cache"`: a test neither reads nor fills
+    the user's render cache."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
+        return simulate(route, get_noise(noise), seed, root / name, camera=camera, progress=False)

@@ -12,14 +12,13 @@ from longslam.geometry import base_to_camera, planar_from_camera_poses
 from longslam.geometry import compose_xyyaw as compose
 from longslam.geometry import relative_xyyaw as relative
 from longslam.io.sequence import SequenceReader
-from longslam.recording import simulate
-from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.slam.frontend.local_map import LocalMap
 from longslam.slam.frontend.registration import register
 from longslam.slam.frontend.scan import ScanExtractor
 from longslam.trajectory import Trajectory
+from conftest import simulate_in_own_cache
 
 
 def _wall(a, b, step=0.05):
@@ -91,14 +90,7 @@ def test_config_refuses_unknown_parameters():
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
-    root = tmp_path_factory.mktemp("fe")
-    mp = pytest.MonkeyPatch()
-    mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
-    try:
-        path = simulate(get_route("demo"), get_noise("large"), 0, root / "seq", progress=False)
-    finally:
-        mp.undo()
-    return SequenceReader(path)
+    return SequenceReader(simulate_in_own_cache(tmp_path_factory.mktemp("fe"), get_route("demo"), "large", 0))
 
 
 def _run(reader, config=None, strip_odometry=False):

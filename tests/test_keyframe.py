@@ -9,15 +9,14 @@ from longslam.eval.metrics import evaluate
 from longslam.frame import Frame
 from longslam.gridmap import OCCUPIED
 from longslam.io.sequence import SequenceReader
-from longslam.recording import simulate
 from longslam.sim.camera import CameraSettings
-from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
 from longslam.slam.api import MethodContext
 from longslam.slam.keyframe import KeyframeConfig
 from longslam.slam.memory_db import MemoryDatabase
 from longslam.slam.catalog import check_params, create_method
 from longslam.world import get_world
+from conftest import simulate_in_own_cache
 
 CAMERA = CameraSettings(width=160, height=120)
 # Along the spine, back, and along it again: the second pass sees what the first saw.
@@ -26,14 +25,7 @@ ROUTE = Route("twice", "university", ((18.0, 31.25), (34.0, 31.25), (18.0, 31.25
 
 @pytest.fixture(scope="module")
 def sequence(tmp_path_factory):
-    root = tmp_path_factory.mktemp("kf")
-    mp = pytest.MonkeyPatch()
-    mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
-    try:
-        path = simulate(ROUTE, get_noise("xlarge"), 2, root / "seq", camera=CAMERA, progress=False)
-    finally:
-        mp.undo()
-    return SequenceReader(path)
+    return SequenceReader(simulate_in_own_cache(tmp_path_factory.mktemp("kf"), ROUTE, "xlarge", 2, CAMERA))
 
 
 def _run(reader, params=None, output_dir=None, frames=None):

@@ -9,12 +9,11 @@ from scipy import ndimage
 
 from longslam.gridmap import OCCUPIED
 from longslam.run.engine import run_sequence
-from longslam.recording import simulate
 from longslam.sim.camera import CameraSettings
-from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
 from longslam.slam.catalog import method_names
 from longslam.world import get_world
+from conftest import simulate_in_own_cache
 
 CAMERA = CameraSettings(width=160, height=120)
 ROUTE = Route("map-check", "university", ((20.0, 31.25), (26.0, 31.25), "junction_a"))
@@ -24,14 +23,8 @@ TOLERANCE = 0.15  # m: voxel filtering and depth quantisation
 
 @pytest.fixture(scope="module")
 def sequence(tmp_path_factory):
-    root = tmp_path_factory.mktemp("maps")
-    mp = pytest.MonkeyPatch()
-    mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
-    try:
-        # No noise: a correct map must then lie on the world's walls.
-        return simulate(ROUTE, get_noise("none"), 0, root / "seq", camera=CAMERA, progress=False)
-    finally:
-        mp.undo()
+    # No noise: a correct map must then lie on the world's walls.
+    return simulate_in_own_cache(tmp_path_factory.mktemp("maps"), ROUTE, "none", 0, CAMERA)
 
 
 @pytest.mark.parametrize("method", method_names())

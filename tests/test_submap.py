@@ -10,9 +10,7 @@ from longslam.eval.metrics import ate
 from longslam.frame import Frame, Intrinsics
 from longslam.geometry import camera_poses_from_planar, planar_pose
 from longslam.io.sequence import SequenceReader
-from longslam.recording import simulate
 from longslam.sim.camera import CameraSettings, RGBDCamera
-from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
 from longslam.slam.api import MethodContext
 from longslam.slam.catalog import check_params, create_method
@@ -21,6 +19,7 @@ from longslam.slam.submap.method import SubmapMethod
 from longslam.slam.submap.registration import register
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 from longslam.world import get_world
+from conftest import simulate_in_own_cache
 
 SMALL = CameraSettings(width=80, height=60)
 HALL_LOOP = Route("hall-loop", "university", ("hall_entry", "hall_ne", "hall_se", "hall_sw", "hall_nw", "hall_ne"))
@@ -30,10 +29,8 @@ HALL_LOOP = Route("hall-loop", "university", ("hall_entry", "hall_ne", "hall_se"
 def hall_sequences(tmp_path_factory):
     """The hall loop with a small camera, at no noise and at large noise (rendered once)."""
     root = tmp_path_factory.mktemp("submap")
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
-        exact = simulate(HALL_LOOP, get_noise("none"), 0, root / "none", camera=SMALL, progress=False)
-        noisy = simulate(HALL_LOOP, get_noise("large"), 1, root / "large", camera=SMALL, progress=False)
+    exact = simulate_in_own_cache(root, HALL_LOOP, "none", 0, SMALL, name="none")
+    noisy = simulate_in_own_cache(root, HALL_LOOP, "large", 1, SMALL, name="large")
     return SequenceReader(exact), SequenceReader(noisy)
 
 
