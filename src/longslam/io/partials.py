@@ -60,16 +60,3 @@ def _recently_modified(path: Path, seconds: float) -> bool:
         return time.time() - path.lstat().st_mtime < seconds
     except OSError:  # removed meanwhile
         return True
-
-
-def current_umask() -> int:
-    """The process's umask (read by setting it and back: there is no other portable way)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def make_public_like_mkdir(path: str | Path) -> None:
-    """Give a folder from `tempfile.mkdtemp` (always 0700) the mode `mkdir` would have given it,
-    so sequences and the render cache can be shared like any other folder."""
-    os.chmod(path, 0o777 & ~current_umask())
