@@ -54,7 +54,7 @@ def test_wall_gives_obstacles_at_its_distance_and_free_space_before_it():
 
 
 def test_floor_only_gives_no_obstacles():
-    grid = local_grid(floor_depth(), INTR, CAM_IN_BASE)
+    grid = local_grid(floor_depth(), INTR, CAM_IN_BASE, range_max=5.0)
     assert len(grid.obstacles) == 0
     assert len(grid.free) > 0
     # Floor seen beyond range_max still clears space, but only up to range_max.
@@ -100,14 +100,19 @@ def test_assemble_places_wall_in_world():
     assert gmap.values_at([[2.02, 0.0]])[0] == OCCUPIED
 
 
-def test_assemble_votes_between_views():
-    # A one-off obstacle seen once is outvoted by two views that saw the cell free.
+def test_assemble_weighs_hits_and_misses_as_log_odds():
+    # RTAB-Map's log-odds: a hit (p 0.7) outweighs one miss (p 0.4) but not three, so a wall
+    # survives a grazing ray from another node, and a one-off obstacle is cleared by the views
+    # that saw through it.
     blip = LocalGrid(np.array([[10, 0]], np.int16), np.zeros((0, 2), np.int16), 0.05)
     clear = LocalGrid(np.zeros((0, 2), np.int16), np.array([[10, 0], [11, 0]], np.int16), 0.05)
-    gmap = assemble([blip, clear, clear], np.zeros((3, 3)))
-    assert gmap.values_at([[0.525, 0.025]])[0] == FREE
-    gmap = assemble([blip, blip, clear], np.zeros((3, 3)))
-    assert gmap.values_at([[0.525, 0.025]])[0] == OCCUPIED
+    cell = [[0.525, 0.025]]
+    assert assemble([blip, clear], np.zeros((2, 3))).values_at(cell)[0] == OCCUPIED
+    assert assemble([blip, clear, clear, clear], np.zeros((4, 3))).values_at(cell)[0] == FREE
+    # Clamping: a wall seen a hundred times is not frozen; enough later misses clear it.
+    many = assemble([blip] * 100 + [clear] * 9, np.zeros((109, 3)))
+    assert many.values_at(cell)[0] == FREE
+    assert assemble([blip] * 100 + [clear] * 8, np.zeros((108, 3))).values_at(cell)[0] == OCCUPIED
 
 
 def test_bad_input_is_named():

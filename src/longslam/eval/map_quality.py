@@ -124,9 +124,15 @@ def map_quality(
     if tolerance_cells < 0:
         raise InputError(f"tolerance_cells must be >= 0, got {tolerance_cells}")
     tolerance = float(tolerance_cells) * max(estimate.resolution, truth.resolution)
+    est_xy = transform_points(occupied_points(estimate), rotation, translation, scale, height)
+    return score_points(est_xy, truth, tolerance, observed)
+
+
+def score_points(est_xy: np.ndarray, truth: GridMap, tolerance: float, observed: np.ndarray | None = None) -> dict:
+    """`map_quality` of a map given as its (N, 2) occupied cell centres in the world, at a
+    tolerance in metres."""
     # Cell centres of two grids can be up to half a cell apart even where they agree exactly.
     radius = tolerance + 1e-9
-    est_xy = transform_points(occupied_points(estimate), rotation, translation, scale, height)
     true_mask = truth.data == OCCUPIED
     all_true_xy = truth.cell_to_world(np.argwhere(true_mask))
     seen_mask = true_mask if observed is None else true_mask & np.asarray(observed, dtype=bool)
@@ -155,3 +161,46 @@ def map_quality(
         "map_occupied_cells": int(len(est_xy)),
         "map_true_cells": int(len(seen_xy)),
     }
+
+
+def map_scores(
+    estimate: GridMap,
+    truth: GridMap,
+    tolerance_cells: float = 2.0,
+    observed: np.ndarray | None = None,
+    rotation: np.ndarray | None = None,
+    translation: np.ndarray | None = None,
+    scale: float = 1.0,
+    height: float = 0.0,
+    with_places: bool = False,
+) -> dict:
+    """`map_quality` as it is (after the trajectory's alignment, if any), again after the map's
+    best planar alignment to the truth (`map_align`: keys `*_aligned`, the alignment itself in
+    `map_alignment` as [x m, y m, yaw deg]), and the share of observed true walls the aligned map
+    shows twice (`map_doubled_walls`, see `doubled_walls`). A global drift lowers only the
+    unaligned score; doubled walls ("fake corridors") lower the aligned one and raise the share.
+    With `with_places`, `map_doubled_places` holds the (K, 2) world x, y of the doubled walls."""
+    from longslam.eval.doubled_walls import doubled_walls
+    from longslam.eval.map_align import align_map
+
+    scores = map_quality(estimate, truth, tolerance_cells, observed, rotation, translation, scale, height)
+    tolerance = scores["map_tolerance_m"]
+    walls = transform_points(occupied_points(estimate), rotation, translation, scale, height)
+    # The search and the doubled-wall test need a tolerance of at least a truth cell.
+    search = max(tolerance, truth.resolution)
+    planar = align_map(walls, truth, search)
+    aligned_walls = planar.apply(walls)
+    aligned = score_points(aligned_walls, truth, tolerance, observed)
+    share, places = doubled_walls(aligned_walls, truth, observed, search)
+    scores.update({
+        "map_precision_aligned": aligned["map_precision"],
+        "map_recall_aligned": aligned["map_recall"],
+        "map_f1_aligned": aligned["map_f1"],
+        "map_alignment": [planar.x, planar.y, math.degrees(planar.yaw)],
+        "map_doubled_walls": share,
+        "map_doubled_wall_cells": int(len(places)),
+    })
+    if with_places:
+        scores["map_doubled_places"] = places
+    return scores
+

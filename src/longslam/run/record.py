@@ -78,7 +78,10 @@ HEADLINE = (
     Column("peak_rss_bytes", "INTEGER", _measured("peak_rss_bytes")),
     Column("baseline_rss_bytes", "INTEGER", _measured("baseline_rss_bytes")),
     *(Column(key, "REAL", _metric(key)) for key in ("ate", "e_trans", "e_rot", "ape_rmse", "rpe_trans", "rpe_rot", "ate_online")),
-    *(Column(key, "REAL", _quality(key)) for key in ("map_precision", "map_recall", "map_f1")),
+    *(Column(key, "REAL", _quality(key)) for key in (
+        "map_precision", "map_recall", "map_f1",
+        "map_precision_aligned", "map_recall_aligned", "map_f1_aligned", "map_doubled_walls",
+    )),
 )
 # Whole parts of the record, stored as JSON text.
 JSON_PARTS = ("metrics", "map_quality", "measurements", "error_curve", "memory_curve")

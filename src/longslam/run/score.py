@@ -14,7 +14,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.eval.align import alignment
-from longslam.eval.map_quality import map_quality
+from longslam.eval.map_quality import map_scores
 from longslam.eval.metrics import ape_errors, ate, evaluate
 from longslam.eval.sync import associate, associate_by_index
 from longslam.gridmap import GridMap
@@ -82,7 +82,8 @@ def score_run(
     map_tolerance_cells: float = 2.0,
 ) -> dict[str, Any]:
     """Metrics, the online trajectory's ATE, curves of error and memory against distance travelled,
-    and the map's quality (when the method built a grid and `load_truth` gives the world's)."""
+    and the map's quality (when the method built a grid and `load_truth` gives the world's): as it
+    is, after its best planar alignment, and its share of doubled walls (`eval.map_quality.map_scores`)."""
     metrics = score(truth, result.trajectory, align)
     ref, est = associate(truth, result.trajectory)
     ref_online, est_online = associate(truth, result.online)
@@ -98,7 +99,7 @@ def score_run(
     if result.grid is not None and load_truth is not None:
         grid, observed = load_truth()
         rotation, translation, scale = alignment(est, ref, align)
-        quality = map_quality(
+        quality = map_scores(
             result.grid, grid, map_tolerance_cells, observed,
             rotation, translation, scale, height=float(np.mean(est.positions[:, 2])),
         )

@@ -5,8 +5,10 @@ and the global map is re-assembled from all local grids at their latest optimise
 per-keyframe cells instead of one global raster is what lets a loop closure move the map with
 the trajectory; storing them as int16 cell pairs keeps thousands of keyframes small.
 
-Defaults follow RTAB-Map: Grid/CellSize 0.05 m, Grid/RangeMax 5 m, obstacles from points
-0.2-1.5 m above the floor, free space by ray tracing from the robot to the observed points.
+Defaults follow RTAB-Map: Grid/CellSize 0.05 m, obstacles from points 0.2-1.5 m above the floor,
+free space by ray tracing from the robot to the observed points, local grids fused with RTAB-Map's
+global occupancy log-odds. Two departures: every depth pixel is used (no decimation), and the range
+is the camera's (8 m) rather than Grid/RangeMax's 5 m, so that every wall seen is mapped.
 """
 
 from __future__ import annotations
@@ -110,10 +112,10 @@ def local_grid(
     intrinsics: Intrinsics,
     camera_in_base: np.ndarray,
     cell: float = 0.05,
-    range_max: float = 5.0,
+    range_max: float = 8.0,
     min_height: float = 0.2,
     max_height: float = 1.5,
-    stride: int = 2,
+    stride: int = 1,
 ) -> LocalGrid:
     """Obstacle and free cells seen in one depth image, in the robot's floor frame.
 
@@ -175,48 +177,63 @@ def _cells_to_world(cells: list[np.ndarray], poses: np.ndarray, cell: float) -> 
     return np.column_stack([x, y])
 
 
-class GridVotes:
-    """Local grids placed at their planar world poses, voted into one world grid a grid at a time.
+def logodds(probability: float) -> float:
+    return float(np.log(probability / (1.0 - probability)))
 
-    Every placement votes: an obstacle cell is a hit, a free cell a miss. A world cell is
-    occupied when its hits outnumber its misses, free when it was seen and not occupied, and
-    unknown when never seen. Voting, rather than last-writer-wins, lets many views outvote a
-    spurious obstacle (a person walking by, a depth artefact). Only the vote counts are held (the
-    arrays grow as the grids reach further), so a kilometre of keyframes can be streamed from
-    long-term memory instead of held at once.
+
+class GridVotes:
+    """Local grids placed at their planar world poses, fused into one world grid a grid at a time.
+
+    Every placement updates each cell it touches by an occupancy log-odds, as RTAB-Map's global
+    grid does (GridGlobal/ProbHit 0.7, ProbMiss 0.4, clamped to 0.1192..0.971): an obstacle cell
+    is a hit, a free cell a miss, and a cell is occupied when its log-odds is above 0 (probability
+    0.5). A hit outweighs about two misses, so rays from nodes that graze a wall, or that saw the
+    floor at its foot from a pose a few centimetres off, do not erase it; a spurious obstacle seen
+    once is still cleared by the views that saw through it. Clamping keeps a cell seen a thousand
+    times able to change. A cell is free when seen and not occupied, unknown when never seen.
+    Only the log-odds array is held (it grows as the grids reach further), so a kilometre of
+    keyframes can be streamed from long-term memory instead of held at once.
     """
 
     GROW_CELLS = 256  # margin added whenever the arrays must grow, so they grow seldom
 
-    def __init__(self, cell: float = 0.05):
+    def __init__(self, cell: float = 0.05, prob_hit: float = 0.7, prob_miss: float = 0.4,
+                 clamp_min: float = 0.1192, clamp_max: float = 0.971):
+        if not (0.5 < prob_hit < 1.0 and 0.0 < prob_miss < 0.5 and 0.0 < clamp_min < 0.5 < clamp_max < 1.0):
+            raise InputError(
+                f"occupancy probabilities need 0.5 < prob_hit < 1, 0 < prob_miss < 0.5 and "
+                f"0 < clamp_min < 0.5 < clamp_max < 1; got prob_hit={prob_hit}, prob_miss={prob_miss}, "
+                f"clamp_min={clamp_min}, clamp_max={clamp_max}"
+            )
         self.cell = float(cell)
+        self.hit, self.miss = logodds(prob_hit), logodds(prob_miss)
+        self.lo_clamp, self.hi_clamp = logodds(clamp_min), logodds(clamp_max)
         self._lo: np.ndarray | None = None  # world cell index (col, row) of [0, 0]
-        self._hits = np.zeros((0, 0), np.int32)
-        self._misses = np.zeros((0, 0), np.int32)
+        # NaN: never seen. float32 halves the bytes of the former pair of int32 counts.
+        self._odds = np.zeros((0, 0), np.float32)
 
     def _cells(self, cells: np.ndarray, pose: np.ndarray) -> np.ndarray:
         return np.floor(_cells_to_world([cells], pose[None], self.cell) / self.cell).astype(np.int64)
 
     def _cover(self, lo: np.ndarray, hi: np.ndarray) -> None:
-        """Grow the arrays (with a margin) so that world cells lo..hi (inclusive) fit."""
+        """Grow the array (with a margin) so that world cells lo..hi (inclusive) fit."""
         margin = self.GROW_CELLS
         if self._lo is None:
             lo, hi = lo - margin, hi + margin
         else:
-            old_hi = self._lo + np.array(self._hits.shape[::-1]) - 1
+            old_hi = self._lo + np.array(self._odds.shape[::-1]) - 1
             if np.all(lo >= self._lo) and np.all(hi <= old_hi):
                 return
             # A margin only on the sides that grow: margins must not pile up on the others.
             lo = np.where(lo < self._lo, lo - margin, self._lo)
             hi = np.where(hi > old_hi, hi + margin, old_hi)
         cols, rows = (hi - lo + 1).astype(np.int64)
-        hits, misses = np.zeros((rows, cols), np.int32), np.zeros((rows, cols), np.int32)
+        odds = np.full((rows, cols), np.nan, np.float32)
         if self._lo is not None:
             r0, c0 = (self._lo - lo)[::-1]
-            h, w = self._hits.shape
-            hits[r0:r0 + h, c0:c0 + w] = self._hits
-            misses[r0:r0 + h, c0:c0 + w] = self._misses
-        self._lo, self._hits, self._misses = lo, hits, misses
+            h, w = self._odds.shape
+            odds[r0:r0 + h, c0:c0 + w] = self._odds
+        self._lo, self._odds = lo, odds
 
     def add(self, grid: LocalGrid, pose_xyyaw) -> None:
         pose = np.asarray(pose_xyyaw, dtype=np.float64).reshape(3)
@@ -225,22 +242,33 @@ class GridVotes:
         if not len(both):
             return
         self._cover(both.min(axis=0), both.max(axis=0))
-        for cells, votes in ((hit_cells, self._hits), (miss_cells, self._misses)):
+        cols = self._odds.shape[1]
+
+        def flat(cells: np.ndarray) -> np.ndarray:
             local = cells - self._lo
-            np.add.at(votes, (local[:, 1], local[:, 0]), 1)
+            return np.unique(local[:, 1] * cols + local[:, 0])
+
+        # One update per cell and node (two local cells can land in one world cell once
+        # rotated); a cell that is both a hit and a miss of this node is a hit.
+        hits = flat(hit_cells)
+        misses = np.setdiff1d(flat(miss_cells), hits, assume_unique=True)
+        odds = self._odds.reshape(-1)
+        for index, delta in ((hits, self.hit), (misses, self.miss)):
+            value = np.nan_to_num(odds[index], nan=0.0) + delta
+            odds[index] = np.clip(value, self.lo_clamp, self.hi_clamp)
 
     def grid(self) -> GridMap:
-        """The voted grid, cropped to the cells seen plus one cell all round."""
-        seen = (self._hits > 0) | (self._misses > 0)
+        """The fused grid, cropped to the cells seen plus one cell all round."""
+        seen = ~np.isnan(self._odds)
         if not seen.any():
             return GridMap(np.full((1, 1), UNKNOWN, dtype=np.int8), self.cell, (0.0, 0.0))
         rows, cols = np.flatnonzero(seen.any(axis=1)), np.flatnonzero(seen.any(axis=0))
         r0, r1 = rows[0] - 1, rows[-1] + 2
-        c0, c1 = cols[0] - 1, cols[-1] + 2  # within the arrays: they carry a wide margin
-        hits, misses = self._hits[r0:r1, c0:c1], self._misses[r0:r1, c0:c1]
-        data = np.full(hits.shape, UNKNOWN, dtype=np.int8)
-        data[(misses > 0) | (hits > 0)] = FREE
-        data[hits > misses] = OCCUPIED
+        c0, c1 = cols[0] - 1, cols[-1] + 2  # within the array: it carries a wide margin
+        odds = self._odds[r0:r1, c0:c1]
+        data = np.full(odds.shape, UNKNOWN, dtype=np.int8)
+        data[seen[r0:r1, c0:c1]] = FREE
+        data[odds > 0] = OCCUPIED  # NaN compares False: unseen stays unknown
         origin = (float((self._lo[0] + c0) * self.cell), float((self._lo[1] + r0) * self.cell))
         return GridMap(data, self.cell, origin)
 

@@ -63,7 +63,10 @@ class KeyframeConfig:
     loop_sigma_angular: float = 0.02  # rad
     # Maps (Grid/CellSize, Grid/RangeMax, obstacle band from the paper).
     grid_cell: float = 0.05
-    grid_range: float = 5.0
+    # RTAB-Map's Grid/RangeMax is 5 m; the grid takes the camera's whole range instead (8 m in
+    # the paper's setup), so that every wall the camera saw is in the map.
+    grid_range: float = 8.0
+    grid_stride: int = 1  # pixel stride of the depth points a node's local grid is built from
     obstacle_min_height: float = 0.2
     obstacle_max_height: float = 1.5
     cloud_voxel: float = 0.05
@@ -84,7 +87,7 @@ class KeyframeConfig:
     def __post_init__(self) -> None:
         positive = ("detection_rate", "max_features", "max_words", "min_inliers", "grid_cell", "grid_range",
                     "odom_sigma_min", "loop_sigma_linear", "loop_sigma_angular", "optimize_max_error",
-                    "cloud_voxel", "cloud_stride", "jump_distance", "jump_angle", "loop_candidates")
+                    "cloud_voxel", "cloud_stride", "grid_stride", "jump_distance", "jump_angle", "loop_candidates")
         for name in positive:
             if not getattr(self, name) > 0:
                 raise InputError(f"method 'keyframe': parameter {name} must be positive, got {getattr(self, name)}")

@@ -149,7 +149,7 @@ class KeyframeMethod:
             self.counts["frames_no_features"] += 1
         features = self._drop_floor_and_ceiling_points(features)
         grid = local_grid(depth, self.intrinsics, self._camera_in_base, cfg.grid_cell, cfg.grid_range,
-                          cfg.obstacle_min_height, cfg.obstacle_max_height)
+                          cfg.obstacle_min_height, cfg.obstacle_max_height, cfg.grid_stride)
         points = depth_points_in_base(depth, self.intrinsics, self._camera_in_base, cfg.cloud_stride).astype(np.float32)
         node = Node(node_id, frame.timestamp, odom.copy(), features, grid, points, last_access=node_id)
         self.memory.add(node)

@@ -25,38 +25,78 @@ def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncatio
     return fused
 
 
+COMPACT_ROWS = 1_000_000  # cell rows gathered before duplicates are merged (grid_from_tsdf)
+
+
 def grid_from_tsdf(
     tsdf: TSDF, surface: np.ndarray, floor_z: float,
     min_height: float = 0.2, max_height: float = 1.5, resolution: float = 0.1,
 ) -> GridMap:
-    """2D occupancy from a world-frame TSDF and its iso-surface points: surface points between
-    `min_height` and `max_height` above the floor are obstacles; the observed floor surface and
-    observed voxels of that height band in front of a surface (distance > one voxel) are free.
-    An obstacle wins over free."""
+    """2D occupancy sliced from a world-frame TSDF between `min_height` and `max_height` above
+    the floor, at the grid's own resolution.
+
+    Each grid cell whose centre lies under an observed voxel of that height band is sampled at
+    the voxel's height, the distance interpolated trilinearly from the eight voxels around (the
+    voxel's own distance where a neighbour is unobserved): within half a cell diagonal of the
+    surface the cell is occupied, farther in front of it free, behind it unknown. An obstacle at
+    any height wins. Sampling every cell, rather than marking the cell of each voxel centre,
+    leaves no rows of unknown cells between voxels coarser than the grid and draws walls as
+    continuous lines; the iso-surface points between `min_height` and `max_height` (`surface`)
+    are obstacles too, so that a wall thinner than a voxel, whose two faces' distances never
+    change sign between voxel centres, still shows. Works a few blocks at a time."""
     surface = np.asarray(surface, dtype=np.float64).reshape(-1, 3)
     height = surface[:, 2] - floor_z
     occupied_xy = surface[(height >= min_height) & (height <= max_height), :2]
-    free_parts = [surface[height < min_height, :2]]
+    res = float(resolution)
+    near = res * np.sqrt(0.5)
+    per_side = int(np.ceil(tsdf.voxel / res)) + 1
+    step = np.stack(np.meshgrid(np.arange(per_side), np.arange(per_side), indexing="ij"), axis=-1).reshape(-1, 2)
+    occupied_keys, free_keys = [np.floor(occupied_xy / res).astype(np.int64)], []
     for ijk, sdf, _ in tsdf.observed_chunks():
         centres = (ijk + 0.5) * tsdf.voxel
-        band = (centres[:, 2] - floor_z >= min_height) & (centres[:, 2] - floor_z <= max_height) & (sdf > tsdf.voxel)
-        free_parts.append(centres[band, :2])
-    free_xy = np.vstack(free_parts)
-    every = np.vstack([occupied_xy, free_xy])
+        band = (centres[:, 2] - floor_z >= min_height) & (centres[:, 2] - floor_z <= max_height)
+        if not band.any():
+            continue
+        lo_xy = ijk[band, :2] * tsdf.voxel
+        # The cells whose centres lie in each voxel's footprint [lo, lo + voxel).
+        first = np.ceil(lo_xy / res - 0.5).astype(np.int64)
+        cells = (first[:, None, :] + step[None, :, :]).reshape(-1, 2)
+        xy = (cells + 0.5) * res
+        owner = np.repeat(np.arange(len(lo_xy)), len(step))
+        inside = np.all((xy >= lo_xy[owner] - 1e-9) & (xy < lo_xy[owner] + tsdf.voxel - 1e-9), axis=1)
+        cells, xy, owner = cells[inside], xy[inside], owner[inside]
+        z = centres[band, 2][owner]
+        distance, _, valid = tsdf.interpolate(np.column_stack([xy, z]))
+        distance = np.where(valid, distance, sdf[band][owner])
+        occupied_keys.append(_unique_rows(cells[np.abs(distance) <= near]))
+        free_keys.append(_unique_rows(cells[distance > near]))
+        # A cell is sampled once per voxel layer and chunk: merge as the lists grow, so that
+        # only about one row per cell is held however long the route.
+        for keys in (occupied_keys, free_keys):
+            if len(keys) > 1 and sum(len(k) for k in keys) > COMPACT_ROWS:
+                keys[:] = [_unique_rows(np.vstack(keys))]
+    occupied = _unique_rows(np.vstack(occupied_keys))
+    free = _unique_rows(np.vstack(free_keys)) if free_keys else np.zeros((0, 2), np.int64)
+    every = np.vstack([occupied, free])
     if not len(every):
-        return GridMap(np.full((1, 1), UNKNOWN, np.int8), float(resolution), (0.0, 0.0))
-    lo = np.floor(every.min(axis=0) / resolution) - 1
-    hi = np.floor(every.max(axis=0) / resolution) + 1
-    cols, rows = (hi - lo + 1).astype(np.int64)
+        return GridMap(np.full((1, 1), UNKNOWN, np.int8), res, (0.0, 0.0))
+    lo = every.min(axis=0).astype(np.int64) - 1
+    cols, rows = every.max(axis=0) - lo + 2
     data = np.full((rows, cols), UNKNOWN, np.int8)
+    data[free[:, 1] - lo[1], free[:, 0] - lo[0]] = FREE
+    data[occupied[:, 1] - lo[1], occupied[:, 0] - lo[0]] = OCCUPIED
+    return GridMap(data, res, (float(lo[0] * res), float(lo[1] * res)))
 
-    def cells(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        idx = (np.floor(xy / resolution) - lo).astype(np.int64)
-        return idx[:, 1], idx[:, 0]
 
-    data[cells(free_xy)] = FREE
-    data[cells(occupied_xy)] = OCCUPIED
-    return GridMap(data, float(resolution), (float(lo[0] * resolution), float(lo[1] * resolution)))
+def _unique_rows(cells: np.ndarray) -> np.ndarray:
+    """Unique (N, 2) int64 cell indices, through one packed key per row."""
+    if not len(cells):
+        return np.zeros((0, 2), np.int64)
+    cells = cells.astype(np.int64)
+    lo = cells.min(axis=0)
+    span = cells[:, 1].max() - lo[1] + 1
+    keys = np.unique((cells[:, 0] - lo[0]) * span + (cells[:, 1] - lo[1]))
+    return np.column_stack([keys // span + lo[0], keys % span + lo[1]]).astype(np.int32)
 
 
 def mesh_arrays(tsdf: TSDF) -> tuple[np.ndarray, np.ndarray]:
