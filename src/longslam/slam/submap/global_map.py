@@ -119,6 +119,12 @@ def mesh_arrays(tsdf: TSDF) -> tuple[np.ndarray, np.ndarray]:
         # A cube counts only if all its corners are observed: erode the mask by one cube.
         cube = observed[:-1, :-1, :-1] & observed[1:, :-1, :-1] & observed[:-1, 1:, :-1] & observed[:-1, :-1, 1:] \
             & observed[1:, 1:, :-1] & observed[1:, :-1, 1:] & observed[:-1, 1:, 1:] & observed[1:, 1:, 1:]
+        # As in TSDF.surface_points: a cube whose distances span more than the truncation joins
+        # two unrelated surfaces (the clamped far side of a wall and a ray that grazed past it),
+        # and would draw a sheet of mesh in the wall's shadow.
+        n = volume.shape[0] - 1
+        corners = np.stack([volume[a:a + n, b:b + n, c:c + n] for a in (0, 1) for b in (0, 1) for c in (0, 1)])
+        cube &= corners.max(axis=0) - corners.min(axis=0) <= tsdf.truncation
         if not cube.any():
             continue
         mask = np.zeros_like(observed)
