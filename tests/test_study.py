@@ -151,6 +151,10 @@ def test_a_study_writes_one_row_per_run_and_records_crashes(study):
         gridded = rows[f"tiny/large/gridded/seed-{seed}"]
         assert gridded["status"] == "ok" and (out / gridded["grid_path"]).is_file()
         assert 0.8 < gridded["map_precision"] <= 1.0 and 0.3 < gridded["map_recall"] <= 1.0
+        # The best planar alignment never scores below the map as it is; the dead-reckoned map
+        # of a short route has no doubled wall.
+        assert gridded["map_precision_aligned"] >= gridded["map_precision"] - 1e-9
+        assert gridded["map_recall_aligned"] is not None and gridded["map_doubled_walls"] is not None
 
         crashed = rows[f"tiny/large/crashy/seed-{seed}"]
         assert crashed["status"] == "error" and "crashy fails on purpose at frame 5" in crashed["error"]
@@ -171,9 +175,10 @@ def test_the_report_has_both_tables_and_the_papers_numbers(study):
         assert "crashy fails on purpose" in text
     table1 = markdown.split("### Table 1")[1].split("###")[0]
     assert re.search(r"\| odometry \| E_trans \| \*\*[0-9.]+ ± [0-9.]+\*\* \|", table1)
-    for name in ("trajectories-tiny-large", "ate-tiny", "memory-tiny", "maps-tiny-large"):
+    assert "precision, aligned" in markdown and "doubled walls" in markdown
+    for name in ("trajectories-tiny-large", "ate-tiny", "memory-tiny", "maps-tiny-large", "map-tiny-large-gridded"):
         assert (out / "report_files" / f"{name}.png").is_file() and f"report_files/{name}.png" in markdown
-    assert page.count('<img src="data:image/png;base64,') == 4 and "report_files/" not in page
+    assert page.count('<img src="data:image/png;base64,') == 5 and "report_files/" not in page
     # `longslam report` writes it again from the database alone.
     (out / "report.html").unlink()
     assert main(["report", str(out)]) == 0
@@ -319,7 +324,7 @@ def test_report_page_in_a_headless_browser(study, tmp_path):
     found = re.search(r'<pre id="check">(.*?)</pre>', dom)
     assert found, f"the page did not load: {dom[:500]}"
     check = json.loads(found.group(1).replace("&quot;", '"'))
-    assert check["images"] == 4 and check["loaded"] == 4  # every figure decoded and shown
+    assert check["images"] == 5 and check["loaded"] == 5  # every figure decoded and shown
     titles = [t["title"] for t in check["tables"]]
     assert titles[:3] == ["Table 1: accuracy", "Table 2: peak memory", "Table 3: map quality"]
     assert "The paper's Table 1 as published" in titles and "The paper's Table 2 as published" in titles

@@ -73,6 +73,14 @@ def _thin(points: list[tuple[float, float]]) -> list[list[float]]:
     return [list(map(float, points[i])) for i in idx]
 
 
+def _thin_places(xy: np.ndarray, most: int = 500) -> list[list[float]]:
+    """At most `most` of the (K, 2) doubled-wall places, to the centimetre: enough to mark them on
+    a map figure, small in the database."""
+    if len(xy) > most:
+        xy = xy[np.unique(np.linspace(0, len(xy) - 1, most).round().astype(int))]
+    return [[round(float(x), 2), round(float(y), 2)] for x, y in xy]
+
+
 def score_run(
     result: Result,
     measurements: dict[str, Any],
@@ -101,6 +109,7 @@ def score_run(
         rotation, translation, scale = alignment(est, ref, align)
         quality = map_scores(
             result.grid, grid, map_tolerance_cells, observed,
-            rotation, translation, scale, height=float(np.mean(est.positions[:, 2])),
+            rotation, translation, scale, height=float(np.mean(est.positions[:, 2])), with_places=True,
         )
+        quality["map_doubled_places"] = _thin_places(quality["map_doubled_places"])
     return {"metrics": metrics, "map_quality": quality, "error_curve": error_curve, "memory_curve": memory_curve}

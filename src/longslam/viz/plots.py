@@ -170,3 +170,44 @@ def plot_maps(
         fig.suptitle(title)
     fig.tight_layout()
     _save(fig, out, dpi=dpi)
+
+
+def plot_map_over_truth(
+    grid: GridMap,
+    truth: GridMap,
+    out: str | Path,
+    view: tuple[float, float, float, float] | None = None,
+    doubled: np.ndarray | None = None,
+    title: str = "",
+    width: float = 11.0,
+    dpi: int = 80,
+) -> None:
+    """One method's grid, large (black walls, white free, grey unknown), with the ground truth's
+    walls over it in orange and the places where the map shows a wall twice ringed in magenta,
+    over the view (xmin, xmax, ymin, ymax). The map is drawn as it is (not aligned), so a map
+    that drifted shows its walls beside the orange ones."""
+    xmin, xmax, ymin, ymax = view or grid.extent
+    aspect = (ymax - ymin) / max(xmax - xmin, 1e-6)
+    fig, ax = plt.subplots(figsize=(width, width * aspect + 0.6))
+    pixels = 0.9 * width * dpi
+    block = max(1, round((xmax - xmin) / grid.resolution / pixels))
+    image, extent = _grid_image(grid, block)
+    ax.imshow(image, origin="lower", extent=extent, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+    walls = np.zeros(truth.data.shape + (4,))
+    walls[truth.data == OCCUPIED] = (1.0, 0.5, 0.0, 0.55)  # orange, half transparent
+    ax.imshow(walls, origin="lower", extent=truth.extent, interpolation="nearest")
+    if doubled is not None and len(doubled):
+        doubled = np.asarray(doubled, dtype=np.float64).reshape(-1, 2)
+        ax.scatter(doubled[:, 0], doubled[:, 1], s=30, facecolors="none", edgecolors="magenta", linewidths=0.8,
+                   label="wall shown twice")
+        ax.legend(loc="upper right", fontsize=8)
+    ax.set_xlim(xmin, xmax)
+    ax.set_ylim(ymin, ymax)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]", fontsize=8)
+    ax.set_ylabel("y [m]", fontsize=8)
+    ax.tick_params(labelsize=7)
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    _save(fig, out, dpi=dpi)

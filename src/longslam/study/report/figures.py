@@ -35,9 +35,10 @@ def _safe(name: str) -> str:
 
 
 def make_figures(results: StudyResults) -> list[Figure]:
+    from longslam.eval.map_quality import map_scores
     from longslam.gridmap import GridMap
     from longslam.io.trajectory_files import read_tum
-    from longslam.viz.plots import plot_curves_by_distance, plot_maps, plot_plan
+    from longslam.viz.plots import plot_curves_by_distance, plot_map_over_truth, plot_maps, plot_plan
     from longslam.study.prepare import load_route_data, load_world_grid
 
     out = results.out
@@ -114,4 +115,19 @@ def make_figures(results: StudyResults) -> list[Figure]:
                 plot_maps(truth_grid, maps, out / name, view=view, path=truth_xy, captions=captions,
                           title=f"occupancy maps, route {route}, noise {noise}, first seed")
                 figures.append(Figure(name, f"Each method's occupancy grid beside the ground truth: route {route}, noise {noise} (first seed)."))
+            # Each map again, large enough to read, with the true walls over it and its doubled walls.
+            for method, grid in maps.items():
+                run = _first_seed_runs(results, route, noise)[method]
+                quality = run.get("map_quality") or {}
+                if "map_doubled_places" not in quality:
+                    # Recorded before the doubled-wall measure: measure it here, on the map as it is.
+                    tolerance = results.config.get("map_tolerance_cells", 2)
+                    quality = map_scores(grid, truth_grid, tolerance, data.observed, with_places=True)
+                name = Path(FIGURES_DIR) / f"map-{_safe(route)}-{_safe(noise)}-{_safe(method)}.png"
+                share = quality.get("map_doubled_walls")
+                more = f", walls shown twice {100 * share:.1f}%" if share is not None else ""
+                plot_map_over_truth(grid, truth_grid, out / name, view=view, doubled=quality.get("map_doubled_places"),
+                                    title=f"{method}: route {route}, noise {noise}, seed {run['seed']} ({captions[method]}{more})")
+                figures.append(Figure(name, f"{method}'s occupancy grid as it is (black), the true walls over it "
+                                            f"(orange), the walls it shows twice ringed (magenta): route {route}, noise {noise}."))
     return figures

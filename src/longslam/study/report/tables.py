@@ -59,16 +59,18 @@ class Table:
         self.row_labels.append(label)
         self.rows.append(cells)
 
-    def mark_best(self, higher_is_better: bool = False) -> None:
-        """Bold the best mean of each column among the rows of each metric."""
+    def mark_best(self, higher_is_better: bool = False, reversed_metrics: tuple[str, ...] = ()) -> None:
+        """Bold the best mean of each column among the rows of each metric (the metrics named in
+        `reversed_metrics` go the other way)."""
         metrics = {label[1] for label in self.row_labels}
         for metric in metrics:
+            higher = higher_is_better != (metric in reversed_metrics)
             indices = [i for i, label in enumerate(self.row_labels) if label[1] == metric]
             for c in range(len(self.columns)):
                 values = [(self.rows[i][c].value, i) for i in indices if self.rows[i][c].value is not None]
                 if len(values) < 2:
                     continue
-                best = max(values)[0] if higher_is_better else min(values)[0]
+                best = max(values)[0] if higher else min(values)[0]
                 for value, i in values:  # equal as shown is equal
                     self.rows[i][c].best = format_number(value) == format_number(best)
 
@@ -134,6 +136,15 @@ def memory_table(results: StudyResults) -> Table:
     )
 
 
+MAP_ROWS = (
+    ("map_precision", "precision"),
+    ("map_recall", "recall"),
+    ("map_precision_aligned", "precision, aligned"),
+    ("map_recall_aligned", "recall, aligned"),
+    ("map_doubled_walls", "doubled walls"),
+)
+
+
 def map_table(results: StudyResults) -> Table | None:
     with_maps = [m for m in results.methods if any(r["map_precision"] is not None for r in results.ok if r["method"] == m)]
     if not with_maps:
@@ -142,19 +153,26 @@ def map_table(results: StudyResults) -> Table | None:
     table = Table(
         "Table 3: map quality",
         f"Occupied cells of each method's 2D grid against the ground-truth grid, within {tolerance:g} cells "
-        "(of the coarser grid): precision (a fake corridor lowers it) and recall of the walls the camera "
-        "could see; mean ± std over the seeds; higher is better.",
+        "(of the coarser grid): precision and recall of the walls the camera could see, as the map is and "
+        "after its best planar (x, y, yaw) alignment to the ground truth (a map that drifted as a whole "
+        "loses only the first pair), and the share of those walls the aligned map shows twice, a corridor "
+        "width apart (a fake corridor; lower is better); mean ± std over the seeds; the best of each "
+        "column in bold.",
         results.columns, [],
     )
     for method in with_maps:
-        for column, label in (("map_precision", "precision"), ("map_recall", "recall")):
+        for column, label in MAP_ROWS:
             cells = []
             for route, noise in results.columns:
-                values = results.values(method, route, noise, column)
+                values = [v for r in results.ok
+                          if (r["method"], r["route"], r["noise"]) == (method, route, noise)
+                          and (v := r.get(column)) is not None]  # studies recorded before a column have none
                 cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
+            if label != "precision" and label != "recall" and all(c.value is None for c in cells):
+                continue
             table.row_labels.append((method, label))
             table.rows.append(cells)
-    table.mark_best(higher_is_better=True)
+    table.mark_best(higher_is_better=True, reversed_metrics=("doubled walls",))
     return table
 
 
