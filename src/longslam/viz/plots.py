@@ -183,7 +183,7 @@ def plot_map_over_truth(
     dpi: int = 80,
 ) -> None:
     """One method's grid, large (black walls, white free, grey unknown), with the ground truth's
-    walls over it in orange and the places where the map shows a wall twice ringed in magenta,
+    walls under its walls in orange and the places where the map shows a wall twice ringed in magenta,
     over the view (xmin, xmax, ymin, ymax). The map is drawn as it is (not aligned), so a map
     that drifted shows its walls beside the orange ones."""
     xmin, xmax, ymin, ymax = view or grid.extent
@@ -192,10 +192,19 @@ def plot_map_over_truth(
     pixels = 0.9 * width * dpi
     block = max(1, round((xmax - xmin) / grid.resolution / pixels))
     image, extent = _grid_image(grid, block)
-    ax.imshow(image, origin="lower", extent=extent, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
-    walls = np.zeros(truth.data.shape + (4,))
-    walls[truth.data == OCCUPIED] = (1.0, 0.5, 0.0, 0.55)  # orange, half transparent
-    ax.imshow(walls, origin="lower", extent=truth.extent, interpolation="nearest")
+    # Three layers: the map's free and unknown space, the true walls (orange), the map's walls
+    # (black) on top: a black wall off the orange is a wall where there is none, orange
+    # without black a wall the map missed.
+    ax.imshow(np.where(image == 0.0, 1.0, image), origin="lower", extent=extent, cmap="gray", vmin=0, vmax=1,
+              interpolation="nearest")
+    true_block = max(1, round((xmax - xmin) / truth.resolution / pixels))
+    true_walls, true_extent = _grid_image(truth, true_block)
+    walls = np.zeros(true_walls.shape + (4,))
+    walls[true_walls == 0.0] = (1.0, 0.55, 0.0, 1.0)
+    ax.imshow(walls, origin="lower", extent=true_extent, interpolation="nearest")
+    ink = np.zeros(image.shape + (4,))
+    ink[image == 0.0] = (0.0, 0.0, 0.0, 1.0)
+    ax.imshow(ink, origin="lower", extent=extent, interpolation="nearest")
     if doubled is not None and len(doubled):
         doubled = np.asarray(doubled, dtype=np.float64).reshape(-1, 2)
         ax.scatter(doubled[:, 0], doubled[:, 1], s=30, facecolors="none", edgecolors="magenta", linewidths=0.8,
