@@ -25,7 +25,8 @@ def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncatio
     return fused
 
 
-COMPACT_ROWS = 1_000_000  # cell rows gathered before duplicates are merged (grid_from_tsdf)
+COMPACT_ROWS = 250_000  # cell rows gathered before duplicates are merged (grid_from_tsdf)
+SLICE_VOXELS = 16_384  # band voxels sampled at once: bounds the interpolation's temporaries
 
 
 def grid_from_tsdf(
@@ -48,7 +49,6 @@ def grid_from_tsdf(
     height = surface[:, 2] - floor_z
     occupied_xy = surface[(height >= min_height) & (height <= max_height), :2]
     res = float(resolution)
-    near = res * np.sqrt(0.5)
     per_side = int(np.ceil(tsdf.voxel / res)) + 1
     step = np.stack(np.meshgrid(np.arange(per_side), np.arange(per_side), indexing="ij"), axis=-1).reshape(-1, 2)
     occupied_keys, free_keys = [np.floor(occupied_xy / res).astype(np.int64)], []
@@ -57,19 +57,12 @@ def grid_from_tsdf(
         band = (centres[:, 2] - floor_z >= min_height) & (centres[:, 2] - floor_z <= max_height)
         if not band.any():
             continue
-        lo_xy = ijk[band, :2] * tsdf.voxel
-        # The cells whose centres lie in each voxel's footprint [lo, lo + voxel).
-        first = np.ceil(lo_xy / res - 0.5).astype(np.int64)
-        cells = (first[:, None, :] + step[None, :, :]).reshape(-1, 2)
-        xy = (cells + 0.5) * res
-        owner = np.repeat(np.arange(len(lo_xy)), len(step))
-        inside = np.all((xy >= lo_xy[owner] - 1e-9) & (xy < lo_xy[owner] + tsdf.voxel - 1e-9), axis=1)
-        cells, xy, owner = cells[inside], xy[inside], owner[inside]
-        z = centres[band, 2][owner]
-        distance, _, valid = tsdf.interpolate(np.column_stack([xy, z]))
-        distance = np.where(valid, distance, sdf[band][owner])
-        occupied_keys.append(_unique_rows(cells[np.abs(distance) <= near]))
-        free_keys.append(_unique_rows(cells[distance > near]))
+        in_band = np.flatnonzero(band)
+        for part in range(0, len(in_band), SLICE_VOXELS):
+            pick = in_band[part:part + SLICE_VOXELS]
+            occupied_part, free_part = _slice_cells(tsdf, ijk[pick], sdf[pick], centres[pick, 2], res, step)
+            occupied_keys.append(occupied_part)
+            free_keys.append(free_part)
         # A cell is sampled once per voxel layer and chunk: merge as the lists grow, so that
         # only about one row per cell is held however long the route.
         for keys in (occupied_keys, free_keys):
@@ -86,6 +79,25 @@ def grid_from_tsdf(
     data[free[:, 1] - lo[1], free[:, 0] - lo[0]] = FREE
     data[occupied[:, 1] - lo[1], occupied[:, 0] - lo[0]] = OCCUPIED
     return GridMap(data, res, (float(lo[0] * res), float(lo[1] * res)))
+
+
+def _slice_cells(
+    tsdf: TSDF, ijk: np.ndarray, sdf: np.ndarray, z: np.ndarray, res: float, step: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(occupied, free) grid cells under some band voxels (`grid_from_tsdf`): the cells whose
+    centres lie in each voxel's footprint, sampled at the voxel's height."""
+    near = res * np.sqrt(0.5)
+    lo_xy = ijk[:, :2] * tsdf.voxel
+    # The cells whose centres lie in each voxel's footprint [lo, lo + voxel).
+    first = np.ceil(lo_xy / res - 0.5).astype(np.int64)
+    cells = (first[:, None, :] + step[None, :, :]).reshape(-1, 2)
+    xy = (cells + 0.5) * res
+    owner = np.repeat(np.arange(len(lo_xy)), len(step))
+    inside = np.all((xy >= lo_xy[owner] - 1e-9) & (xy < lo_xy[owner] + tsdf.voxel - 1e-9), axis=1)
+    cells, xy, owner = cells[inside], xy[inside], owner[inside]
+    distance, _, valid = tsdf.interpolate(np.column_stack([xy, z[owner]]))
+    distance = np.where(valid, distance, sdf[owner])
+    return _unique_rows(cells[np.abs(distance) <= near]), _unique_rows(cells[distance > near])
 
 
 def _unique_rows(cells: np.ndarray) -> np.ndarray:
