@@ -23,6 +23,7 @@ from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
 from longslam.run.folder import write_result
+from longslam.run.read_ahead import read_ahead
 from longslam.settings import to_mapping
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.catalog import get_spec
@@ -44,6 +45,9 @@ def run_frames(
     spec = get_spec(method_name)
     config = spec.config(params)
     method = spec.build(context, config)
+    images = tuple(getattr(method, "images_every_frame", ()))
+    if images:
+        frames = read_ahead(frames, images)
     step_times: list[float] = []
     rss_samples: list[tuple[int, int]] = []
     first_t = last_t = None
