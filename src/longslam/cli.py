@@ -147,7 +147,7 @@ def cmd_list(args: argparse.Namespace) -> None:
     from longslam.slam.catalog import method_names
     from longslam.world import WORLDS
 
-    print("worlds:      ", ", ".join(WORLDS.names()))
+    print("worlds:      ", ", ".join(WORLDS.names()), "(or a mesh file: --world FILE)")
     print("routes:      ", ", ".join(ROUTES.names()))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
     print("methods:     ", ", ".join(method_names()))
