@@ -107,7 +107,9 @@ def write_building(folder: Path, seed: int = 0) -> tuple[Path, Path]:
     uv = uv.reshape(-1, 2)
     uv[:, 1] = 1.0 - uv[:, 1]  # trimesh's uvs have v up
     y_up = np.column_stack([vertices[:, 0], vertices[:, 2], -vertices[:, 1]])
-    visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(image))
+    # A colour factor of 1: trimesh would otherwise write its default diffuse, 0.4, which glTF multiplies in.
+    material = trimesh.visual.material.PBRMaterial(baseColorTexture=Image.fromarray(image), baseColorFactor=[255, 255, 255, 255])
+    visual = trimesh.visual.TextureVisuals(uv=uv, material=material)
     glb = folder / "building.glb"
     trimesh.Trimesh(y_up, faces, visual=visual, process=False).export(glb)
     return ply, glb

@@ -227,3 +227,38 @@ def test_study_world_is_a_mesh_relative_to_the_study_file(folder, tmp_path):
         study.write_text(text + 'noise = ["small"]\nmethods = ["odometry"]\nseeds = 1\n')
         with pytest.raises(StudyConfigError, match=message):
             load_study(study, ["odometry"])
+
+
+def test_a_scene_of_textured_and_coloured_parts_becomes_one_textured_mesh(tmp_path):
+    from PIL import Image
+
+    from longslam.world.mesh_file import read_mesh_file
+
+    image = np.zeros((4, 4, 3), np.uint8)
+    image[:2, :2], image[:2, 2:], image[2:, :2], image[2:, 2:] = (255, 0, 0), (0, 255, 0), (0, 0, 255), (255, 255, 0)
+    # A factor of 1: trimesh would otherwise write its default diffuse, 0.4, which glTF multiplies in.
+    material = trimesh.visual.material.PBRMaterial(baseColorTexture=Image.fromarray(image), baseColorFactor=[255, 255, 255, 255])
+    visual = trimesh.visual.TextureVisuals(uv=[[0, 0], [1, 0], [1, 1], [0, 1]], material=material)
+    quad = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]], visual=visual, process=False)
+    box = trimesh.creation.box((1, 1, 1))
+    box.visual.face_colors = np.tile([10, 200, 30, 255], (12, 1))
+    scene = trimesh.Scene()
+    scene.add_geometry(quad, node_name="quad")
+    scene.add_geometry(box, node_name="box", transform=trimesh.transformations.translation_matrix((3.0, 0.0, 0.0)))
+    scene.export(tmp_path / "mix.glb")
+    mesh = read_mesh_file(tmp_path / "mix.glb")
+    assert mesh.is_textured and len(mesh.triangles) == 14
+    # The node's transform is applied: the box is centred on x = 3 (in the file's y-up axes).
+    centres = mesh.vertices[mesh.triangles].mean(axis=1)
+    on_box = centres[:, 0] > 2.0
+    assert on_box.sum() == 12 and np.allclose(mesh.vertices[mesh.triangles[on_box]][..., 0].mean(), 3.0)
+    # Each triangle's texels: the box's face colour, the quad's corner colours (uv v up: texel row 0 is v = 1).
+    def texel(u, v):
+        return tuple(mesh.texture[int(v), int(u)])
+    box_uv = mesh.triangle_uvs[on_box].reshape(-1, 2)
+    assert {texel(u, v) for u, v in box_uv} == {(10, 200, 30)}
+    quad_uv = mesh.triangle_uvs[~on_box].mean(axis=1)  # each triangle's centre of texture
+    # Corners (0, 0), (1, 0), (1, 1): the lower right half, centre (2/3, 1/3) -> the yellow quarter.
+    assert texel(*quad_uv[0]) == (255, 255, 0)
+    # Corners (0, 0), (1, 1), (0, 1): centre (1/3, 2/3) -> the red quarter.
+    assert texel(*quad_uv[1]) == (255, 0, 0)

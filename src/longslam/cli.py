@@ -66,13 +66,13 @@ def _world(args: argparse.Namespace, value: str | None) -> str | None:
         if options:
             raise LongslamError(f"--{next(iter(options))} describes a mesh file, not the world {value!r}")
         return value
-    return world_ref({"mesh": value, **options}, what="--world")
+    return world_ref({"mesh": value, **options} if options else value, what="--world")
 
 
-def _describe_world(world) -> str:
-    if world.plan is not None:
-        return f"world {world.name}"
-    return f"world {world.name} (floor at z = {world.source_floor_z:.3f} m in the mesh file)"
+def _describe_world(name: str, mesh_floor_z: float | None) -> str:
+    if mesh_floor_z is None:
+        return f"world {name}"
+    return f"world {name} (floor at z = {mesh_floor_z:.3f} m in the mesh file)"
 
 
 def cmd_world(args: argparse.Namespace) -> None:
@@ -95,19 +95,22 @@ def cmd_world(args: argparse.Namespace) -> None:
         waypoints = route.resolve(world.places)
         title += f", route {route.name}: {len(waypoints)} waypoints, {driven.length:.1f} m"
     plot_plan(world.occupancy, args.out, paths, waypoints=waypoints, title=title)
-    print(f"wrote {args.out}: {_describe_world(world)}")
+    print(f"wrote {args.out}: {_describe_world(world.name, None if world.plan else world.source_floor_z)}")
 
 
 def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.sim.noise import get_noise
     from longslam.sim.routes import get_route
+    from longslam.io.sequence import SequenceReader
     from longslam.recording import simulate
-    from longslam.world import load_world
+    from longslam.world import world_label
 
     route = get_route(args.route, _world(args, args.world))
     noise = get_noise(args.noise)
     out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite)
-    print(f"wrote sequence {out}: route {route.name} in {_describe_world(load_world(route.world))}")
+    meta = SequenceReader(out).meta  # renders cached before meta had world_name: the route's world
+    name = meta.get("world_name") or world_label(route.world)
+    print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}")
 
 
 def cmd_run(args: argparse.Namespace) -> None:

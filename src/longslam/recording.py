@@ -31,7 +31,7 @@ from longslam.sim.noise import BiasNoise
 from longslam.sim.routes import Route
 from longslam.trajectory import Trajectory
 from longslam.world import load_world, world_key
-from longslam.world.source import world_identity
+from longslam.world.source import is_mesh_ref, world_identity
 
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1
@@ -80,6 +80,8 @@ def rendered_sequence(
     renderer = RGBDCamera(world.mesh, camera)
     meta = {
         "world": route.world,
+        "world_name": world.name,
+        **({"mesh_floor_z": world.source_floor_z} if is_mesh_ref(route.world) else {}),  # moved to z = 0
         "route": route.name,
         "waypoints": route.waypoints_json(),
         "camera": asdict(camera),

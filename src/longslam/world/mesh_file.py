@@ -55,7 +55,7 @@ def read_mesh_file(path: str | Path) -> WorldMesh:
         raise InputError(
             f"mesh file {path} has no triangles (expected a PLY, OBJ, GLB/glTF, OFF or STL file with faces)"
         )
-    mesh = _combine(parts)
+    mesh = _combine(parts, path)
     if not np.all(np.isfinite(mesh.vertices)):
         raise InputError(f"mesh file {path} has vertices that are not finite numbers")
     return mesh
@@ -89,12 +89,12 @@ def _part(geometry, transform: np.ndarray) -> _Part:
     return _Part(vertices, faces, colors=np.tile(np.array(GREY, np.uint8), (len(vertices), 1)))
 
 
-def _combine(parts: list[_Part]) -> WorldMesh:
+def _combine(parts: list[_Part], path: Path) -> WorldMesh:
     offsets = np.cumsum([0] + [len(p.vertices) for p in parts])
     vertices = np.concatenate([p.vertices for p in parts])
     triangles = np.concatenate([p.faces + o for p, o in zip(parts, offsets)])
     if triangles.min() < 0 or triangles.max() >= len(vertices):
-        raise InputError("mesh has triangles that index missing vertices")
+        raise InputError(f"mesh file {path} has triangles that index missing vertices")
     if not any(p.image is not None for p in parts):
         return WorldMesh(vertices, triangles, vertex_colors=np.concatenate([p.colors for p in parts]))
     # Some parts are textured: the renderer takes one texture for all triangles, so a coloured
