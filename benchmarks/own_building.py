@@ -3,6 +3,7 @@ method's accuracy, memory and speed on a route through it.
 
     python benchmarks/own_building.py                                  # the test building (wing at 30 degrees)
     python benchmarks/own_building.py --route myroute.json --seeds 0 1 2 --compare demo
+    python benchmarks/own_building.py --render-only                    # loading and render speed, seconds
 
 Without --route, the test suite's generated building (tests/building_mesh.py: a hall and a wing
 at 30 degrees, written as GLB) is written to a temporary folder with a 49 m loop route through
@@ -78,6 +79,7 @@ def main() -> None:
     parser.add_argument("--noise", default="large")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--work", help="folder for sequences and runs (default: a temporary folder)")
+    parser.add_argument("--render-only", action="store_true", help="loading and render speed only, no methods")
     args = parser.parse_args()
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -89,6 +91,8 @@ def main() -> None:
             fps, info = render_speed(name)
             print(f"| {Path(name).stem} | {info['world']} | {info['triangles']} | {info['load_s']:.2f} | "
                   f"{info['route_m']:.1f} | {info['frames']} | {fps:.0f} |")
+        if args.render_only:
+            return
         print(f"\nnoise {args.noise}, seeds {' '.join(map(str, args.seeds))}: mean +- std\n")
         print("| route | method | ATE [m] | E_trans | E_rot [deg/m] | peak RSS [MB] | real-time factor |")
         print("|---|---|---|---|---|---|---|")
