@@ -41,34 +41,76 @@ def _params(pairs: list[str]) -> dict:
     return parse_key_values(pairs)
 
 
+MESH_OPTIONS = ("floor", "units", "up", "places")
+
+
+def _world_args(parser: argparse.ArgumentParser, default: str | None) -> None:
+    shown = f" (default {default})" if default else " (default: the route's world)"
+    parser.add_argument("--world", help=f"world name (see `longslam list`) or a mesh file (PLY, OBJ, GLB/glTF){shown}")
+    parser.add_argument("--floor", type=float, help="floor height of a mesh in metres, once turned z-up (default: found)")
+    parser.add_argument("--units", choices=("m", "cm", "mm"), help="length unit of a mesh file (default m)")
+    parser.add_argument("--up", choices=("z", "y"), help="up axis of a mesh file (default y for GLB/glTF, z otherwise)")
+    parser.add_argument("--places", help="places file of a mesh: JSON {\"name\": [x, y], ...}")
+
+
+def _world(args: argparse.Namespace, value: str | None) -> str | None:
+    """The world reference the options give, or None if they name no world."""
+    from longslam.world import WORLDS, world_ref
+
+    options = {k: getattr(args, k) for k in MESH_OPTIONS if getattr(args, k) is not None}
+    if value is None:
+        if options:
+            raise LongslamError(f"--{next(iter(options))} describes a mesh file: give it with --world FILE")
+        return None
+    if value in WORLDS:
+        if options:
+            raise LongslamError(f"--{next(iter(options))} describes a mesh file, not the world {value!r}")
+        return value
+    return world_ref({"mesh": value, **options} if options else value, what="--world")
+
+
+def _describe_world(name: str, mesh_floor_z: float | None) -> str:
+    if mesh_floor_z is None:
+        return f"world {name}"
+    return f"world {name} (floor at z = {mesh_floor_z:.3f} m in the mesh file)"
+
+
 def cmd_world(args: argparse.Namespace) -> None:
     from longslam.sim.drive import drive_route
     from longslam.sim.routes import get_route
     from longslam.io.paths import PLOT_SUFFIXES, check_output_file
     from longslam.viz.plots import plot_plan
-    from longslam.world import get_world, load_mesh_world
+    from longslam.world import load_world
 
     check_output_file(args.out, PLOT_SUFFIXES, "--out")
-    world = load_mesh_world(args.mesh, args.floor) if args.mesh else get_world(args.world)
+    if args.mesh and args.world:
+        raise LongslamError("give the world once: --world NAME_OR_FILE (--mesh FILE is the same)")
+    ref = _world(args, args.mesh or args.world)
+    route = get_route(args.route, ref) if args.route else None
+    world = load_world(ref or (route.world if route else "university"))
     paths, waypoints, title = {}, None, f"world {world.name}"
-    if args.route:
-        route = get_route(args.route)
+    if route:
         driven = drive_route(world, route)
         paths[f"route {route.name} ({driven.length:.0f} m)"] = driven.xyyaw[:, :2]
         waypoints = route.resolve(world.places)
         title += f", route {route.name}: {len(waypoints)} waypoints, {driven.length:.1f} m"
     plot_plan(world.occupancy, args.out, paths, waypoints=waypoints, title=title)
-    print(f"wrote {args.out}")
+    print(f"wrote {args.out}: {_describe_world(world.name, None if world.plan else world.source_floor_z)}")
 
 
 def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.sim.noise import get_noise
     from longslam.sim.routes import get_route
+    from longslam.io.sequence import SequenceReader
     from longslam.recording import simulate
+    from longslam.world import world_label
 
-    route, noise = get_route(args.route), get_noise(args.noise)
+    route = get_route(args.route, _world(args, args.world))
+    noise = get_noise(args.noise)
     out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite)
-    print(f"wrote sequence {out}")
+    meta = SequenceReader(out).meta  # renders cached before meta had world_name: the route's world
+    name = meta.get("world_name") or world_label(route.world)
+    print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}")
 
 
 def cmd_run(args: argparse.Namespace) -> None:
@@ -108,7 +150,7 @@ def cmd_list(args: argparse.Namespace) -> None:
     from longslam.slam.catalog import method_names
     from longslam.world import WORLDS
 
-    print("worlds:      ", ", ".join(WORLDS.names()))
+    print("worlds:      ", ", ".join(WORLDS.names()), "(or a mesh file: --world FILE)")
     print("routes:      ", ", ".join(ROUTES.names()))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
     print("methods:     ", ", ".join(method_names()))
@@ -146,15 +188,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("world", help="draw a world's floor plan, optionally with a route")
-    p.add_argument("--world", default="university", help="world name (default university)")
-    p.add_argument("--mesh", help="load a building from a mesh file (PLY/OBJ/GLB) instead")
-    p.add_argument("--floor", type=float, default=0.0, help="floor height of --mesh in metres")
+    _world_args(p, "university, or the route file's")
+    p.add_argument("--mesh", help="a mesh file: the same as --world FILE")
     p.add_argument("--route", help="a route name or a waypoint file to draw")
     p.add_argument("--out", required=True, help="image file to write (e.g. plan.png)")
     p.set_defaults(func=cmd_world)
 
     p = sub.add_parser("simulate", help="render a route with noisy odometry into a TUM RGB-D sequence")
     p.add_argument("--route", required=True, help="route name (see `longslam list`) or a waypoint file")
+    _world_args(p, None)
     p.add_argument("--noise", default="none", help="odometry noise level (none, small, medium, large, xlarge)")
     p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise")
     p.add_argument("--out", required=True, help="sequence folder to write")

@@ -15,7 +15,7 @@ from longslam.sim.routes import get_route
 from longslam.recording import simulate
 from longslam.slam.catalog import method_names
 from longslam.viz.plots import plot_plan
-from longslam.world import get_world
+from longslam.world import load_world
 
 COLUMNS = ("method", "ATE [m]", "E_trans", "E_rot [deg/m]", "peak RSS [MB]", "real-time factor")
 
@@ -63,7 +63,7 @@ def run_demo(
         estimate = read_tum(run_dir / TRAJECTORY)
         rows.append({"method": name, **scores, **{k: measurements[k] for k in ("peak_rss_bytes", "real_time_factor")}})
         paths[name] = estimate.positions[:, :2]
-    world = get_world(route.world)
+    world = load_world(route.world)
     plot = out / "trajectories.png"
     waypoints = route.resolve(world.places)
     plot_plan(world.occupancy, plot, paths, waypoints=waypoints, title=f"route {route.name}, noise {noise.name}, seed {seed}", zoom_margin=6.0)
