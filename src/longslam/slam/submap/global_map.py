@@ -21,11 +21,13 @@ def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncatio
     where the submaps' distances are averaged by weight."""
     fused = TSDF(voxel, truncation)
     for tsdf, pose in submaps:
-        ijk, sdf, weight = tsdf.observed()
-        if not len(ijk):
-            continue
-        centres = (ijk + 0.5) * tsdf.voxel
-        fused.merge(centres @ pose[:3, :3].T + pose[:3, 3], sdf, weight)
+        # A few blocks at a time: a whole submap's voxels as float64 index, centre and moved-centre
+        # arrays raised the 1 km run's peak by 40 MB.
+        for ijk, sdf, weight in tsdf.observed_chunks():
+            if not len(ijk):
+                continue
+            centres = (ijk + 0.5) * tsdf.voxel
+            fused.merge(centres @ pose[:3, :3].T + pose[:3, 3], sdf, weight)
     return fused
 
 
