@@ -93,6 +93,35 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
 
 
+def cmd_export(args: argparse.Namespace) -> None:
+    from longslam.io.rosbag.export import export_sequence
+
+    summary = export_sequence(
+        args.sequence, args.out, fmt=args.format, depth_encoding=args.depth_encoding, storage=args.storage,
+        compress=args.compress, odom_noise=args.odom_noise, camera_height=args.camera_height, overwrite=args.overwrite,
+    )
+    line = f"wrote {summary.path}: {summary.frames} frames, {summary.messages} messages, {summary.bytes / 1e6:.1f} MB"
+    if summary.linear_variance is not None:
+        line += (f"; odometry covariance per step: forward {summary.linear_variance:.3g} m^2, "
+                 f"yaw {summary.yaw_variance:.3g} rad^2")
+    print(line)
+
+
+def cmd_import(args: argparse.Namespace) -> None:
+    from longslam.io.rosbag.import_ import Topics, import_bag
+
+    topics = Topics(args.rgb, args.depth, args.camera_info, args.odom, args.groundtruth)
+    summary = import_bag(args.bag, args.out, topics, max_diff=args.max_diff, max_depth=args.max_depth,
+                         groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite)
+    t = summary.topics
+    print(f"wrote sequence {summary.path}: {summary.frames} frames from {t.rgb} ({summary.rgb_messages} messages) "
+          f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info}; "
+          f"odometry {'from ' + t.odom if summary.odometry else 'none'}; "
+          f"ground truth {'from ' + t.groundtruth if summary.groundtruth else 'none'}")
+    for note in summary.notes:
+        print(f"note: {note}", file=sys.stderr)
+
+
 def cmd_demo(args: argparse.Namespace) -> None:
     from longslam.demo import format_table, run_demo
 
@@ -179,6 +208,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-diff", type=float, default=0.01, help="timestamp matching tolerance in seconds")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("export", help="write a sequence as a ROS 1 or ROS 2 bag (needs longslam[ros])")
+    p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")
+    p.add_argument("--format", default="ros2", choices=("ros1", "ros2"), help="ros2: a bag folder (default); ros1: a .bag file")
+    p.add_argument("--out", required=True, help="bag to write: a folder for ros2, a file ending in .bag for ros1")
+    p.add_argument("--depth-encoding", default="32FC1", choices=("32FC1", "16UC1"),
+                   help="32FC1: metres, lossless (default); 16UC1: millimetres, half the size")
+    p.add_argument("--storage", default="sqlite3", choices=("sqlite3", "mcap"), help="ROS 2 storage (default sqlite3)")
+    p.add_argument("--compress", action="store_true", help="compress: zstd per message (ros2), lz4 chunks (ros1)")
+    p.add_argument("--odom-noise", metavar="LEVEL", help="noise level for the odometry covariance (default: the sequence's meta.json)")
+    p.add_argument("--camera-height", type=float, help="camera above base_link in metres (default: the sequence's)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing bag")
+    p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("import", help="turn a ROS 1 or ROS 2 bag into a sequence folder (needs longslam[ros])")
+    p.add_argument("bag", help="a .bag file (ROS 1) or a bag folder (ROS 2)")
+    p.add_argument("--out", required=True, help="sequence folder to write")
+    p.add_argument("--rgb", metavar="TOPIC", help="colour images (sensor_msgs/Image or CompressedImage)")
+    p.add_argument("--depth", metavar="TOPIC", help="depth images registered to the colour camera (32FC1 m or 16UC1 mm)")
+    p.add_argument("--camera-info", metavar="TOPIC", help="the colour camera's sensor_msgs/CameraInfo")
+    p.add_argument("--odom", metavar="TOPIC", help="wheel odometry (nav_msgs/Odometry)")
+    p.add_argument("--groundtruth", metavar="TOPIC", help="ground truth (nav_msgs/Odometry or geometry_msgs/PoseStamped)")
+    p.add_argument("--groundtruth-frame", metavar="FRAME",
+                   help="the frame a PoseStamped ground truth is the pose of (default: the odometry's child frame)")
+    p.add_argument("--max-diff", type=float, default=0.02, help="colour-depth pairing tolerance in seconds (default 0.02)")
+    p.add_argument("--max-depth", type=float, help="depth range in metres; farther is 'no return' (default 13.107, the 16-bit limit)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    p.set_defaults(func=cmd_import)
 
     p = sub.add_parser("demo", help="the demo route at large noise with every method: a table and a plot")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
