@@ -10,15 +10,15 @@
 
 from __future__ import annotations
 
+import importlib.util
+
 from longslam.errors import InputError
 
 
 def require_rosbags() -> None:
     """Refuse clearly when the optional dependency is missing."""
-    try:
-        import rosbags  # noqa: F401
-    except ImportError:
+    if importlib.util.find_spec("rosbags") is None:
         raise InputError(
             "ROS bags need the rosbags package: pip install 'longslam[ros]' "
             "(or the version pinned in requirements.lock)"
-        ) from None
+        )

@@ -248,7 +248,7 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
     gt_next = 0
     zero_cov = np.zeros((6, 6))
     frame_dt = float(np.median(np.diff(reader.timestamps))) if len(reader) > 1 else 0.1
-    previous_base = None
+    previous_base, previous_t = None, 0.0
     for i in range(len(reader)):
         t = float(reader.timestamps[i])
         ns = stamp_ns(t, offset)
