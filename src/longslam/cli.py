@@ -74,11 +74,16 @@ def cmd_simulate(args: argparse.Namespace) -> None:
 def cmd_run(args: argparse.Namespace) -> None:
     from longslam.run.engine import run_sequence
 
+    if args.viz is not None:
+        from longslam.viz.live import check_target
+
+        check_target(args.viz)
     measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
-                                intrinsics=args.intrinsics)
+                                intrinsics=args.intrinsics, viz=args.viz)
     print(
         f"wrote {args.out}: {measurements['frames']} frames, real-time factor {measurements['real_time_factor']:.1f}, "
         f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
+        + (f", live view {measurements['observer_time_s']:.1f} s" if "observer_time_s" in measurements else "")
     )
 
 
@@ -125,7 +130,11 @@ def cmd_import(args: argparse.Namespace) -> None:
 def cmd_demo(args: argparse.Namespace) -> None:
     from longslam.demo import format_table, run_demo
 
-    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args))
+    if args.viz is not None:
+        from longslam.viz.live import check_target
+
+        check_target(args.viz)
+    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz)
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")
@@ -199,6 +208,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                    help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)")
+    p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
+                   help="show the run live in a rerun viewer, or record it to FILE.rrd (needs longslam[viz])")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("evaluate", help="score a trajectory (TUM or KITTI) against ground truth")
@@ -242,6 +253,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--route", default="demo")
     p.add_argument("--noise", default="large")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
+                   help="show each method's run live in a rerun viewer, or record FILE-<method>.rrd (needs longslam[viz])")
     _camera_args(p)
     p.set_defaults(func=cmd_demo)
 
