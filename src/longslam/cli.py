@@ -90,11 +90,14 @@ def cmd_run(args: argparse.Namespace) -> None:
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from longslam.run.score import score_files
 
-    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff)
+    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff, min_step=args.min_step)
     if args.json:
         print(json.dumps(scores, allow_nan=False))
         return
     for key, value in scores.items():
+        if value is None:  # e_trans, e_rot: no step long enough; rpe: a path under one segment
+            value = ("undefined: the ground truth's path is shorter than the 1 m segment" if key.startswith("rpe")
+                     else f"undefined: no ground-truth step of {args.min_step} m or more (see --min-step)")
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
 
 
@@ -218,6 +221,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--align", default="none", choices=("none", "se3", "sim3"), help="alignment for APE (default none)")
     p.add_argument("--max-diff", type=float, default=0.01, help="timestamp matching tolerance in seconds")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--min-step", type=float, default=0.01,
+                   help="E_trans and E_rot leave out ground-truth steps shorter than this, in metres (default 0.01)")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("export", help="write a sequence as a ROS 1 or ROS 2 bag (needs longslam[ros])")
