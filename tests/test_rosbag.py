@@ -99,6 +99,9 @@ def test_odometry_covariance_is_the_noise_models_per_step_variance(sequence, tmp
     cov = messages[5].pose.covariance.reshape(6, 6)
     assert cov[0, 0] == pytest.approx(linear) and cov[5, 5] == pytest.approx(yaw)
     assert np.all(np.diag(cov)[1:5] > 0) and np.all(np.diag(cov)[1:5] < 1e-8)
+    # twist: the velocity's variance, per step / dt^2 (frames 0.1 s apart)
+    twist = messages[5].twist.covariance.reshape(6, 6)
+    assert twist[0, 0] == pytest.approx(linear / 0.01) and twist[5, 5] == pytest.approx(yaw / 0.01)
     assert messages[5].child_frame_id == "base_link" and messages[5].header.frame_id == "odom"
     # base_link sits on the floor under the camera: z = 0 while the odometry camera is at 1.25 m
     assert messages[5].pose.pose.position.z == pytest.approx(0.0, abs=1e-9)
@@ -120,6 +123,10 @@ def test_the_noise_models_step_error_has_the_stated_variance():
     linear, yaw = noise.step_variances()
     assert np.var(forward_error) == pytest.approx(linear, rel=0.1)
     assert np.var(yaw_error) == pytest.approx(yaw, rel=0.1)
+    # 1 s (10 steps) inside one 10 s period: the bias adds up coherently, 10^2 times a step's
+    # variance (what the twist covariance gives a 1 Hz link), not 10 times
+    one_second = forward_error[: (n - 1) // 100 * 100].reshape(-1, 10, 10)[:, 3, :].sum(axis=1)
+    assert np.var(one_second) == pytest.approx(100 * linear, rel=0.1)
 
 
 # --- a bag as a robot records it, written with rosbags' own writer ----------------------------

@@ -272,8 +272,9 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
                 dt = t - previous_t
                 step = xyyaw_of_transform(invert(previous_base) @ base)  # in base_link at the step's start
                 linear[:2], angular[2] = step[:2] / dt, step[2] / dt
-            # pose.covariance: the covariance of one step (RTAB-Map reads the odometry message's
-            # pose covariance as that of the motion since the previous message); twist: per second.
+            # pose.covariance: one step's; twist.covariance: the velocity's (per step / dt^2). As
+            # the bias holds for 10 s, a stretch of T s inside one period has twist variance x T^2:
+            # RTAB-Map, which takes twist.covariance as a link's, gets its 1 Hz links right.
             bag.write(odom_c, ns, b.odometry(base, ns, ODOM_FRAME, BASE_FRAME, pose_cov, linear, angular, pose_cov / dt**2))
             bag.write(tf_c, ns, b.tf([(ODOM_FRAME, BASE_FRAME, base, ns)]))
             previous_base, previous_t = base, t
