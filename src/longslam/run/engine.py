@@ -24,6 +24,7 @@ from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
 from longslam.run.folder import write_result
 from longslam.run.observer import RunObserver
+from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.settings import to_mapping
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.catalog import get_spec
@@ -49,6 +50,10 @@ def run_frames(
     spec = get_spec(method_name)
     config = spec.config(params)
     method = spec.build(context, config)
+    wanted = set(getattr(method, "images_every_frame", ())) | set(getattr(observer, "images_every_frame", ()))
+    images = tuple(name for name in IMAGES if name in wanted)
+    if images:
+        frames = read_ahead(frames, images)
     step_times: list[float] = []
     rss_samples: list[tuple[int, int]] = []
     first_t = last_t = None

@@ -2,7 +2,9 @@
 
 An observer sees each frame and the pose the method returned for it, and may read the method's
 public state (a `graph` attribute, say); it must not change either. Its time is measured apart
-from the method's, so the method's own figures stay the same whether it watches or not.
+from the method's, so the method's own figures stay the same whether it watches or not. Like a
+method, it may set `images_every_frame` (e.g. ("rgb", "depth")): the engine then decodes those
+ahead on its second thread (run/read_ahead.py) instead of the observer waiting for them.
 """
 
 from __future__ import annotations

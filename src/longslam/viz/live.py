@@ -64,6 +64,8 @@ def check_target(target: str) -> None:
 class LiveView:
     """Streams a run to rerun. Use as a context manager; a .rrd file appears only when complete."""
 
+    images_every_frame = ("rgb", "depth")  # shown every frame: the engine decodes them ahead
+
     def __init__(self, target: str, name: str, truth: Trajectory | None = None, every: int = 10, map_stride: int = 8):
         check_target(target)
         self.rr = require_rerun()
