@@ -291,3 +291,24 @@ def test_cli_export_and_import(sequence, tmp_path, capsys):
     assert "--depth /none: no such topic" in capsys.readouterr().err
     assert typestore_for("ros1").types["tf2_msgs/msg/TFMessage"]  # the ROS 1 store gets tf2_msgs
     np.testing.assert_allclose(SequenceReader(tmp_path / "back").odometry.poses, SequenceReader(sequence).odometry.poses, atol=1e-6)
+
+
+def test_tf_buffer_chains_and_interpolates():
+    from longslam.io.rosbag.tf import TfBuffer
+
+    tf = TfBuffer("test", max_gap_ns=10**9)
+    mount = base_to_camera(1.0)
+    tf.add("base", "camera", mount, 0, static=True)
+    for k, x in enumerate((0.0, 1.0)):  # odom -> base moves 1 m and turns 90 degrees in 0.5 s
+        pose = planar_poses(np.array([[x, 0.0, k * np.pi / 2]]))[0]
+        tf.add("odom", "base", pose, k * 500_000_000, static=False)
+    np.testing.assert_allclose(tf.lookup("base", "camera", 123), mount)  # static only: any stamp
+    mid = tf.lookup("odom", "camera", 250_000_000)
+    np.testing.assert_allclose(mid, planar_poses(np.array([[0.5, 0.0, np.pi / 4]]))[0] @ mount, atol=1e-12)
+    np.testing.assert_allclose(tf.lookup("camera", "odom", 250_000_000), np.linalg.inv(mid), atol=1e-12)
+    with pytest.raises(InputError, match=r"no TF path from 'odom' to 'map'.*frames seen: base, camera, odom"):
+        tf.lookup("odom", "map", 0)
+    with pytest.raises(InputError, match=r"TF odom -> base.*gap|no pose near t=5"):
+        tf.lookup("odom", "camera", 5 * 10**9)
+    with pytest.raises(InputError, match="more than one parent"):
+        tf.add("map", "base", mount, 0, static=True)

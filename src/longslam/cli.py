@@ -101,13 +101,29 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
 
 
+def _progress_bar(desc: str):
+    """A tqdm bar and the (done, total) callback that moves it."""
+    from tqdm import tqdm
+
+    bar = tqdm(desc=desc, unit="frame", leave=False)
+
+    def update(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    return bar, update
+
+
 def cmd_export(args: argparse.Namespace) -> None:
     from longslam.io.rosbag.export import export_sequence
 
-    summary = export_sequence(
-        args.sequence, args.out, fmt=args.format, depth_encoding=args.depth_encoding, storage=args.storage,
-        compress=args.compress, odom_noise=args.odom_noise, camera_height=args.camera_height, overwrite=args.overwrite,
-    )
+    bar, update = _progress_bar("export")
+    with bar:
+        summary = export_sequence(
+            args.sequence, args.out, fmt=args.format, depth_encoding=args.depth_encoding, storage=args.storage,
+            compress=args.compress, odom_noise=args.odom_noise, camera_height=args.camera_height,
+            overwrite=args.overwrite, progress=update,
+        )
     line = f"wrote {summary.path}: {summary.frames} frames, {summary.messages} messages, {summary.bytes / 1e6:.1f} MB"
     if summary.linear_variance is not None:
         line += (f"; odometry covariance per step: forward {summary.linear_variance:.3g} m^2, "
@@ -119,8 +135,10 @@ def cmd_import(args: argparse.Namespace) -> None:
     from longslam.io.rosbag.import_ import Topics, import_bag
 
     topics = Topics(args.rgb, args.depth, args.camera_info, args.odom, args.groundtruth)
-    summary = import_bag(args.bag, args.out, topics, max_diff=args.max_diff, max_depth=args.max_depth,
-                         groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite)
+    bar, update = _progress_bar("import")
+    with bar:
+        summary = import_bag(args.bag, args.out, topics, max_diff=args.max_diff, max_depth=args.max_depth,
+                             groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite, progress=update)
     t = summary.topics
     print(f"wrote sequence {summary.path}: {summary.frames} frames from {t.rgb} ({summary.rgb_messages} messages) "
           f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info}; "

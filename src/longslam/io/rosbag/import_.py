@@ -130,6 +130,7 @@ def _longslam_meta(bag: _Bag) -> dict:
 def _choose_topics(bag: _Bag, given: Topics, meta: dict) -> Topics:
     """Each role's topic: given, else the longslam bag's own, else the one of its type."""
     named = meta.get("topics", {}) if isinstance(meta.get("topics"), dict) else {}
+    named = {role: topic for role, topic in named.items() if topic in bag.types}  # a filtered copy may lack some
     images = [t for t, m in bag.types.items() if m in (IMAGE, COMPRESSED_IMAGE)]
 
     def is_depth(topic: str) -> bool:

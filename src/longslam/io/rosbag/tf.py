@@ -7,6 +7,7 @@ and moving links (a moving link interpolated between its two nearest transforms)
 from __future__ import annotations
 
 from collections import defaultdict
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -63,7 +64,7 @@ class TfBuffer:
         self.source = source
         self.max_gap_ns = max_gap_ns
         self._static: dict[str, tuple[str, np.ndarray]] = {}
-        self._moving: dict[str, tuple[str, list[int], list[np.ndarray]]] = {}
+        self._moving: dict[str, tuple[str, Any, Any]] = {}  # child: (parent, stamps, poses)
         self._parents: dict[str, set[str]] = defaultdict(set)
 
     def add(self, parent: str, child: str, pose: np.ndarray, stamp_ns: int, static: bool) -> None:
@@ -75,44 +76,62 @@ class TfBuffer:
         if static:
             self._static[child] = (parent, pose)
         else:
-            self._moving.setdefault(child, (parent, [], []))
-            self._moving[child][1].append(int(stamp_ns))
-            self._moving[child][2].append(pose)
+            _, stamps, poses = self._moving.setdefault(child, (parent, [], []))
+            if isinstance(stamps, np.ndarray):
+                raise InputError(f"{self.source}: TF {parent} -> {child} added to after it was looked up")
+            stamps.append(int(stamp_ns))
+            poses.append(pose)
 
     @property
     def frames(self) -> list[str]:
         return sorted(set(self._parents) | {p for ps in self._parents.values() for p in ps})
 
-    def _to_root(self, frame: str, stamp_ns: int) -> tuple[str, np.ndarray]:
-        """(root frame, pose of `frame` in it) at the stamp."""
+    def _parent(self, frame: str) -> str | None:
+        if frame in self._static:
+            return self._static[frame][0]
+        if frame in self._moving:
+            return self._moving[frame][0]
+        return None
+
+    def _chain(self, frame: str) -> list[str]:
+        """`frame` and its ancestors up to the root."""
+        chain = [frame]
+        while (parent := self._parent(chain[-1])) is not None:
+            if parent in chain:
+                raise InputError(f"{self.source}: the TF tree has a cycle through {parent!r}")
+            chain.append(parent)
+        return chain
+
+    def _link(self, frame: str, stamp_ns: int) -> np.ndarray:
+        """The pose of `frame` in its parent at the stamp."""
+        if frame in self._static:
+            return self._static[frame][1]
+        parent, stamps, poses = self._moving[frame]
+        if not isinstance(stamps, np.ndarray):  # arrays once all messages are in
+            stamps, poses = np.array(stamps, dtype=np.int64), np.array(poses)
+            self._moving[frame] = (parent, stamps, poses)
+        return interpolate_poses(stamps, poses, np.array([stamp_ns]), self.max_gap_ns,
+                                 f"{self.source}: TF {parent} -> {frame}")[0]
+
+    def _up_to(self, chain: list[str], stop: str, stamp_ns: int) -> np.ndarray:
+        """The pose of chain[0] in `stop`, one of its ancestors."""
         pose = np.eye(4)
-        seen = {frame}
-        while True:
-            if frame in self._static:
-                parent, link = self._static[frame]
-            elif frame in self._moving:
-                parent, stamps, poses = self._moving[frame]
-                link = interpolate_poses(np.array(stamps), np.array(poses), np.array([stamp_ns]), self.max_gap_ns,
-                                         f"{self.source}: TF {parent} -> {frame}")[0]
-            else:
-                return frame, pose
-            pose = link @ pose
-            frame = parent
-            if frame in seen:
-                raise InputError(f"{self.source}: the TF tree has a cycle through {frame!r}")
-            seen.add(frame)
+        for frame in chain[: chain.index(stop)]:
+            pose = self._link(frame, stamp_ns) @ pose
+        return pose
 
     def lookup(self, target: str, frame: str, stamp_ns: int) -> np.ndarray:
-        """The pose of `frame` in `target` at the stamp (4x4)."""
+        """The pose of `frame` in `target` at the stamp (4x4), through their lowest common
+        ancestor (so a moving link above both, odom -> base_link say, is never looked up)."""
         target, frame = target.lstrip("/"), frame.lstrip("/")
         if target == frame:
             return np.eye(4)
-        root_a, a = self._to_root(target, stamp_ns)
-        root_b, b = self._to_root(frame, stamp_ns)
-        if root_a != root_b:
+        up_target, up_frame = self._chain(target), self._chain(frame)
+        common = next((f for f in up_frame if f in up_target), None)
+        if common is None:
             known = ", ".join(self.frames) or "none"
             raise InputError(
                 f"{self.source}: no TF path from {target!r} to {frame!r} in /tf and /tf_static "
                 f"(frames seen: {known}); the bag needs the transform between the odometry's child frame "
                 f"and the camera's frame")
-        return invert(a) @ b
+        return invert(self._up_to(up_target, common, stamp_ns)) @ self._up_to(up_frame, common, stamp_ns)
