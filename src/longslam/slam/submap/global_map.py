@@ -3,14 +3,12 @@ from it, and a mesh."""
 
 from __future__ import annotations
 
-import shutil
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
-from longslam.io.atomic import atomic_path
+from longslam.io.ply import vertex_rows, write_ply
 from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 
@@ -110,48 +108,14 @@ def mesh_arrays(tsdf: TSDF) -> tuple[np.ndarray, np.ndarray]:
     return np.vstack(verts), np.vstack(tris)
 
 
-_PLY_VERTEX = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4")])
-_PLY_FACE = np.dtype([("n", "u1"), ("v", "<i4", (3,))])
-
-
 def write_mesh(tsdf: TSDF, path: Path) -> Path | None:
-    """Write the TSDF's mesh as binary PLY (float32 vertices with normals, int32 triangles);
-    None when there is no surface.
-
-    Block by block: vertices and triangles go to two scratch files as each block is meshed, and
-    the PLY is their concatenation under a header. Building the whole mesh in memory first (and
-    trimesh's vertex merging) raised the 1 km run's peak by 85 MB. A vertex on a block's face is
-    written once per block that meshes it (viewers show no seam; only the vertex count differs).
-    """
-    path = Path(path)
-    n_verts = n_tris = 0
-    with tempfile.TemporaryDirectory(dir=path.parent, prefix=".mesh-") as scratch:
-        vert_file, tri_file = Path(scratch) / "vertices", Path(scratch) / "triangles"
-        with open(vert_file, "wb") as vf, open(tri_file, "wb") as tf:
-            for v, normals, f in block_meshes(tsdf):
-                rows = np.empty(len(v), _PLY_VERTEX)
-                for axis, name in enumerate("xyz"):
-                    rows[name] = v[:, axis]
-                    rows["n" + name] = normals[:, axis]
-                faces = np.empty(len(f), _PLY_FACE)
-                faces["n"] = 3
-                faces["v"] = f + n_verts
-                vf.write(rows.tobytes())
-                tf.write(faces.tobytes())
-                n_verts += len(v)
-                n_tris += len(f)
-        if not n_tris:
-            return None
-        header = (
-            "ply\nformat binary_little_endian 1.0\ncomment made by longslam (submap method)\n"
-            f"element vertex {n_verts}\n"
-            + "".join(f"property float {name}\n" for name in _PLY_VERTEX.names)
-            + f"element face {n_tris}\nproperty list uchar int vertex_indices\nend_header\n"
-        )
-        with atomic_path(path, overwrite=True) as tmp:
-            with open(tmp, "wb") as out:
-                out.write(header.encode("ascii"))
-                for part in (vert_file, tri_file):
-                    with open(part, "rb") as src:
-                        shutil.copyfileobj(src, out, 1 << 20)
-    return path
+    """Write the TSDF's mesh as binary PLY (float32 vertices with their normals, triangles);
+    None when there is no surface. Block by block (io/ply.py): building the whole mesh in memory
+    first (and trimesh's vertex merging) raised the 1 km run's peak by 85 MB. A vertex on a
+    block's face is written once per block that meshes it (viewers show no seam)."""
+    _, n_faces = write_ply(path, ((vertex_rows(v, normals), f) for v, normals, f in block_meshes(tsdf)),
+                           comment="made by longslam (submap method)")
+    if not n_faces:
+        Path(path).unlink()
+        return None
+    return Path(path)
