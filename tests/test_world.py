@@ -177,7 +177,11 @@ def test_external_mesh_round_trip(tmp_path):
     path = tmp_path / "room.ply"
     assert o3d.io.write_triangle_mesh(str(path), _box_room(floor_z=1.0))
     world = load_mesh_world(path, floor_z=1.0)
-    assert world.name == "room" and world.floor_z == 1.0 and world.places == {} and world.plan is None
+    # The world is moved so that its floor is the plane z = 0 the robot drives on.
+    assert world.name == "room" and world.floor_z == 0.0 and world.places == {} and world.plan is None
+    assert world.mesh.bounds[0][2] == pytest.approx(-0.1) and world.mesh.bounds[1][2] == pytest.approx(3.0)
+    # Found without being told: the slab's top, not its underside or the table.
+    assert load_mesh_world(path).mesh.bounds[0][2] == pytest.approx(-0.1)
     assert world.mesh.vertex_colors is not None and not world.mesh.is_textured
     grid = world.occupancy
     assert grid.resolution == 0.05
@@ -190,16 +194,17 @@ def test_external_mesh_round_trip(tmp_path):
     assert np.all(grid.values_at(outside) != FREE)
 
     camera = RGBDCamera(world.mesh)
-    pose = camera_poses_from_planar(np.array([[1.0, 2.0, 0.0]]), 1.25, floor_z=1.0)[0]
+    pose = camera_poses_from_planar(np.array([[1.0, 2.0, 0.0]]), 1.25)[0]
     rgb, depth = camera.render(pose)
     assert depth[120, 160] == pytest.approx(5.0, abs=1e-4)  # the green wall at x = 6
     assert rgb[120, 160, 1] > 100 and rgb[120, 160, 0] < 80
 
 
 def _write_glb(path, mesh: o3d.geometry.TriangleMesh) -> None:
-    """A minimal binary glTF with positions, vertex colours and indices (Open3D's own GLB writer
-    writes files its reader rejects)."""
-    vertices = np.asarray(mesh.vertices, np.float32)
+    """A minimal binary glTF with positions, vertex colours and indices, y up as glTF wants it
+    (Open3D's own GLB writer writes files its reader rejects)."""
+    z_up = np.asarray(mesh.vertices)
+    vertices = np.column_stack([z_up[:, 0], z_up[:, 2], -z_up[:, 1]]).astype(np.float32)
     parts = [vertices.tobytes(), np.asarray(mesh.vertex_colors, np.float32).tobytes(),
              np.asarray(mesh.triangles, np.uint32).tobytes()]
     offsets = np.cumsum([0] + [len(p) for p in parts])

@@ -41,62 +41,163 @@ def _params(pairs: list[str]) -> dict:
     return parse_key_values(pairs)
 
 
+MESH_OPTIONS = ("floor", "units", "up", "places")
+
+
+def _world_args(parser: argparse.ArgumentParser, default: str | None) -> None:
+    shown = f" (default {default})" if default else " (default: the route's world)"
+    parser.add_argument("--world", help=f"world name (see `longslam list`) or a mesh file (PLY, OBJ, GLB/glTF){shown}")
+    parser.add_argument("--floor", type=float, help="floor height of a mesh in metres, once turned z-up (default: found)")
+    parser.add_argument("--units", choices=("m", "cm", "mm"), help="length unit of a mesh file (default m)")
+    parser.add_argument("--up", choices=("z", "y"), help="up axis of a mesh file (default y for GLB/glTF, z otherwise)")
+    parser.add_argument("--places", help="places file of a mesh: JSON {\"name\": [x, y], ...}")
+
+
+def _world(args: argparse.Namespace, value: str | None) -> str | None:
+    """The world reference the options give, or None if they name no world."""
+    from longslam.world import WORLDS, world_ref
+
+    options = {k: getattr(args, k) for k in MESH_OPTIONS if getattr(args, k) is not None}
+    if value is None:
+        if options:
+            raise LongslamError(f"--{next(iter(options))} describes a mesh file: give it with --world FILE")
+        return None
+    if value in WORLDS:
+        if options:
+            raise LongslamError(f"--{next(iter(options))} describes a mesh file, not the world {value!r}")
+        return value
+    return world_ref({"mesh": value, **options} if options else value, what="--world")
+
+
+def _describe_world(name: str, mesh_floor_z: float | None) -> str:
+    if mesh_floor_z is None:
+        return f"world {name}"
+    return f"world {name} (floor at z = {mesh_floor_z:.3f} m in the mesh file)"
+
+
 def cmd_world(args: argparse.Namespace) -> None:
     from longslam.sim.drive import drive_route
     from longslam.sim.routes import get_route
     from longslam.io.paths import PLOT_SUFFIXES, check_output_file
     from longslam.viz.plots import plot_plan
-    from longslam.world import get_world, load_mesh_world
+    from longslam.world import load_world
 
     check_output_file(args.out, PLOT_SUFFIXES, "--out")
-    world = load_mesh_world(args.mesh, args.floor) if args.mesh else get_world(args.world)
+    if args.mesh and args.world:
+        raise LongslamError("give the world once: --world NAME_OR_FILE (--mesh FILE is the same)")
+    ref = _world(args, args.mesh or args.world)
+    route = get_route(args.route, ref) if args.route else None
+    world = load_world(ref or (route.world if route else "university"))
     paths, waypoints, title = {}, None, f"world {world.name}"
-    if args.route:
-        route = get_route(args.route)
+    if route:
         driven = drive_route(world, route)
         paths[f"route {route.name} ({driven.length:.0f} m)"] = driven.xyyaw[:, :2]
         waypoints = route.resolve(world.places)
         title += f", route {route.name}: {len(waypoints)} waypoints, {driven.length:.1f} m"
     plot_plan(world.occupancy, args.out, paths, waypoints=waypoints, title=title)
-    print(f"wrote {args.out}")
+    print(f"wrote {args.out}: {_describe_world(world.name, None if world.plan else world.source_floor_z)}")
 
 
 def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.sim.noise import get_noise
     from longslam.sim.routes import get_route
+    from longslam.io.sequence import SequenceReader
     from longslam.recording import simulate
+    from longslam.world import world_label
 
-    route, noise = get_route(args.route), get_noise(args.noise)
+    route = get_route(args.route, _world(args, args.world))
+    noise = get_noise(args.noise)
     out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite)
-    print(f"wrote sequence {out}")
+    meta = SequenceReader(out).meta  # renders cached before meta had world_name: the route's world
+    name = meta.get("world_name") or world_label(route.world)
+    print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}")
 
 
 def cmd_run(args: argparse.Namespace) -> None:
     from longslam.run.engine import run_sequence
 
+    if args.viz is not None:
+        from longslam.viz.live import check_target
+
+        check_target(args.viz)
     measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
-                                intrinsics=args.intrinsics)
+                                intrinsics=args.intrinsics, viz=args.viz)
     print(
         f"wrote {args.out}: {measurements['frames']} frames, real-time factor {measurements['real_time_factor']:.1f}, "
         f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
+        + (f", live view {measurements['observer_time_s']:.1f} s" if "observer_time_s" in measurements else "")
     )
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from longslam.run.score import score_files
 
-    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff)
+    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff, min_step=args.min_step)
     if args.json:
         print(json.dumps(scores, allow_nan=False))
         return
     for key, value in scores.items():
+        if value is None:  # e_trans, e_rot: no step long enough; rpe: a path under one segment
+            value = ("undefined: the ground truth's path is shorter than the 1 m segment" if key.startswith("rpe")
+                     else f"undefined: no ground-truth step of {args.min_step} m or more (see --min-step)")
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
+
+
+def _progress_bar(desc: str):
+    """A tqdm bar and the (done, total) callback that moves it."""
+    from tqdm import tqdm
+
+    bar = tqdm(desc=desc, unit="frame", leave=False)
+
+    def update(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    return bar, update
+
+
+def cmd_export(args: argparse.Namespace) -> None:
+    from longslam.io.rosbag.export import export_sequence
+
+    bar, update = _progress_bar("export")
+    with bar:
+        summary = export_sequence(
+            args.sequence, args.out, fmt=args.format, depth_encoding=args.depth_encoding, storage=args.storage,
+            compress=args.compress, odom_noise=args.odom_noise, camera_height=args.camera_height,
+            overwrite=args.overwrite, progress=update,
+        )
+    line = f"wrote {summary.path}: {summary.frames} frames, {summary.messages} messages, {summary.bytes / 1e6:.1f} MB"
+    if summary.linear_variance is not None:
+        line += (f"; odometry covariance per step: forward {summary.linear_variance:.3g} m^2, "
+                 f"yaw {summary.yaw_variance:.3g} rad^2")
+    print(line)
+
+
+def cmd_import(args: argparse.Namespace) -> None:
+    from longslam.io.rosbag.import_ import Topics, import_bag
+
+    topics = Topics(args.rgb, args.depth, args.camera_info, args.odom, args.groundtruth)
+    bar, update = _progress_bar("import")
+    with bar:
+        summary = import_bag(args.bag, args.out, topics, max_diff=args.max_diff, max_depth=args.max_depth,
+                             groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite, progress=update)
+    t = summary.topics
+    print(f"wrote sequence {summary.path}: {summary.frames} frames from {t.rgb} ({summary.rgb_messages} messages) "
+          f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info}; "
+          f"odometry {'from ' + t.odom if summary.odometry else 'none'}; "
+          f"ground truth {'from ' + t.groundtruth if summary.groundtruth else 'none'}")
+    for note in summary.notes:
+        print(f"note: {note}", file=sys.stderr)
 
 
 def cmd_demo(args: argparse.Namespace) -> None:
     from longslam.demo import format_table, run_demo
 
-    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args))
+    if args.viz is not None:
+        from longslam.viz.live import check_target
+
+        check_target(args.viz)
+    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz)
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")
@@ -108,7 +209,7 @@ def cmd_list(args: argparse.Namespace) -> None:
     from longslam.slam.catalog import method_names
     from longslam.world import WORLDS
 
-    print("worlds:      ", ", ".join(WORLDS.names()))
+    print("worlds:      ", ", ".join(WORLDS.names()), "(or a mesh file: --world FILE)")
     print("routes:      ", ", ".join(ROUTES.names()))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
     print("methods:     ", ", ".join(method_names()))
@@ -146,15 +247,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("world", help="draw a world's floor plan, optionally with a route")
-    p.add_argument("--world", default="university", help="world name (default university)")
-    p.add_argument("--mesh", help="load a building from a mesh file (PLY/OBJ/GLB) instead")
-    p.add_argument("--floor", type=float, default=0.0, help="floor height of --mesh in metres")
+    _world_args(p, "university, or the route file's")
+    p.add_argument("--mesh", help="a mesh file: the same as --world FILE")
     p.add_argument("--route", help="a route name or a waypoint file to draw")
     p.add_argument("--out", required=True, help="image file to write (e.g. plan.png)")
     p.set_defaults(func=cmd_world)
 
     p = sub.add_parser("simulate", help="render a route with noisy odometry into a TUM RGB-D sequence")
     p.add_argument("--route", required=True, help="route name (see `longslam list`) or a waypoint file")
+    _world_args(p, None)
     p.add_argument("--noise", default="none", help="odometry noise level (none, small, medium, large, xlarge)")
     p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise")
     p.add_argument("--out", required=True, help="sequence folder to write")
@@ -170,6 +271,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                    help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)")
+    p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
+                   help="show the run live in a rerun viewer, or record it to FILE.rrd (needs longslam[viz])")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("evaluate", help="score a trajectory (TUM or KITTI) against ground truth")
@@ -178,13 +281,45 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--align", default="none", choices=("none", "se3", "sim3"), help="alignment for APE (default none)")
     p.add_argument("--max-diff", type=float, default=0.01, help="timestamp matching tolerance in seconds")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--min-step", type=float, default=0.01,
+                   help="E_trans and E_rot leave out ground-truth steps shorter than this, in metres (default 0.01)")
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("export", help="write a sequence as a ROS 1 or ROS 2 bag (needs longslam[ros])")
+    p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")
+    p.add_argument("--format", default="ros2", choices=("ros1", "ros2"), help="ros2: a bag folder (default); ros1: a .bag file")
+    p.add_argument("--out", required=True, help="bag to write: a folder for ros2, a file ending in .bag for ros1")
+    p.add_argument("--depth-encoding", default="32FC1", choices=("32FC1", "16UC1"),
+                   help="32FC1: metres, lossless (default); 16UC1: millimetres, half the size")
+    p.add_argument("--storage", default="sqlite3", choices=("sqlite3", "mcap"), help="ROS 2 storage (default sqlite3)")
+    p.add_argument("--compress", action="store_true", help="compress: zstd per message (ros2), lz4 chunks (ros1)")
+    p.add_argument("--odom-noise", metavar="LEVEL", help="noise level for the odometry covariance (default: the sequence's meta.json)")
+    p.add_argument("--camera-height", type=float, help="camera above base_link in metres (default: the sequence's)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing bag")
+    p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("import", help="turn a ROS 1 or ROS 2 bag into a sequence folder (needs longslam[ros])")
+    p.add_argument("bag", help="a .bag file (ROS 1) or a bag folder (ROS 2)")
+    p.add_argument("--out", required=True, help="sequence folder to write")
+    p.add_argument("--rgb", metavar="TOPIC", help="colour images (sensor_msgs/Image or CompressedImage)")
+    p.add_argument("--depth", metavar="TOPIC", help="depth images registered to the colour camera (32FC1 m or 16UC1 mm)")
+    p.add_argument("--camera-info", metavar="TOPIC", help="the colour camera's sensor_msgs/CameraInfo")
+    p.add_argument("--odom", metavar="TOPIC", help="wheel odometry (nav_msgs/Odometry)")
+    p.add_argument("--groundtruth", metavar="TOPIC", help="ground truth (nav_msgs/Odometry or geometry_msgs/PoseStamped)")
+    p.add_argument("--groundtruth-frame", metavar="FRAME",
+                   help="the frame a PoseStamped ground truth is the pose of (default: the odometry's child frame)")
+    p.add_argument("--max-diff", type=float, default=0.02, help="colour-depth pairing tolerance in seconds (default 0.02)")
+    p.add_argument("--max-depth", type=float, help="depth range in metres; farther is 'no return' (default 13.107, the 16-bit limit)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    p.set_defaults(func=cmd_import)
 
     p = sub.add_parser("demo", help="the demo route at large noise with every method: a table and a plot")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("--route", default="demo")
     p.add_argument("--noise", default="large")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
+                   help="show each method's run live in a rerun viewer, or record FILE-<method>.rrd (needs longslam[viz])")
     _camera_args(p)
     p.set_defaults(func=cmd_demo)
 

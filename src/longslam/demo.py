@@ -15,7 +15,7 @@ from longslam.sim.routes import get_route
 from longslam.recording import simulate
 from longslam.slam.catalog import method_names
 from longslam.viz.plots import plot_plan
-from longslam.world import get_world
+from longslam.world import load_world
 
 COLUMNS = ("method", "ATE [m]", "E_trans", "E_rot [deg/m]", "peak RSS [MB]", "real-time factor")
 
@@ -38,6 +38,13 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _viz_target(viz: str | None, method: str) -> str | None:
+    if viz is None or viz == "viewer":
+        return viz
+    path = Path(viz)
+    return str(path.with_name(f"{path.stem}-{method}{path.suffix}"))
+
+
 def run_demo(
     out: str | Path = "out/demo",
     route_name: str = "demo",
@@ -46,8 +53,12 @@ def run_demo(
     methods: list[str] | None = None,
     camera: CameraSettings = CameraSettings(),
     progress: bool = True,
+    viz: str | None = None,
 ) -> tuple[list[dict], Path]:
-    """Simulate, run each method in its own process, evaluate. Returns the table rows and the plot path."""
+    """Simulate, run each method in its own process, evaluate. Returns the table rows and the plot path.
+
+    `viz`: "viewer" shows each run live in a rerun viewer; a path FILE.rrd records each method's
+    run to FILE-<method>.rrd beside it."""
     out = check_output_folder(out, "demo folder")
     out.mkdir(parents=True, exist_ok=True)
     route, noise = get_route(route_name), get_noise(noise_name)
@@ -59,11 +70,11 @@ def run_demo(
     rows, paths = [], {"ground truth": truth.positions[:, :2]}
     for name in methods:
         run_dir = out / "runs" / name
-        scores, measurements = run_and_score(name, sequence, run_dir, progress=progress)
+        scores, measurements = run_and_score(name, sequence, run_dir, progress=progress, viz=_viz_target(viz, name))
         estimate = read_tum(run_dir / TRAJECTORY)
         rows.append({"method": name, **scores, **{k: measurements[k] for k in ("peak_rss_bytes", "real_time_factor")}})
         paths[name] = estimate.positions[:, :2]
-    world = get_world(route.world)
+    world = load_world(route.world)
     plot = out / "trajectories.png"
     waypoints = route.resolve(world.places)
     plot_plan(world.occupancy, plot, paths, waypoints=waypoints, title=f"route {route.name}, noise {noise.name}, seed {seed}", zoom_margin=6.0)

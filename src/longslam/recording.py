@@ -30,7 +30,8 @@ from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import BiasNoise
 from longslam.sim.routes import Route
 from longslam.trajectory import Trajectory
-from longslam.world import get_world
+from longslam.world import load_world, world_key
+from longslam.world.source import is_mesh_ref, world_identity
 
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1
@@ -44,7 +45,8 @@ def cache_key(route: Route, camera: CameraSettings, follower: FollowerSettings) 
     description = json.dumps(
         {
             "render_version": RENDER_VERSION,
-            "world": route.world,
+            # A mesh world by its content, not its path: an edited mesh renders anew, a moved one does not.
+            "world": world_identity(route.world),
             "waypoints": route.waypoints_json(),
             "camera": asdict(camera),
             "follower": asdict(follower),
@@ -52,7 +54,7 @@ def cache_key(route: Route, camera: CameraSettings, follower: FollowerSettings) 
         sort_keys=True,
     )
     digest = hashlib.sha256(description.encode()).hexdigest()[:16]
-    return f"{route.world}-{route.name}-{digest}"
+    return f"{world_key(route.world)}-{route.name}-{digest}"
 
 
 def rendered_sequence(
@@ -72,12 +74,14 @@ def rendered_sequence(
     if path.is_dir():
         return path
     root.mkdir(parents=True, exist_ok=True)
-    world = get_world(route.world)
+    world = load_world(route.world)
     driven = drive_route(world, route, follower)
     truth = camera_trajectory(driven.timestamps, driven.xyyaw, camera.camera_height, world.floor_z)
     renderer = RGBDCamera(world.mesh, camera)
     meta = {
         "world": route.world,
+        "world_name": world.name,
+        **({"mesh_floor_z": world.source_floor_z} if is_mesh_ref(route.world) else {}),  # moved to z = 0
         "route": route.name,
         "waypoints": route.waypoints_json(),
         "camera": asdict(camera),

@@ -332,6 +332,9 @@ def evaluate(
 ) -> dict:
     """All metrics of one run as a flat, JSON-ready dict (no NaN).
 
+    e_trans and e_rot are None when no ground-truth step moves `min_step` (every step skipped);
+    rpe_trans and rpe_rot are None when the ground truth's path is shorter than `rpe_delta`.
+
     The paper's ate, e_trans, e_rot never use alignment. `align` ('none', 'se3', 'sim3') applies
     to APE and RPE. rpe_trans / rpe_rot are RMSEs over consecutive segments of `rpe_delta` metres
     of ground-truth path (evo_rpe -d 1 -u m --pairs_from_reference): choosing segments on the
@@ -339,22 +342,29 @@ def evaluate(
     path_length is the ground truth's over the associated poses.
     """
     require_same_length(reference, estimate, minimum=2)
-    relative = relative_errors(reference, estimate, min_step)
+    if not min_step > 0.0:
+        raise InputError(f"min_step must be a length > 0 m, got {min_step}")
+    longest = float(np.linalg.norm(_local_steps(reference.poses), axis=1).max())
+    # A slow hand-held sequence at 30 Hz (TUM's freiburg2_xyz moves 2 mm a frame) has no step
+    # of min_step: E_trans and E_rot are undefined there, the other metrics are not.
+    relative = relative_errors(reference, estimate, min_step) if longest >= min_step else None
     rotation, translation, scale = alignment(estimate, reference, align)
     aligned = estimate if align == "none" else transform_trajectory(estimate, rotation, translation, scale)
     absolute = statistics(ape_errors(reference, aligned, "translation"))
-    relative_pose = rpe(reference, aligned, rpe_delta, "m", pairs_from_reference=True)
+    # A path shorter than one segment has no RPE (a few seconds of a hand-held sequence).
+    relative_pose = (rpe(reference, aligned, rpe_delta, "m", pairs_from_reference=True)
+                     if reference.path_length() >= rpe_delta else None)
     return {
         "ate": ate(reference, estimate),
-        "e_trans": relative.e_trans,
-        "e_rot": relative.e_rot,
-        "used_steps": relative.used_steps,
-        "skipped_steps": relative.skipped_steps,
-        "zero_estimate_steps": relative.zero_estimate_steps,
+        "e_trans": None if relative is None else relative.e_trans,
+        "e_rot": None if relative is None else relative.e_rot,
+        "used_steps": 0 if relative is None else relative.used_steps,
+        "skipped_steps": len(reference) - 1 if relative is None else relative.skipped_steps,
+        "zero_estimate_steps": 0 if relative is None else relative.zero_estimate_steps,
         **{f"ape_{name}": value for name, value in absolute.items()},
-        "rpe_trans": relative_pose["translation"]["rmse"],
-        "rpe_rot": relative_pose["rotation"]["rmse"],
-        "rpe_pairs": relative_pose["pairs"],
+        "rpe_trans": None if relative_pose is None else relative_pose["translation"]["rmse"],
+        "rpe_rot": None if relative_pose is None else relative_pose["rotation"]["rmse"],
+        "rpe_pairs": 0 if relative_pose is None else relative_pose["pairs"],
         "rpe_delta_m": float(rpe_delta),
         "matched_poses": len(reference),
         "path_length": reference.path_length(),

@@ -23,6 +23,8 @@ from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
 from longslam.run.folder import write_result
+from longslam.run.observer import RunObserver
+from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.settings import to_mapping
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.catalog import get_spec
@@ -37,18 +39,31 @@ def run_frames(
     params: dict[str, Any] | None = None,
     total: int | None = None,
     progress: bool = True,
+    observer: RunObserver | None = None,
 ) -> tuple[Result, dict[str, Any]]:
     """Feed every frame to a new method and finish it. Returns its result and the harness's
-    measurements (times, memory, the config the method ran with and the method's own stats)."""
+    measurements (times, memory, the config the method ran with and the method's own stats).
+
+    `observer` (a live view, say) is shown each frame and the pose returned for it; its time is
+    kept out of the method's figures and reported as `observer_time_s`."""
     baseline_rss = current_rss_bytes()
     spec = get_spec(method_name)
     config = spec.config(params)
     method = spec.build(context, config)
+    wanted = set(getattr(method, "images_every_frame", ())) | set(getattr(observer, "images_every_frame", ()))
+    images = tuple(name for name in IMAGES if name in wanted)
+    if images:
+        frames = read_ahead(frames, images)
     step_times: list[float] = []
     rss_samples: list[tuple[int, int]] = []
     first_t = last_t = None
     wall_start = time.perf_counter()
     count = 0
+    observer_time = 0.0
+    if observer is not None:
+        t0 = time.perf_counter()
+        observer.start(method, context)
+        observer_time += time.perf_counter() - t0
     for frame in tqdm(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
         t0 = time.perf_counter()
         pose = method.step(frame)
@@ -58,6 +73,10 @@ def run_frames(
         if first_t is None:
             first_t = frame.timestamp
         last_t = frame.timestamp
+        if observer is not None:
+            t0 = time.perf_counter()
+            observer.frame(frame, pose, method)
+            observer_time += time.perf_counter() - t0
         if count % RSS_SAMPLE_EVERY == 0:
             rss_samples.append((count, current_rss_bytes()))
         count += 1
@@ -66,6 +85,10 @@ def run_frames(
     t0 = time.perf_counter()
     result = method.finish()
     finish_time = time.perf_counter() - t0
+    if observer is not None:
+        t0 = time.perf_counter()
+        observer.finish(result)
+        observer_time += time.perf_counter() - t0
     wall_time = time.perf_counter() - wall_start
     rss_samples.append((count, current_rss_bytes()))
 
@@ -91,6 +114,8 @@ def run_frames(
         "rss_samples": rss_samples,
         "method_stats": result.stats,
     }
+    if observer is not None:
+        measurements["observer_time_s"] = observer_time
     return result, measurements
 
 
@@ -102,20 +127,34 @@ def run_sequence(
     overwrite: bool = False,
     progress: bool = True,
     intrinsics: str | tuple[float, float, float, float] | None = None,
+    viz: str | None = None,
 ) -> dict[str, Any]:
     """Run a method over a sequence on disk and write the run folder `out`. Returns the measurements.
 
-    `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one."""
+    `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one.
+    `viz`: "viewer" streams the run to a rerun viewer, a path ending in .rrd records it there
+    (`longslam.viz.live`, the optional extra `longslam[viz]`)."""
     out = check_output_folder(out, "run folder")
     if (out.exists() or out.is_symlink()) and not overwrite:
         raise InputError(f"run folder {out} exists already; choose another path or pass --overwrite")
     reader = SequenceReader(sequence, intrinsics=intrinsics)
+    if viz is not None:
+        from longslam.viz.live import LiveView  # rerun is imported only when a view is asked for
+
+        with LiveView(viz, f"{method_name} on {Path(sequence).name}", truth=reader.ground_truth) as view:
+            return _run_into(method_name, sequence, reader, out, params, overwrite, progress, view)
+    return _run_into(method_name, sequence, reader, out, params, overwrite, progress, None)
+
+
+def _run_into(method_name: str, sequence: str | Path, reader: SequenceReader, out: Path, params: dict[str, Any] | None,
+              overwrite: bool, progress: bool, observer: RunObserver | None) -> dict[str, Any]:
     clean_stale_partials(out.parent)  # run folders of runs that were killed
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
     with atomic_path(out, overwrite=overwrite) as tmp:
         tmp.mkdir(parents=True)
         context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
-        result, measurements = run_frames(method_name, reader, context, params, total=len(reader), progress=progress)
+        result, measurements = run_frames(method_name, reader, context, params, total=len(reader), progress=progress,
+                                          observer=observer)
         measurements["sequence"] = str(Path(sequence).resolve())
         measurements["intrinsics"] = {**reader.intrinsics.to_dict(), "source": reader.intrinsics_source}
         measurements = name_final_folder(measurements, tmp, out)

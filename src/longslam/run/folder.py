@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from longslam.eval.resources import peak_rss_bytes
-from longslam.io.atomic import naming_the_file, write_text
+from longslam.io.atomic import write_text
+from longslam.io.ply import vertex_rows, write_ply
 from longslam.io.trajectory_files import write_tum
 from longslam.jsonable import json_default
 from longslam.settings import to_toml
@@ -36,12 +37,8 @@ RUN_FILES = {"trajectory": TRAJECTORY, "online": ONLINE, "grid": GRID, "map": MA
 
 
 def write_point_cloud(path: Path, points: np.ndarray) -> None:
-    """A binary PLY of (N, 3) points. With trimesh: Open3D would do it too, but importing it costs
-    about 220 MB of resident memory, which would be the run's peak."""
-    import trimesh
-
-    with naming_the_file(path):
-        trimesh.PointCloud(points).export(str(path))
+    """A binary PLY of (N, 3) points (float32), see io/ply.py."""
+    write_ply(path, [(vertex_rows(points), None)], comment="made by longslam")
 
 
 def write_config(out: Path, measurements: dict[str, Any]) -> None:

@@ -57,10 +57,11 @@ def run_sequence_isolated(*args: Any, **kwargs: Any) -> dict[str, Any]:
 
 def run_and_score(
     method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None, progress: bool = False,
+    viz: str | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Run a method over a sequence in its own process, then score its final trajectory against the
     sequence's ground truth. Returns (scores, measurements): what the demo and benchmarks print."""
-    measurements = run_sequence_isolated(method, sequence, out, params, overwrite=True, progress=progress)
+    measurements = run_sequence_isolated(method, sequence, out, params, overwrite=True, progress=progress, viz=viz)
     truth = SequenceReader(sequence).ground_truth
     if truth is None:
         raise InputError(f"sequence {sequence} has no groundtruth.txt to score against")

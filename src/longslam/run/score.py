@@ -15,7 +15,7 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.eval.align import alignment
 from longslam.eval.map_quality import map_scores
-from longslam.eval.metrics import ape_errors, ate, evaluate
+from longslam.eval.metrics import MIN_STEP, ape_errors, ate, evaluate
 from longslam.eval.sync import associate, associate_by_index
 from longslam.gridmap import GridMap
 from longslam.io.trajectory_files import KITTI, read_trajectory
@@ -30,14 +30,14 @@ TruthLoader = Callable[[], tuple[GridMap, np.ndarray]]
 
 def score(
     truth: Trajectory, estimate: Trajectory, align: str = "none", max_diff: float = MAX_DIFF,
-    by_index: bool = False, what: str = "the estimate",
+    by_index: bool = False, what: str = "the estimate", min_step: float = MIN_STEP,
 ) -> dict[str, Any]:
     """The paper's metrics and the field's (see `eval.metrics.evaluate`) of `estimate` against
     `truth`, poses matched by timestamp (or by index). A metric that overflowed is an error: it
     measures nothing, and JSON could not hold it."""
     ref, est = associate_by_index(truth, estimate) if by_index else associate(truth, estimate, max_diff=max_diff)
     with np.errstate(all="ignore"):  # overflow is reported below, as one error
-        scores = evaluate(ref, est, align=align)
+        scores = evaluate(ref, est, align=align, min_step=min_step)
     bad = [key for key, value in scores.items() if isinstance(value, float) and not math.isfinite(value)]
     if bad:
         raise InputError(
@@ -58,12 +58,14 @@ def trajectory_file(path: str | Path, names: tuple[str, ...]) -> Path:
     return path
 
 
-def score_files(estimate: str | Path, truth: str | Path, align: str = "none", max_diff: float = MAX_DIFF) -> dict[str, Any]:
+def score_files(estimate: str | Path, truth: str | Path, align: str = "none", max_diff: float = MAX_DIFF,
+                min_step: float = MIN_STEP) -> dict[str, Any]:
     """Score trajectory files (TUM or KITTI) or run / sequence folders. KITTI files have no stamps,
     so they are matched by index."""
     est, est_format = read_trajectory(trajectory_file(estimate, (TRAJECTORY,)))
     ref, ref_format = read_trajectory(trajectory_file(truth, ("groundtruth.txt",)))
-    return score(ref, est, align, max_diff, by_index=KITTI in (est_format, ref_format), what=f"{estimate} against {truth}")
+    return score(ref, est, align, max_diff, by_index=KITTI in (est_format, ref_format), what=f"{estimate} against {truth}",
+                 min_step=min_step)
 
 
 def _thin(points: list[tuple[float, float]]) -> list[list[float]]:

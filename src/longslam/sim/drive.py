@@ -21,8 +21,11 @@ def drive_route(
     """The robot's true planar path along the route's waypoints, one pose per camera frame."""
     nav = NavigationGrid(world.occupancy, robot_radius=robot_radius)
     waypoints = route.resolve(world.places)
-    for i, wp in enumerate(waypoints):
-        nav.check_waypoint(wp, f"route {route.name!r} waypoint {i}")
+    labels = [f"route {route.name!r} waypoint {i}" + (f" {given!r}" if isinstance(given, str) else "")
+              for i, given in enumerate(route.waypoints)]
+    for wp, label in zip(waypoints, labels):
+        nav.check_waypoint(wp, label)
+    nav.check_reachable(waypoints, labels)
     paths = [nav.shortest_path(a, b) for a, b in zip(waypoints[:-1], waypoints[1:])]
     return follow_paths(paths, follower)
 

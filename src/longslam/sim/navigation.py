@@ -54,7 +54,33 @@ class NavigationGrid:
             raise InputError(
                 f"{label} ({xy[0]:.2f}, {xy[1]:.2f}) is not on free floor: it is inside a wall or "
                 f"furniture, outside the building, or closer than {self.robot_radius} m to an obstacle"
+                f"{self._nearest_hint(xy, self.traversable)}"
             )
+
+    def check_reachable(self, waypoints: list[tuple[float, float]], labels: list[str]) -> None:
+        """Every waypoint (each already on free floor) can be reached from the first: refuses the
+        first one that lies in a part of the floor the robot cannot drive to (8-connected cells,
+        as the path search moves)."""
+        parts, _ = ndimage.label(self.traversable, structure=np.ones((3, 3), dtype=bool))
+        start = parts[self.cell(waypoints[0])]
+        for xy, label in zip(waypoints[1:], labels[1:]):
+            if parts[self.cell(xy)] != start:
+                raise InputError(
+                    f"{label} ({xy[0]:.2f}, {xy[1]:.2f}) cannot be reached from {labels[0]} "
+                    f"({waypoints[0][0]:.2f}, {waypoints[0][1]:.2f}): no way through for a robot of radius "
+                    f"{self.robot_radius} m{self._nearest_hint(xy, parts == start, 'reachable')}"
+                )
+
+    def _nearest_hint(self, xy: tuple[float, float], allowed: np.ndarray, what: str = "free") -> str:
+        """'; the nearest free point is (x, y)', or nothing if no cell is allowed."""
+        if not allowed.any():
+            return "; the floor has no free point at all (is the floor height right?)"
+        _, (rows, cols) = ndimage.distance_transform_edt(~allowed, return_indices=True)
+        r, c = self.cell(xy)
+        r = int(np.clip(r, 0, allowed.shape[0] - 1))
+        c = int(np.clip(c, 0, allowed.shape[1] - 1))
+        x, y = self._grid.cell_to_world(np.array([[rows[r, c], cols[r, c]]]))[0]
+        return f"; the nearest {what} point is ({x:.2f}, {y:.2f})"
 
     def shortest_path(self, start: tuple[float, float], goal: tuple[float, float]) -> np.ndarray:
         """(N, 2) world polyline from start to goal through traversable cells, smoothed."""

@@ -61,6 +61,19 @@ class BiasNoise:
             out[k + 1] = (x, y, yaw)
         return out
 
+    def step_variances(self) -> tuple[float, float]:
+        """Variances of one frame's odometry error that this model implies: (forward step in m^2,
+        heading change in rad^2), in the robot's frame at the start of the step.
+
+        The forward error of a step is the linear bias in force (zero-mean, std `linear_std`), the
+        heading error the angular bias (std `angular_std_deg`, in radians here); the lateral step
+        and the height carry no error. The biases are held for `redraw_period` seconds, so the
+        errors of the steps inside one period are not independent: the error of n consecutive
+        steps inside a period has n^2 times these variances (not n times), and steps in different
+        periods are independent.
+        """
+        return self.linear_std**2, math.radians(self.angular_std_deg) ** 2
+
 
 NOISE_LEVELS: Registry[BiasNoise] = Registry("noise level")
 for _level in (

@@ -14,6 +14,7 @@ from pathlib import Path
 from longslam.errors import InputError
 from longslam.textfile import read_text
 from longslam.registry import Registry
+from longslam.world.source import is_mesh_ref, same_world, world_label, world_ref
 
 Waypoint = tuple[float, float] | str
 
@@ -42,9 +43,10 @@ class Route:
         for i, wp in enumerate(self.waypoints):
             if isinstance(wp, str):
                 if wp not in places:
+                    hint = "" if places or not is_mesh_ref(self.world) else " (give a places file: --places FILE)"
                     raise InputError(
-                        f"route {self.name!r}: waypoint {i} names place {wp!r}, which world {self.world!r} "
-                        f"does not have; places: {', '.join(sorted(places)) or '(none)'}"
+                        f"route {self.name!r}: waypoint {i} names place {wp!r}, which world {world_label(self.world)!r} "
+                        f"does not have; places: {', '.join(sorted(places)) or '(none)'}{hint}"
                     )
                 out.append(tuple(map(float, places[wp])))
             else:
@@ -82,12 +84,18 @@ _named(
 )
 
 
-def load_route_file(path: str | Path, world: str = "university") -> Route:
+def load_route_file(path: str | Path, world: str | None = None) -> Route:
     """A route from a file: JSON {"world": ..., "waypoints": [[x, y] or "place", ...]}, or
-    text with one waypoint a line (`x y`, or a place name); '#' starts a comment."""
+    text with one waypoint a line (`x y`, or a place name); '#' starts a comment.
+
+    A JSON file's "world" is a world name, a mesh file relative to the route file, or a table
+    {"mesh": ..., "floor": ...} (see `longslam.world.world_ref`). `world` (a world reference) is
+    the world of a file that names none, default university; a file that names another is refused.
+    """
     path = Path(path)
     text = read_text(path, "route file")
     waypoints: list[Waypoint] = []
+    given = world
     if path.suffix.lower() == ".json":
         try:
             data = json.loads(text)
@@ -95,7 +103,13 @@ def load_route_file(path: str | Path, world: str = "university") -> Route:
             raise InputError(f"route file {path}: not valid JSON ({err})") from None
         if not isinstance(data, dict) or not isinstance(data.get("waypoints"), list):
             raise InputError(f"route file {path}: expected an object with a list field 'waypoints'")
-        world = str(data.get("world", world))
+        if "world" in data:
+            named = world_ref(data["world"], base=path.parent, what=f"route file {path}: world")
+            if given is not None and not same_world(named, given):
+                raise InputError(
+                    f"route file {path}: world {world_label(named)!r} is not the world given ({world_label(given)!r})"
+                )
+            world = named
         for i, wp in enumerate(data["waypoints"]):
             if isinstance(wp, str):
                 waypoints.append(wp)
@@ -120,11 +134,20 @@ def load_route_file(path: str | Path, world: str = "university") -> Route:
                 raise InputError(f"{path}:{number}: expected 'x y' in metres or a place name, got {line!r}")
     if len(waypoints) < 2:
         raise InputError(f"route file {path} has {len(waypoints)} waypoints; a route needs at least two")
-    return Route(path.stem, world, tuple(waypoints))
+    return Route(path.stem, world or "university", tuple(waypoints))
 
 
-def get_route(name_or_path: str) -> Route:
-    """A registered route by name, or a route file if the argument is an existing path."""
+def get_route(name_or_path: str, world: str | None = None) -> Route:
+    """A registered route by name, or a route file if the argument is an existing path.
+
+    `world` (a world reference), if given, is the world the route must be in: the world of a
+    route file that names none, and a registered route of another world is refused."""
     if name_or_path not in ROUTES and Path(name_or_path).suffix and Path(name_or_path).exists():
-        return load_route_file(name_or_path)
-    return ROUTES.get(name_or_path)
+        return load_route_file(name_or_path, world)
+    route = ROUTES.get(name_or_path)
+    if world is not None and not same_world(route.world, world):
+        raise InputError(
+            f"route {route.name!r} is a route of world {route.world!r}, not of {world_label(world)!r}; "
+            "give a route file (waypoints as 'x y' lines, or JSON) for that world"
+        )
+    return route

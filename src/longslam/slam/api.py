@@ -32,6 +32,10 @@ class Result:
 
 @runtime_checkable
 class Method(Protocol):
+    """A SLAM method. It may also set `images_every_frame`, the images ("rgb", "depth") that `step`
+    looks at in every frame: the run engine then decodes them for the next frames on a second
+    thread while the method works (run/read_ahead.py). Without it, images are read when used."""
+
     name: str
 
     def step(self, frame: Frame) -> np.ndarray:

@@ -30,7 +30,7 @@ _MATCH_CHUNK = 1 << 17
 WORD_INDEXES = ("bruteforce", "flat", "hnsw")
 HNSW_NEIGHBOURS = 16  # graph degree M
 HNSW_EF_CONSTRUCTION = 40
-HNSW_EF_SEARCH = 64
+HNSW_EF_SEARCH = 32
 
 
 def _faiss_index(kind: str):

@@ -1,7 +1,9 @@
 """Study files: a TOML file naming the world, routes, noise levels, methods, seeds and camera.
 
     name = "quick"                  # optional; default the file's stem
-    world = "university"            # optional; default university
+    world = "university"            # optional; default university; or a mesh file relative to this
+                                    # file, or { mesh = "b.glb", floor = 0.0, units = "mm", up = "y",
+                                    # places = "places.json" }
     routes = ["demo"]               # route names, or waypoint files relative to this file
     noise = ["small", "large"]      # odometry noise levels
     methods = "all"                 # every registered method, or a list: ["odometry", "keyframe"]
@@ -40,6 +42,7 @@ from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import NOISE_LEVELS
 from longslam.sim.routes import ROUTES, Route, load_route_file
+from longslam.world.source import same_world, world_label, world_ref
 
 TOP_KEYS = (
     "name", "world", "routes", "noise", "methods", "seeds", "align", "map_tolerance_cells",
@@ -66,7 +69,7 @@ class MethodEntry:
 @dataclass(frozen=True)
 class StudyConfig:
     name: str
-    world: str
+    world: str  # a world reference: a registered name, or a mesh file's (longslam.world.source)
     routes: tuple[Route, ...]
     noise: tuple[str, ...]
     methods: tuple[MethodEntry, ...]
@@ -162,8 +165,6 @@ def load_study(path: str | Path, methods_available: list[str] | None = None) -> 
 
 
 def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyConfig:
-    from longslam.world import WORLDS
-
     r = _Reader(path)
     for key in data:
         if key not in TOP_KEYS:
@@ -176,9 +177,10 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     if not isinstance(name, str) or not name.strip():
         raise r.error("name", f"expected a non-empty string, got {name!r}")
 
-    world = data.get("world", "university")
-    if world not in WORLDS:
-        raise r.error("world", f"unknown world {world!r}; valid values: {_valid(WORLDS.names())}")
+    try:
+        world = world_ref(data.get("world", "university"), base=path.parent, what=f"study file {path}: world")
+    except InputError as err:
+        raise StudyConfigError(str(err)) from None
 
     routes = _routes(r, data, world, path)
     noise = r.string_list(data, "noise", NOISE_LEVELS.names(), "noise level")
@@ -232,8 +234,10 @@ def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
                 route = load_route_file(file, world)
             except InputError as err:
                 raise r.error(key, str(err)) from None
-        if route.world != world:
-            raise r.error(key, f"route {route.name!r} is in world {route.world!r}, the study in {world!r}")
+        if not same_world(route.world, world):
+            raise r.error(
+                key, f"route {route.name!r} is in world {world_label(route.world)!r}, the study in {world_label(world)!r}"
+            )
         if any(route.name == other.name for other in routes):
             raise r.error(key, f"a route named {route.name!r} is listed twice (route files are named by their stem)")
         routes.append(route)

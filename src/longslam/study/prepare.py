@@ -5,7 +5,8 @@ what the evaluation and the report need without the cache: per route its ground-
 trajectory, waypoints and the mask of walls the camera could see, and per world its ground-truth
 occupancy grid.
 
-    DIR/worlds/<world>.npz               ground-truth occupancy (GridMap)
+    DIR/worlds/<world>.npz               ground-truth occupancy (GridMap); a mesh world's name
+                                         is its file's stem and a hash of its content
     DIR/routes/<route>/groundtruth.txt   true camera trajectory (TUM)
     DIR/routes/<route>/route.json        waypoints (x, y), length, frames
     DIR/routes/<route>/observed.npy      occupied cells the camera could see (for map recall)
@@ -72,7 +73,10 @@ class RouteData:
 
 
 def world_grid_path(out: Path, world: str) -> Path:
-    return Path(out) / "worlds" / f"{world}.npz"
+    """The grid of a world (a reference): by name, or a mesh's stem and content hash."""
+    from longslam.world import world_key
+
+    return Path(out) / "worlds" / f"{world_key(world)}.npz"
 
 
 def route_dir(out: Path, route: str) -> Path:
@@ -83,7 +87,7 @@ def prepare_route(
     out: Path, route: Route, camera: CameraSettings, follower: FollowerSettings
 ) -> None:
     """Write the route's ground truth and its world's occupancy into the study folder (once)."""
-    from longslam.world import get_world
+    from longslam.world import load_world
 
     folder = route_dir(out, route.name)
     grid_path = world_grid_path(out, route.world)
@@ -93,7 +97,7 @@ def prepare_route(
         info = json.loads(info_path.read_text())
         if info.get("settings") == json.loads(json.dumps(settings)) and info.get("waypoints_given") == _waypoints_json(route):
             return
-    world = get_world(route.world)
+    world = load_world(route.world)
     if not grid_path.is_file():
         grid_path.parent.mkdir(parents=True, exist_ok=True)
         world.occupancy.save(grid_path)
@@ -156,10 +160,10 @@ def clean_partials(folder: Path) -> int:
 def check_routes(config) -> None:
     """Drive every route of a study on its world (a second or two each), so that a route through
     a wall or to an unknown place is refused before anything is written."""
-    from longslam.world import get_world
+    from longslam.world import load_world
 
     for route in config.routes:
-        drive_route(get_world(route.world), route, config.follower)
+        drive_route(load_world(route.world), route, config.follower)
 
 
 def check_out_folder(out: Path) -> None:

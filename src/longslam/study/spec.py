@@ -18,7 +18,7 @@ class RunSpec:
     """Everything a worker needs to do one run, on this machine or another."""
 
     study: str
-    world: str
+    world: str  # a world reference: a name, or a mesh file's with its content hash
     route: str
     waypoints: tuple  # the route's waypoints: (x, y) or place names
     noise: str
@@ -39,8 +39,11 @@ class RunSpec:
     @property
     def config_hash(self) -> str:
         """Changes whenever anything that affects the run's result changes."""
+        from longslam.world.source import world_identity
+
         described = self.describe()
         described.pop("study")  # renaming a study does not change its runs
+        described["world"] = world_identity(self.world)  # a mesh by its content: moving the file is no change
         text = json.dumps(described, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 

@@ -1,7 +1,8 @@
 """longslam.world: buildings as textured meshes, their ground-truth occupancy, named places.
 
 `get_world(name)` returns a registered world, built once per process; `load_mesh_world(path)`
-makes a world of a user's own building mesh.
+makes a world of a user's own building mesh; `world_ref(name or file)` and `load_world(ref)`
+take either (see `longslam.world.source`).
 """
 
 from __future__ import annotations
@@ -44,7 +45,9 @@ def get_world(name: str) -> World:
     return WORLDS.get(name)()
 
 
+from longslam.world.source import load_world, world_key, world_label, world_ref  # noqa: E402 (needs WORLDS)
+
 __all__ = [
     "WORLDS", "Box", "FloorPlan", "Rect", "World", "WorldMesh", "build_mesh", "get_world", "load_mesh_world",
-    "university_plan", "world_from_plan",
+    "load_world", "university_plan", "world_from_plan", "world_key", "world_label", "world_ref",
 ]

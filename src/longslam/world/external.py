@@ -1,8 +1,10 @@
-"""A user's own building: a mesh file (PLY, OBJ, GLB, ...) plus the height of its floor.
+"""A user's own building: a mesh file (PLY, OBJ, GLB/glTF, ...) turned into a `World`.
 
-The ground-truth occupancy grid is derived from the mesh the way a robot would see the building:
-surfaces between 0.2 m and 1.5 m above the floor are obstacles (the band the SLAM methods map),
-and floor visible from above with nothing in that band is free.
+The mesh is turned z-up (glTF files are y-up), scaled to metres, and moved so that its floor
+(found automatically, or given) is at z = 0, the plane the robot drives on. The ground-truth
+occupancy grid is derived from the mesh the way a robot would see the building: surfaces between
+0.2 m and 1.5 m above the floor are obstacles (the band the SLAM methods map), and floor visible
+from above with nothing in that band is free.
 """
 
 from __future__ import annotations
@@ -14,91 +16,69 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.world.floor import check_metres, find_floor
 from longslam.world.mesh import WorldMesh
-from longslam.world.textures import pack_atlas
+from longslam.world.mesh_file import read_mesh_file
 from longslam.world.world import World
 
 OBSTACLE_BAND = (0.2, 1.5)  # metres above the floor
 FLOOR_TOLERANCE = 0.1  # metres: how far a downward ray's hit may be from the floor and count as floor
-GREY = (160, 160, 160)
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+UP_AXES = ("z", "y")
+# glTF is y-up by its specification (so are Habitat's scene datasets); other formats are taken as z-up.
+Y_UP_SUFFIXES = (".glb", ".gltf")
+# y-up -> z-up: a quarter turn about x, (x, y, z) -> (x, -z, y), keeping the frame right-handed.
+_Y_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
-def load_mesh_world(path: str | Path, floor_z: float = 0.0, name: str | None = None, resolution: float = 0.05) -> World:
+def default_up(path: str | Path) -> str:
+    return "y" if Path(path).suffix.lower() in Y_UP_SUFFIXES else "z"
+
+
+def load_mesh_world(
+    path: str | Path,
+    floor_z: float | None = None,
+    name: str | None = None,
+    resolution: float = 0.05,
+    units: str = "m",
+    up: str | None = None,
+    places: dict[str, tuple[float, float]] | None = None,
+) -> World:
     """A `World` from a mesh file, its occupancy grid at `resolution` derived from the mesh.
 
-    Raises `InputError` naming the file if it is missing, unreadable or has no triangles, or if
-    `floor_z` is outside the mesh's height range.
+    `up` is the file's up axis ("z", or "y" for glTF's convention; default by the file's suffix),
+    `units` its length unit ("m", "cm", "mm"), `floor_z` the floor's height in metres after the
+    mesh is turned z-up (found automatically if None). The world's mesh is moved so that the
+    floor is at z = 0; x and y are kept, so waypoints and `places` are in the file's x, y (in
+    metres). Raises `InputError` naming the file if it is missing, unreadable, has no triangles,
+    is not in the units given, has no floor, or if `floor_z` is outside the mesh's height range.
     """
     path = Path(path)
-    mesh = load_mesh(path)
+    source = f"mesh file {path}"
+    if units not in UNITS:
+        raise InputError(f"{source}: unknown units {units!r}; valid values: {', '.join(UNITS)}")
+    up = default_up(path) if up is None else up
+    if up not in UP_AXES:
+        raise InputError(f"{source}: unknown up axis {up!r}; valid values: {', '.join(UP_AXES)}")
+    mesh = read_mesh_file(path)
+    vertices = mesh.vertices @ _Y_TO_Z_UP.T if up == "y" else mesh.vertices
+    mesh.vertices = np.ascontiguousarray(vertices * UNITS[units])
+    check_metres(mesh, source)
     zmin, zmax = float(mesh.vertices[:, 2].min()), float(mesh.vertices[:, 2].max())
-    if not math.isfinite(floor_z) or not zmin - 0.01 <= floor_z <= zmax + 0.01:
+    if floor_z is None:
+        floor_z = find_floor(mesh, source)
+    elif not math.isfinite(floor_z) or not zmin - 0.01 <= floor_z <= zmax + 0.01:
         raise InputError(
-            f"mesh file {path}: floor height {floor_z} m is outside the mesh's z range [{zmin:.3f}, {zmax:.3f}] m"
+            f"{source}: floor height {floor_z} m is outside the mesh's z range [{zmin:.3f}, {zmax:.3f}] m"
         )
-    occupancy = occupancy_from_mesh(mesh, floor_z, resolution)
-    return World(name or path.stem, mesh, occupancy, float(floor_z), {}, None)
-
-
-def load_mesh(path: str | Path) -> WorldMesh:
-    """Read a triangle mesh with its texture (several textures are packed into one atlas) or its
-    vertex colours; a mesh with neither is flat grey."""
-    import open3d as o3d  # here, not at the top: importing longslam.world should not cost a second
-
-    path = Path(path)
-    if path.is_dir():
-        raise InputError(f"mesh file {path} is a folder; expected a mesh file (PLY, OBJ or GLB)")
-    if not path.is_file():
-        raise InputError(f"mesh file {path} does not exist")
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        try:
-            legacy = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False)
-        except Exception as err:  # Open3D raises RuntimeError for some malformed files
-            raise InputError(f"mesh file {path} could not be read: {err}") from None
-    vertices = np.asarray(legacy.vertices, dtype=np.float64)
-    triangles = np.asarray(legacy.triangles, dtype=np.int64)
-    if len(triangles) == 0 or len(vertices) == 0:
+    mesh.vertices[:, 2] -= floor_z
+    occupancy = occupancy_from_mesh(mesh, 0.0, resolution)
+    if not np.any(occupancy.data == FREE):
         raise InputError(
-            f"mesh file {path} could not be read as a triangle mesh or has no triangles "
-            "(expected a PLY, OBJ, GLB/glTF, OFF or STL file with faces)"
+            f"{source}: no free floor at height {floor_z:.3f} m (nothing seen from above lies on it "
+            "with the obstacle band clear); give the right floor height (--floor Z)"
         )
-    if not np.all(np.isfinite(vertices)):
-        raise InputError(f"mesh file {path} has vertices that are not finite numbers")
-    if triangles.min() < 0 or triangles.max() >= len(vertices):
-        raise InputError(f"mesh file {path} has triangles that index missing vertices")
-
-    # Materials without an image come through as empty images: they get a flat grey texel.
-    textures = [_rgb_image(np.asarray(t)) if not t.is_empty() else np.full((1, 1, 3), GREY, np.uint8)
-                for t in legacy.textures]
-    uvs = np.asarray(legacy.triangle_uvs, dtype=np.float64)
-    if any(t.size > 3 for t in textures) and len(uvs) == 3 * len(triangles):
-        material = np.asarray(legacy.triangle_material_ids, dtype=np.int64)
-        if len(material) != len(triangles):
-            material = np.zeros(len(triangles), dtype=np.int64)
-        material = np.where((material >= 0) & (material < len(textures)), material, 0)
-        atlas = pack_atlas(textures)
-        sizes = np.array([[t.shape[1], t.shape[0]] for t in textures], dtype=np.float64)
-        # Open3D's uvs are in [0, 1] with v from the top row; ours are pixels in the atlas.
-        pix = uvs.reshape(-1, 3, 2) * sizes[material][:, None, :] + atlas.offsets[material][:, None, :]
-        return WorldMesh(vertices, triangles, pix.astype(np.float32), atlas.image)
-    if legacy.has_vertex_colors():
-        colors = np.clip(np.asarray(legacy.vertex_colors) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-        return WorldMesh(vertices, triangles, vertex_colors=colors)
-    return WorldMesh(vertices, triangles, vertex_colors=np.tile(np.array(GREY, dtype=np.uint8), (len(vertices), 1)))
-
-
-def _rgb_image(img: np.ndarray) -> np.ndarray:
-    """Any Open3D texture (grey, RGBA, 16-bit, float) as (H, W, 3) uint8."""
-    if img.ndim == 2:
-        img = img[:, :, None]
-    if img.dtype == np.uint16:
-        img = (img >> 8).astype(np.uint8)
-    elif img.dtype.kind == "f":
-        img = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
-    img = img.astype(np.uint8)
-    if img.shape[2] == 1:
-        img = np.repeat(img, 3, axis=2)
-    return np.ascontiguousarray(img[:, :, :3])
+    return World(name or path.stem, mesh, occupancy, 0.0, dict(places or {}), None, source_floor_z=float(floor_z))
 
 
 def _sample_band(mesh: WorldMesh, z0: float, z1: float, spacing: float, max_points: int = 2_000_000):

@@ -65,6 +65,8 @@ class KeyframeMethod:
             self.frontend = FrontEnd(context.intrinsics, FrontEndConfig(
                 mode=config.frontend, camera_height=config.camera_height,
                 jump_distance=config.jump_distance, jump_angle=config.jump_angle))
+        # The fused front end looks at every frame; on wheels only nodes (~1 Hz) read images.
+        self.images_every_frame = () if self.frontend is None else ("rgb", "depth")
         self._node_frame: dict[int, int] = {}  # node id -> index of the frame it was made at
         self._last_node: Node | None = None
         self._frame_stamps: list[float] = []

@@ -96,6 +96,8 @@ class SubmapMethod:
         self.frontend: FrontEnd | None = None
         if c.frontend != "wheel":
             self.frontend = FrontEnd(context.intrinsics, FrontEndConfig(mode=c.frontend, camera_height=c.camera_height or None))
+        # Every frame's depth goes into the TSDF; colour too for the fused front end's visual steps.
+        self.images_every_frame = ("depth",) if self.frontend is None else ("rgb", "depth")
         self._submap_frame: list[int] = []  # index of each submap's first frame
         self._last_odometry: np.ndarray | None = None
         self._pose_in_active = np.eye(4)  # camera pose of the latest frame in the active submap

@@ -95,6 +95,16 @@ class Report:
     notes: list[str]
 
 
+def _world_shown(world: str) -> str:
+    """A world's name, or its mesh file's name and content hash."""
+    from longslam.world.source import MeshSpec, is_mesh_ref
+
+    if not is_mesh_ref(world):
+        return world
+    spec = MeshSpec.from_ref(world)
+    return f"`{Path(spec.path).name}` (mesh, sha256 {spec.sha256[:12]})"
+
+
 def build_report(out: str | Path, figures: bool = True) -> Report:
     results = load_results(out)
     config = results.config
@@ -102,7 +112,7 @@ def build_report(out: str | Path, figures: bool = True) -> Report:
     seeds = config.get("seeds", [])
     camera = config.get("camera", {})
     intro = [
-        f"Study `{name}` ({config.get('source', '')}): world {config.get('world', '?')}, "
+        f"Study `{name}` ({config.get('source', '')}): world {_world_shown(config.get('world', '?'))}, "
         f"routes {', '.join(results.routes)}, noise levels {', '.join(results.noise)}, "
         f"methods {', '.join(results.methods)}, seeds {', '.join(map(str, seeds))}.",
         f"Camera {camera.get('width', '?')} x {camera.get('height', '?')}, {camera.get('hfov_deg', '?')} degree field "

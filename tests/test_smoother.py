@@ -1,0 +1,86 @@
+"""The front end's batch smoother: our Levenberg-Marquardt loop against GTSAM's own optimizer."""
+
+import gtsam
+import numpy as np
+
+from longslam.geometry import compose_xyyaw as compose
+from longslam.geometry import relative_xyyaw as relative
+from longslam.slam.frontend.smoother import FullSmoother, MotionNoise, SmootherConfig, WheelStep
+
+
+def _smoother(frames: int = 80, seed: int = 3) -> tuple[FullSmoother, np.ndarray]:
+    """Wheels with a forward and a yaw bias on a curving path, scans tying every fifth frame to
+    the truth, and one loop: the problem the front end hands over at the end of a run."""
+    rng = np.random.default_rng(seed)
+    truth = [np.zeros(3)]
+    for k in range(1, frames):
+        truth.append(compose(truth[-1], np.array([0.15, 0.0, 0.02 * np.sin(k / 9.0)])))
+    truth = np.array(truth)
+    noise = MotionNoise()
+    smoother = FullSmoother(noise, SmootherConfig(relative_tolerance=1e-9, iterations=100))
+    odometry = truth[0].copy()
+    bias = np.array([0.004, 0.0008])
+    for k in range(frames):
+        wheel = sigmas = scan = None
+        if k:
+            step = relative(truth[k - 1], truth[k])
+            measured = step + np.array([bias[0], 0.0, bias[1]]) + rng.normal(0, [0.002, 0.0, 0.0003])
+            wheel = WheelStep(float(measured[0]), float(measured[1]), float(measured[2]), True)
+            sigmas = np.array([0.0045, 1e-3, 0.0006])
+            odometry = compose(odometry, measured)
+            if k % 5 == 0:
+                scan = (k - 5, relative(truth[k - 5], truth[k]) + rng.normal(0, 0.01, 3), np.diag([400.0, 400.0, 900.0]))
+        smoother.add_frame(odometry.copy(), wheel, sigmas, None, scan, np.zeros(2))
+    smoother.add_loop(2, frames - 3, relative(truth[2], truth[frames - 3]), np.diag([100.0, 100.0, 400.0]))
+    return smoother, truth
+
+
+def test_our_optimizer_reaches_gtsams_levenberg_marquardt_minimum():
+    smoother, truth = _smoother()
+    ours = smoother.solve()
+    graph, values, _ = smoother.build_graph()
+    params = gtsam.LevenbergMarquardtParams()
+    params.setRelativeErrorTol(1e-9)
+    params.setMaxIterations(100)
+    theirs = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+    theirs = np.array([[p.x(), p.y(), p.theta()] for p in (theirs.atPose2(gtsam.symbol("x", k)) for k in range(len(truth)))])
+    assert np.abs(ours - theirs).max() < 1e-6
+    # and the biases were worth estimating: far closer to the truth than the odometry
+    odometry = np.array(smoother.initial)
+    assert np.linalg.norm(ours[:, :2] - truth[:, :2], axis=1).max() < 0.2 * np.linalg.norm(odometry[:, :2] - truth[:, :2], axis=1).max()
+
+
+def test_a_part_nothing_anchors_is_damped_not_fatal():
+    # No wheel step from frame 40 to 41, no scan or loop across: frames 41.. float free, Gauss-
+    # Newton's system is singular (GTSAM raises IndeterminateLinearSystemException); damped
+    # steps solve it, as GTSAM's Levenberg-Marquardt would.
+    smoother, truth = _smoother()
+    smoother.records[41].wheel = None
+    smoother.loops.clear()
+    for k, rec in enumerate(smoother.records):
+        if rec.scan is not None and rec.scan[0] <= 40 < k:
+            rec.scan = None
+    graph, values, _ = smoother.build_graph()
+    try:
+        graph.linearize(values).optimize()
+        singular = False
+    except RuntimeError:
+        singular = True
+    assert singular
+    out = smoother.solve()
+    assert np.isfinite(out).all() and smoother.iterations >= 1
+    assert np.linalg.norm(out[:41, :2] - truth[:41, :2], axis=1).max() < 0.1
+    # the free part is placed anywhere (only the damping holds it), but its shape is solved:
+    # the biases correct it as they correct the anchored part
+    last = len(truth) - 1
+    shape_error = relative(out[41], out[last]) - relative(truth[41], truth[last])
+    initial = np.array(smoother.initial)
+    odometry_error = relative(initial[41], initial[last]) - relative(truth[41], truth[last])
+    assert np.linalg.norm(shape_error[:2]) < 0.6 * np.linalg.norm(odometry_error[:2])
+    # as GTSAM's Levenberg-Marquardt shapes it
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(100)
+    theirs = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+    a, b = (theirs.atPose2(gtsam.symbol("x", k)) for k in (41, last))
+    theirs_shape = relative(np.array([a.x(), a.y(), a.theta()]), np.array([b.x(), b.y(), b.theta()]))
+    assert np.linalg.norm(relative(out[41], out[last])[:2] - theirs_shape[:2]) < 0.02
