@@ -36,18 +36,18 @@ PEAK_TARGET_MB = {"keyframe": 400, "submap": 300}
 GROWTH_TARGET = 0.20
 
 
-def run_process(command: list[str]) -> tuple[float, float, int]:
-    """(wall seconds, peak RSS in MB, exit status) of one child process."""
-    start = time.perf_counter()
-    child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    # wait4 gives this child's own rusage (a fork of a large parent would inherit its peak).
-    _, status, usage = os.wait4(child.pid, 0)
-    wall = time.perf_counter() - start
-    error = child.stderr.read()
-    child.returncode = os.waitstatus_to_exitcode(status)
-    if child.returncode:
-        print(error[-2000:], file=sys.stderr)
-    return wall, usage.ru_maxrss / 1024.0, child.returncode
+def run_process(command: list[str], log: Path) -> tuple[float, float, int]:
+    """(wall seconds, peak RSS in MB, exit status) of one child process; its output goes to `log`."""
+    with open(log, "w") as out:
+        start = time.perf_counter()
+        child = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT)
+        # wait4 gives this child's own rusage (a fork of a large parent would inherit its peak).
+        _, status, usage = os.wait4(child.pid, 0)
+        wall = time.perf_counter() - start
+    code = os.waitstatus_to_exitcode(status)
+    if code:
+        print(log.read_text()[-2000:], file=sys.stderr)
+    return wall, usage.ru_maxrss / 1024.0, code
 
 
 def rss_at(stats: dict, distance: np.ndarray, metres: float) -> float:
@@ -80,7 +80,7 @@ def main() -> None:
                    "--out", str(work / "runs" / f"{seq.name}-{variant}"), "--overwrite"]
         if frontend:
             command += ["--param", f"frontend={frontend}"]
-        wall, peak, status = run_process(command)
+        wall, peak, status = run_process(command, work / f"{seq.name}-{variant}.log")
         if status:
             print(f"{variant:15s} failed (exit {status})")
             continue
