@@ -1,6 +1,9 @@
 """The CLI turns every expected failure into one line naming the problem, exit code 2, no traceback."""
 
 import json
+import os
+import subprocess
+import sys
 import re
 
 import pytest
@@ -94,10 +97,7 @@ def test_debug_shows_the_traceback(tmp_path):
         main(["world", "--out", str(tmp_path / "x.txt"), "--debug"])
 
 
-def _shell(command: str, cwd) -> "subprocess.CompletedProcess":
-    import os
-    import subprocess
-    import sys
+def _shell(command: str, cwd) -> subprocess.CompletedProcess:
 
     env = dict(os.environ, LONGSLAM_PY=sys.executable)
     return subprocess.run(["bash", "-c", command], cwd=cwd, env=env, capture_output=True, text=True, timeout=120)
