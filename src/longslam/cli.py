@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+
+# One OpenBLAS thread per process unless the user sets it: a run's matrices are small, a study
+# runs one method per core, and OpenBLAS's spinning threads cost a keyframe run on paper-300m
+# 11 s of CPU (the other core's) for 1 s of wall time. Set before numpy loads OpenBLAS.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
 from longslam.errors import LongslamError
