@@ -30,7 +30,7 @@ def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncatio
 
 
 COMPACT_ROWS = 250_000  # cell rows gathered before duplicates are merged (grid_from_tsdf)
-SLICE_VOXELS = 16_384  # band voxels sampled at once: bounds the interpolation's temporaries
+SLICE_VOXELS = 4_096  # band voxels sampled at once: bounds the interpolation's temporaries (~15 MB)
 
 
 def grid_from_tsdf(
