@@ -9,7 +9,7 @@ from longslam.errors import InputError
 from longslam.frame import Intrinsics
 from longslam.geometry import base_to_camera
 from longslam.gridmap import FREE, OCCUPIED, UNKNOWN
-from longslam.slam.occupancy import LocalGrid, assemble, local_grid
+from longslam.slam.occupancy import GridVotes, LocalGrid, assemble, local_grid
 
 CAMERA_HEIGHT = 1.25
 INTR = Intrinsics.from_fov(64, 48, 90)
@@ -120,3 +120,21 @@ def test_bad_input_is_named():
         local_grid(np.zeros((10, 10), np.float32), INTR, CAM_IN_BASE)
     with pytest.raises(InputError, match="local grids"):
         assemble([], np.zeros((1, 3)))
+
+
+def test_a_grid_reaching_the_edge_of_the_vote_array_is_kept_whole():
+    # The second grid fits inside the array the first one made, up to its last row: the fused
+    # grid once came out empty (a slice from row -1) on a 1 km route.
+    votes = GridVotes(0.05)
+    first = LocalGrid(np.array([[0, 0]], np.int16), np.array([[1, 0]], np.int16), 0.05)
+    votes.add(first, np.zeros(3))
+    edge = -votes.GROW_CELLS  # the array's first row and column, in this frame's cells
+    second = LocalGrid(np.array([[edge, edge]], np.int16), np.zeros((0, 2), np.int16), 0.05)
+    votes.add(second, np.zeros(3))
+    gmap = votes.grid()
+    # rows -256..0, columns -256..1, and one unknown cell all round
+    assert gmap.data.shape == (-edge + 1 + 2, -edge + 2 + 2)
+    corner = edge * 0.05 + 0.025
+    assert (gmap.values_at(np.array([[0.025, 0.025], [corner, corner]])) == OCCUPIED).all()
+    assert gmap.values_at(np.array([[0.075, 0.025]]))[0] == FREE
+    assert (gmap.data[0] == UNKNOWN).all() and (gmap.data[:, 0] == UNKNOWN).all()

@@ -267,12 +267,17 @@ class GridVotes:
         if not seen.any():
             return GridMap(np.full((1, 1), UNKNOWN, dtype=np.int8), self.cell, (0.0, 0.0))
         rows, cols = np.flatnonzero(seen.any(axis=1)), np.flatnonzero(seen.any(axis=0))
+        # A grid that fitted inside the array can reach its very edge (the margin is added only
+        # when the array grows): the border of unknown cells is padded then, not sliced, since
+        # a start index of -1 would have emptied the whole grid.
         r0, r1 = rows[0] - 1, rows[-1] + 2
-        c0, c1 = cols[0] - 1, cols[-1] + 2  # within the array: it carries a wide margin
-        odds = self._odds[r0:r1, c0:c1]
+        c0, c1 = cols[0] - 1, cols[-1] + 2
+        odds = self._odds[max(r0, 0):r1, max(c0, 0):c1]
         data = np.full(odds.shape, UNKNOWN, dtype=np.int8)
-        data[seen[r0:r1, c0:c1]] = FREE
+        data[~np.isnan(odds)] = FREE
         data[odds > 0] = OCCUPIED  # NaN compares False: unseen stays unknown
+        pad = ((max(-r0, 0), max(r1 - self._odds.shape[0], 0)), (max(-c0, 0), max(c1 - self._odds.shape[1], 0)))
+        data = np.pad(data, pad, constant_values=UNKNOWN)
         origin = (float((self._lo[0] + c0) * self.cell), float((self._lo[1] + r0) * self.cell))
         return GridMap(data, self.cell, origin)
 
