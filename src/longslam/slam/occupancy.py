@@ -86,7 +86,8 @@ def depth_points_in_base(
     x = (cols * stride - intrinsics.cx) / intrinsics.fx * z
     y = (rows * stride - intrinsics.cy) / intrinsics.fy * z
     # The rotation applied per coordinate: a (N, 3) @ (3, 3) product is slower for N ~ 77k.
-    rot, t = np.asarray(camera_in_base, dtype=np.float64)[:3, :3], np.asarray(camera_in_base, dtype=np.float64)[:3, 3]
+    pose = np.asarray(camera_in_base, dtype=np.float64)
+    rot, t = pose[:3, :3], pose[:3, 3]
     out = np.empty((len(z), 3))
     for axis in range(3):
         out[:, axis] = rot[axis, 0] * x + rot[axis, 1] * y + rot[axis, 2] * z + t[axis]
@@ -226,11 +227,14 @@ class GridVotes:
             lo, hi = lo - margin, hi + margin
         else:
             old_hi = self._lo + np.array(self._odds.shape[::-1]) - 1
-            if np.all(lo >= self._lo) and np.all(hi <= old_hi):
+            # Cells must fit with one cell to spare all round: `grid` crops a border of one
+            # unknown cell around the cells seen (a grid reaching the array's very edge once
+            # cropped from row -1, an empty grid).
+            if np.all(lo - 1 >= self._lo) and np.all(hi + 1 <= old_hi):
                 return
             # A margin only on the sides that grow: margins must not pile up on the others.
-            lo = np.where(lo < self._lo, lo - margin, self._lo)
-            hi = np.where(hi > old_hi, hi + margin, old_hi)
+            lo = np.where(lo - 1 < self._lo, lo - margin, self._lo)
+            hi = np.where(hi + 1 > old_hi, hi + margin, old_hi)
         cols, rows = (hi - lo + 1).astype(np.int64)
         odds = np.full((rows, cols), np.nan, np.float32)
         if self._lo is not None:
@@ -267,17 +271,12 @@ class GridVotes:
         if not seen.any():
             return GridMap(np.full((1, 1), UNKNOWN, dtype=np.int8), self.cell, (0.0, 0.0))
         rows, cols = np.flatnonzero(seen.any(axis=1)), np.flatnonzero(seen.any(axis=0))
-        # A grid that fitted inside the array can reach its very edge (the margin is added only
-        # when the array grows): the border of unknown cells is padded then, not sliced, since
-        # a start index of -1 would have emptied the whole grid.
         r0, r1 = rows[0] - 1, rows[-1] + 2
-        c0, c1 = cols[0] - 1, cols[-1] + 2
-        odds = self._odds[max(r0, 0):r1, max(c0, 0):c1]
+        c0, c1 = cols[0] - 1, cols[-1] + 2  # within the array: `_cover` keeps a cell to spare
+        odds = self._odds[r0:r1, c0:c1]
         data = np.full(odds.shape, UNKNOWN, dtype=np.int8)
-        data[~np.isnan(odds)] = FREE
+        data[seen[r0:r1, c0:c1]] = FREE
         data[odds > 0] = OCCUPIED  # NaN compares False: unseen stays unknown
-        pad = ((max(-r0, 0), max(r1 - self._odds.shape[0], 0)), (max(-c0, 0), max(c1 - self._odds.shape[1], 0)))
-        data = np.pad(data, pad, constant_values=UNKNOWN)
         origin = (float((self._lo[0] + c0) * self.cell), float((self._lo[1] + r0) * self.cell))
         return GridMap(data, self.cell, origin)
 
