@@ -119,13 +119,18 @@ def map_quality(
     walls the robot could see. Precision is None when the estimate has no occupied cell, recall
     None when there is no (observed) occupied ground-truth cell.
     """
+    tolerance = _tolerance(estimate, truth, tolerance_cells, observed)
+    est_xy = transform_points(occupied_points(estimate), rotation, translation, scale, height)
+    return score_points(est_xy, truth, tolerance, observed)
+
+
+def _tolerance(estimate: GridMap, truth: GridMap, tolerance_cells: float, observed: np.ndarray | None) -> float:
+    """The matching distance in metres, after checking the mask and the tolerance."""
     if observed is not None and np.shape(observed) != truth.data.shape:
         raise InputError(f"observed mask has shape {np.shape(observed)}, the ground-truth grid {truth.data.shape}")
     if tolerance_cells < 0:
         raise InputError(f"tolerance_cells must be >= 0, got {tolerance_cells}")
-    tolerance = float(tolerance_cells) * max(estimate.resolution, truth.resolution)
-    est_xy = transform_points(occupied_points(estimate), rotation, translation, scale, height)
-    return score_points(est_xy, truth, tolerance, observed)
+    return float(tolerance_cells) * max(estimate.resolution, truth.resolution)
 
 
 def score_points(est_xy: np.ndarray, truth: GridMap, tolerance: float, observed: np.ndarray | None = None) -> dict:
@@ -183,9 +188,9 @@ def map_scores(
     from longslam.eval.doubled_walls import doubled_walls
     from longslam.eval.map_align import align_map
 
-    scores = map_quality(estimate, truth, tolerance_cells, observed, rotation, translation, scale, height)
-    tolerance = scores["map_tolerance_m"]
+    tolerance = _tolerance(estimate, truth, tolerance_cells, observed)
     walls = transform_points(occupied_points(estimate), rotation, translation, scale, height)
+    scores = score_points(walls, truth, tolerance, observed)
     # The search and the doubled-wall test need a tolerance of at least a truth cell.
     search = max(tolerance, truth.resolution)
     planar = align_map(walls, truth, search)
