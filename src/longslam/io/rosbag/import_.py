@@ -280,22 +280,14 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
 
     odometry = None
     if chosen.odom:
-        if not odom:
-            raise InputError(f"{chosen.odom} in {bag.path} holds no messages")
-        (odom_parent, base_frame), *more = sorted(odom_frames)
-        if more:
-            raise InputError(f"{chosen.odom}: its messages name more than one frame pair: {sorted(odom_frames)}")
+        _, base_frame = _frame_pair(chosen.odom, odom, odom_frames, bag.path)
         base_poses = interpolate_poses(np.array([s for s, _ in odom]), np.array([p for _, p in odom]), frame_ns,
                                        gap_ns, f"odometry {chosen.odom}")
         cam = np.array([base_poses[k] @ tf.lookup(base_frame, camera_frame, int(frame_ns[k])) for k in range(len(frame_ns))])
         odometry = Trajectory(frame_t, cam, source=f"{chosen.odom} in {bag.path}")
     ground_truth = None
     if chosen.groundtruth:
-        if not truth:
-            raise InputError(f"{chosen.groundtruth} in {bag.path} holds no messages")
-        (_, child), *more = sorted(truth_frames)
-        if more:
-            raise InputError(f"{chosen.groundtruth}: its messages name more than one frame pair: {sorted(truth_frames)}")
+        _, child = _frame_pair(chosen.groundtruth, truth, truth_frames, bag.path)
         body = child or groundtruth_frame or (base_frame if chosen.odom else camera_frame)
         stamps = np.array([s for s, _ in truth], dtype=np.int64)
         order = np.argsort(stamps, kind="stable")
@@ -348,6 +340,16 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         notes.append(f"{beyond} depth pixels beyond {limit:.3f} m were stored as 'no return'")
     return ImportSummary(out, len(kept), chosen, len(rgb_stamps), len(depth_stamps), odometry is not None,
                          ground_truth is not None, beyond, notes)
+
+
+def _frame_pair(topic: str, messages: list, frames: set, bag_path: Path) -> tuple[str, str]:
+    """The one (parent, child) frame pair a pose topic's messages name."""
+    if not messages:
+        raise InputError(f"{topic} in {bag_path} holds no messages")
+    pair, *more = sorted(frames)
+    if more:
+        raise InputError(f"{topic}: its messages name more than one frame pair: {sorted(frames)}")
+    return pair
 
 
 def _span(stamps: list[int]) -> str:
