@@ -237,13 +237,14 @@ class SmootherConfig:
     # heading and forward distance, never as a sideways shift of a step.
     lateral_sigma: float = 1e-5  # m
     iterations: int = 50
-    # Bias states in the smoother (a Python factor per frame: slow on long routes), or each wheel
-    # step corrected by the online filter's bias estimate (GTSAM's own between factors).
+    # Bias states in the smoother (a Python factor per frame), or each wheel step corrected by
+    # the online filter's bias estimate (GTSAM's own between factors).
     bias_states: bool = True
     # "lm": Levenberg-Marquardt (Gauss-Newton steps, damped when one fails); "gn": stop there instead.
     optimizer: str = "lm"
-    # Measured on paper-300m xlarge seed 2: 1e-5 took 27 iterations (38 s; 279 s on paper-1km)
-    # for ATE 0.567 m; 3e-4 takes 5 (7 s) for 0.580 m. Without bias states: 0.2 s, 0.590 m.
+    # Measured on paper-300m xlarge seed 2 (with GTSAM's own optimizer, before `_optimize`):
+    # 1e-5 took 27 iterations for ATE 0.567 m; 3e-4 takes 5 for 0.580 m. Without bias states
+    # 0.590 m.
     relative_tolerance: float = 3e-4
 
 
@@ -258,7 +259,7 @@ class _Record:
 
 
 class FullSmoother:
-    """Batch smoother over every frame (GTSAM Levenberg-Marquardt)."""
+    """Batch smoother over every frame: a GTSAM factor graph, solved by `_optimize`."""
 
     def __init__(self, noise: MotionNoise, config: SmootherConfig | None = None, use_bias: bool = True):
         self.noise = noise
