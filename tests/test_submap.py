@@ -17,7 +17,7 @@ from longslam.slam.catalog import check_params, create_method
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.method import SubmapMethod
 from longslam.slam.submap.registration import register
-from longslam.slam.submap.tsdf import BLOCK, TSDF
+from longslam.slam.submap.tsdf import BLOCK, TSDF, group_cells, pack, unpack
 from longslam.world import get_world
 from conftest import simulate_in_own_cache
 
@@ -41,6 +41,17 @@ def run(reader: SequenceReader, frames=None, **params):
 
 
 # --- TSDF -------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("spread", [5, 1 << 18])  # a compact box (presence array), a sparse one (sort)
+def test_group_cells_is_np_unique_of_the_packed_keys(spread):
+    rng = np.random.default_rng(3)
+    ijk = rng.integers(-spread, spread, size=(5000, 3))
+    ijk[1::2] = ijk[rng.integers(0, len(ijk), size=len(ijk) // 2)]  # repeats across the array
+    (i, j, k), inverse = group_cells(ijk[:, 0], ijk[:, 1], ijk[:, 2])
+    keys, expected_inverse = np.unique(pack(ijk), return_inverse=True)
+    np.testing.assert_array_equal(np.column_stack([i, j, k]), unpack(keys))
+    np.testing.assert_array_equal(inverse, expected_inverse)
+
+
 def test_tsdf_of_a_plane_crosses_zero_at_the_plane():
     intr = Intrinsics.from_fov(64, 48, 90.0)
     depth = np.full((48, 64), 3.0, np.float32)

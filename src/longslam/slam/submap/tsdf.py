@@ -47,6 +47,38 @@ def _local_index(ijk: np.ndarray) -> np.ndarray:
     return loc[:, 0] + BLOCK * (loc[:, 1] + BLOCK * loc[:, 2])
 
 
+def group_cells(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+    """Unique cells of integer indices given per axis ((N,) each): ((i, j, k) of the unique
+    cells, ordered as their packed keys; inverse (N,)). That is what
+    `np.unique(pack(ijk), return_inverse=True)` gives, in that order, so sums over groups come
+    out the same. One depth image spans a box of a few hundred thousand voxels, so a presence
+    array over the box replaces the sort."""
+    if not len(i):
+        empty = np.zeros(0, np.int64)
+        return (empty, empty, empty), empty
+    low = (int(i.min()), int(j.min()), int(k.min()))
+    span = (int(i.max()) - low[0] + 1, int(j.max()) - low[1] + 1, int(k.max()) - low[2] + 1)
+    cells = span[0] * span[1] * span[2]
+    if cells > 8 * len(i) + (1 << 20):  # a sparse spread: the sort is cheaper
+        keys, inverse = np.unique(pack(np.column_stack([i, j, k])), return_inverse=True)
+        ijk = unpack(keys)
+        return (ijk[:, 0], ijk[:, 1], ijk[:, 2]), inverse.reshape(-1)
+    # Row-major over (i, j, k) is the packed keys' order.
+    linear = ((i - low[0]) * span[1] + (j - low[1])) * span[2] + (k - low[2])
+    present = np.zeros(cells, bool)
+    present[linear] = True
+    occupied = np.flatnonzero(present)
+    rank = np.cumsum(present, dtype=np.int64) - 1
+    ui, rest = np.divmod(occupied, span[1] * span[2])
+    uj, uk = np.divmod(rest, span[2])
+    return (ui + low[0], uj + low[1], uk + low[2]), rank[linear]
+
+
+def _dot(ax, ay, az, bx, by, bz):
+    # The order np.einsum("ij,ij->i") sums in, so the numbers stay the same as with it.
+    return (ax * bx + az * bz) + ay * by
+
+
 _LOCAL = np.stack(np.meshgrid(np.arange(BLOCK), np.arange(BLOCK), np.arange(BLOCK), indexing="ij"), axis=-1)
 _LOCAL = _LOCAL.transpose(2, 1, 0, 3).reshape(-1, 3)  # row k = voxel with local index k (x fastest)
 
@@ -188,58 +220,63 @@ class TSDF:
         if not len(points):
             return 0
         v, tau = self.voxel, self.truncation
+        # Per coordinate rather than (N, 3) arrays: the same numbers, a third less time.
+        px, py, pz = points[:, 0], points[:, 1], points[:, 2]
+        ox, oy, oz = (float(c) for c in origin)
         # Bundle the points per voxel: mean point, summed weight.
-        keys = pack(np.floor(points / v).astype(np.int64))
-        uniq, inverse = np.unique(keys, return_inverse=True)
-        w_sum = np.bincount(inverse, weights=weights, minlength=len(uniq))
-        mean = np.column_stack([np.bincount(inverse, weights=weights * points[:, a], minlength=len(uniq)) for a in range(3)])
-        mean /= w_sum[:, None]
-        ray = mean - origin
-        dist = np.linalg.norm(ray, axis=1)
-        direction = ray / np.maximum(dist, 1e-12)[:, None]
+        uniq, inverse = group_cells(*(np.floor(c / v).astype(np.int64) for c in (px, py, pz)))
+        n = len(uniq[0])
+        w_sum = np.bincount(inverse, weights=weights, minlength=n)
+        mx, my, mz = (np.bincount(inverse, weights=weights * c, minlength=n) / w_sum for c in (px, py, pz))
+        rx, ry, rz = mx - ox, my - oy, mz - oz
+        dist = np.sqrt(rx * rx + ry * ry + rz * rz)
+        scale = np.maximum(dist, 1e-12)
+        dx, dy, dz = rx / scale, ry / scale, rz / scale
         if normals is not None:
             normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-            known = np.isfinite(normals).all(axis=1)
-            nsum = np.column_stack([
-                np.bincount(inverse[known], weights=normals[known, a], minlength=len(uniq)) for a in range(3)
-            ])
-            nlen = np.linalg.norm(nsum, axis=1)
+            n0, n1, n2 = normals[:, 0], normals[:, 1], normals[:, 2]
+            known = np.flatnonzero(np.isfinite(n0) & np.isfinite(n1) & np.isfinite(n2))
+            inverse_known = inverse[known]
+            nsx, nsy, nsz = (np.bincount(inverse_known, weights=c[known], minlength=n) for c in (n0, n1, n2))
+            nlen = np.sqrt(nsx * nsx + nsy * nsy + nsz * nsz)
             plane = nlen > 1e-9
-            normal = np.where(plane[:, None], nsum / np.maximum(nlen, 1e-12)[:, None], -direction)
+            nscale = np.maximum(nlen, 1e-12)
+            nx, ny, nz = (np.where(plane, c / nscale, -d) for c, d in ((nsx, dx), (nsy, dy), (nsz, dz)))
             # Facing the camera; a tangent plane seen nearly edge-on is not trusted.
-            facing = -np.einsum("ij,ij->i", normal, direction)
-            normal[facing < 0] *= -1.0
-            cos = np.abs(facing)
-            plane &= cos > 0.1
-            normal[~plane] = -direction[~plane]
+            facing = -_dot(nx, ny, nz, dx, dy, dz)
+            flip = np.where(facing < 0, -1.0, 1.0)
+            plane &= np.abs(facing) > 0.1
+            nx, ny, nz = (np.where(plane, c * flip, -d) for c, d in ((nx, dx), (ny, dy), (nz, dz)))
         else:
-            normal = -direction
+            nx, ny, nz = -dx, -dy, -dz
         ok = dist > 1e-6
-        mean, direction, dist, w_sum, normal = mean[ok], direction[ok], dist[ok], w_sum[ok], normal[ok]
+        if not ok.all():
+            mx, my, mz, dx, dy, dz, w_sum, nx, ny, nz = (a[ok] for a in (mx, my, mz, dx, dy, dz, w_sum, nx, ny, nz))
         # Samples every half voxel through the band; each sample names the voxel it falls in.
         offsets = np.arange(-tau, tau + 1e-9, 0.5 * v)
-        samples = mean[:, None, :] + direction[:, None, :] * offsets[None, :, None]
-        ijk = np.floor(samples.reshape(-1, 3) / v).astype(np.int64)
-        ray_id = np.repeat(np.arange(len(mean)), len(offsets))
+        i, j, k = (np.floor((m[:, None] + d[:, None] * offsets[None, :]) / v).astype(np.int64).reshape(-1)
+                   for m, d in ((mx, dx), (my, dy), (mz, dz)))
         # One update per (ray, voxel): a ray's samples are in order along it, so the samples it
         # takes in one voxel are adjacent and a comparison with the previous sample finds them.
-        vkeys = pack(ijk)
-        first = np.ones(len(vkeys), bool)
-        first[1:] = (vkeys[1:] != vkeys[:-1]) | (ray_id[1:] != ray_id[:-1])
-        ray_id, vkeys, ijk = ray_id[first], vkeys[first], ijk[first]
-        centre = (ijk + 0.5) * v
-        along = np.einsum("ij,ij->i", centre - origin, direction[ray_id])
-        sdf = np.einsum("ij,ij->i", centre - mean[ray_id], normal[ray_id])
-        keep = (sdf > -tau) & (along > 0)
+        first = np.ones(len(i), bool)
+        first[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1]) | (k[1:] != k[:-1])
+        first[:: len(offsets)] = True  # a ray's first sample
+        sample = np.flatnonzero(first)
+        ray_id = sample // len(offsets)
+        i, j, k = i[sample], j[sample], k[sample]
+        cx, cy, cz = (i + 0.5) * v, (j + 0.5) * v, (k + 0.5) * v
+        along = _dot(cx - ox, cy - oy, cz - oz, dx[ray_id], dy[ray_id], dz[ray_id])
+        sdf = _dot(cx - mx[ray_id], cy - my[ray_id], cz - mz[ray_id], nx[ray_id], ny[ray_id], nz[ray_id])
+        keep = np.flatnonzero((sdf > -tau) & (along > 0))
         sdf = np.minimum(sdf[keep], tau)
-        ray_id, vkeys, ijk = ray_id[keep], vkeys[keep], ijk[keep]
+        ray_id, i, j, k = ray_id[keep], i[keep], j[keep], k[keep]
         w = w_sum[ray_id]
         behind = sdf < -v
         w = np.where(behind, w * (tau + sdf) / (tau - v), w)
         # Merge updates of the same voxel from different rays.
-        uv, inv = np.unique(vkeys, return_inverse=True)
-        w_new = np.bincount(inv, weights=w, minlength=len(uv))
-        d_new = np.bincount(inv, weights=w * sdf, minlength=len(uv))
+        uv, inv = group_cells(i, j, k)
+        w_new = np.bincount(inv, weights=w, minlength=len(uv[0]))
+        d_new = np.bincount(inv, weights=w * sdf, minlength=len(uv[0]))
         return self._accumulate(uv, w_new, d_new)
 
     def merge(self, points: np.ndarray, sdf: np.ndarray, weight: np.ndarray) -> None:
@@ -248,27 +285,27 @@ class TSDF:
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         if not len(points):
             return
-        keys = pack(np.floor(points / self.voxel).astype(np.int64))
-        uv, inv = np.unique(keys, return_inverse=True)
-        w_new = np.bincount(inv, weights=weight, minlength=len(uv))
-        d_new = np.bincount(inv, weights=np.asarray(weight, np.float64) * sdf, minlength=len(uv))
+        uv, inv = group_cells(*(np.floor(points[:, a] / self.voxel).astype(np.int64) for a in range(3)))
+        w_new = np.bincount(inv, weights=weight, minlength=len(uv[0]))
+        d_new = np.bincount(inv, weights=np.asarray(weight, np.float64) * sdf, minlength=len(uv[0]))
         self._accumulate(uv, w_new, d_new)
 
-    def _accumulate(self, voxel_keys: np.ndarray, w_new: np.ndarray, wd_new: np.ndarray) -> int:
-        """Weighted running average: unique packed voxel keys with summed new weights and summed
-        weight * distance. Allocates missing blocks; returns the number of voxels updated."""
+    def _accumulate(self, cells: tuple[np.ndarray, np.ndarray, np.ndarray], w_new: np.ndarray, wd_new: np.ndarray) -> int:
+        """Weighted running average: unique voxel indices (i, j, k arrays) in packed-key order,
+        with their summed new weights and summed weight * distance. Allocates missing blocks;
+        returns the number of voxels updated."""
         good = w_new > 0
-        voxel_keys, w_new, wd_new = voxel_keys[good], w_new[good], wd_new[good]
-        vijk = unpack(voxel_keys)
-        ub, binv = np.unique(pack(vijk >> 4), return_inverse=True)
-        slots = self._allocate(ub)[binv]
-        local = _local_index(vijk)
+        i, j, k = (c[good] for c in cells)
+        w_new, wd_new = w_new[good], wd_new[good]
+        blocks, binv = group_cells(i >> 4, j >> 4, k >> 4)
+        slots = self._allocate(pack(np.column_stack(blocks)))[binv]
+        local = (i & (BLOCK - 1)) + BLOCK * ((j & (BLOCK - 1)) + BLOCK * (k & (BLOCK - 1)))
         w_old = self._weight[slots, local].astype(np.float64)
         d_old = self._sdf[slots, local].astype(np.float64)
         total = w_old + w_new
         self._sdf[slots, local] = ((w_old * d_old + wd_new) / total).astype(np.float32)
         self._weight[slots, local] = np.minimum(total, self.max_weight).astype(np.float32)
-        return int(len(voxel_keys))
+        return int(len(i))
 
     def integrate_depth(
         self, depth: np.ndarray, intrinsics: Intrinsics, camera_pose: np.ndarray,
@@ -396,7 +433,12 @@ def depth_points(
     with np.errstate(invalid="ignore", divide="ignore"):
         inverse_length = 1.0 / np.sqrt(nx * nx + ny * ny + nz * nz)
         inverse_length[span2 > limit * limit] = np.nan
-    normals = np.full(z.shape + (3,), np.nan)
+    inner = ok[1:-1, 1:-1]
+    normals = np.full((len(points), 3), np.nan)
+    # Pixels on the image's border have no normal; `inside` says which points are not on it.
+    inside = np.zeros(ok.shape, bool)
+    inside[1:-1, 1:-1] = inner
+    rows = inside[ok]
     for axis, component in enumerate((nx, ny, nz)):
-        normals[1:-1, 1:-1, axis] = component * inverse_length
-    return points, normals[ok]
+        normals[rows, axis] = (component * inverse_length)[inner]
+    return points, normals
