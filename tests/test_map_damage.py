@@ -105,3 +105,16 @@ def test_alignment_and_doubled_walls_name_bad_arguments():
         doubled_walls(occupied_points(truth), truth, None, 0.1, min_gap=2.0, max_gap=1.0)
     with pytest.raises(InputError, match="observed mask"):
         doubled_walls(occupied_points(truth), truth, np.zeros((3, 3), bool), 0.1)
+
+
+def test_the_alignment_search_convolves_as_scipy_signal_does():
+    from scipy import signal
+
+    from longslam.eval.map_align import _FullConvolution
+
+    rng = np.random.default_rng(5)
+    target = (rng.random((37, 52)) < 0.2).astype(np.float32)
+    spectra = _FullConvolution(target)
+    for shape in [(9, 14), (20, 3), (9, 14)]:  # the last one reuses the target's spectrum
+        kernel = rng.random(shape).astype(np.float32)
+        np.testing.assert_array_equal(spectra.convolve(kernel), signal.fftconvolve(target, kernel, mode="full"))
