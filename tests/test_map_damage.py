@@ -118,3 +118,15 @@ def test_the_alignment_search_convolves_as_scipy_signal_does():
     for shape in [(9, 14), (20, 3), (9, 14)]:  # the last one reuses the target's spectrum
         kernel = rng.random(shape).astype(np.float32)
         np.testing.assert_array_equal(spectra.convolve(kernel), signal.fftconvolve(target, kernel, mode="full"))
+
+
+@pytest.mark.parametrize("radius", [0.5, 1.0, 2.0, 0.1 / 0.05, 3.7])
+def test_near_cells_are_the_distance_transform_thresholded(radius):
+    from scipy import ndimage
+
+    from longslam.eval.doubled_walls import _near
+
+    mask = np.random.default_rng(2).random((60, 80)) < 0.01
+    expected = ndimage.distance_transform_edt(~mask) <= radius + 1e-9
+    np.testing.assert_array_equal(_near(mask, radius), expected)
+    assert not _near(np.zeros((5, 5), bool), radius).any()

@@ -21,23 +21,26 @@ from longslam.errors import InputError
 from longslam.gridmap import OCCUPIED, GridMap
 
 
-def wall_normals(truth: GridMap, smooth_cells: float = 2.0) -> np.ndarray:
-    """(rows, cols, 2) unit normals (x, y) of the truth's walls: the gradient of the occupied mask,
-    smoothed; zero where undefined."""
+def wall_normals(truth: GridMap, cells: np.ndarray, smooth_cells: float = 2.0) -> np.ndarray:
+    """(C, 2) unit normals (x, y) of the truth's walls at its (C, 2) row, column `cells`: the
+    gradient of the occupied mask, smoothed; zero where undefined."""
     occupied = (truth.data == OCCUPIED).astype(np.float64)
     blurred = ndimage.gaussian_filter(occupied, smooth_cells)
     gy, gx = np.gradient(blurred)
-    norm = np.hypot(gx, gy)
+    g = np.column_stack([gx[cells[:, 0], cells[:, 1]], gy[cells[:, 0], cells[:, 1]]])
+    norm = np.hypot(g[:, 0], g[:, 1])
     with np.errstate(invalid="ignore", divide="ignore"):
-        normals = np.where(norm[..., None] > 1e-9, np.stack([gx, gy], axis=-1) / norm[..., None], 0.0)
-    return normals
+        return np.where(norm[:, None] > 1e-9, g / norm[:, None], 0.0)
 
 
 def _near(mask: np.ndarray, radius_cells: float) -> np.ndarray:
-    """Cells within `radius_cells` of a True cell of `mask`."""
-    if not mask.any():
-        return np.zeros(mask.shape, bool)
-    return ndimage.distance_transform_edt(~mask) <= radius_cells + 1e-9
+    """Cells within `radius_cells` (Euclidean, centre to centre) of a True cell of `mask`: a
+    dilation by the disk of that radius, what thresholding the distance transform gives, at a
+    tenth of its time for the few cells of a tolerance."""
+    reach = int(np.floor(radius_cells + 1e-9))
+    di, dj = np.mgrid[-reach:reach + 1, -reach:reach + 1]
+    disk = np.sqrt(di * di + dj * dj) <= radius_cells + 1e-9
+    return ndimage.binary_dilation(mask, structure=disk)
 
 
 def _unexplained_run(run: np.ndarray, explained: np.ndarray, far: np.ndarray) -> np.ndarray:
@@ -105,33 +108,37 @@ def doubled_walls(
     radius = tolerance / res
     map_near = _near(rasterise(map_walls, truth), radius)
     truth_near = _near(true_walls, radius)
-    normals = wall_normals(truth)
+    normals = wall_normals(truth, cells)
 
     offsets = np.arange(-max_gap, max_gap + 1e-9, res)  # across the wall, metres
     along = np.arange(-run_length / 2, run_length / 2 + 1e-9, res)
     in_place = np.abs(offsets) <= tolerance + 1e-9
     rows, cols = truth.data.shape
+    # Looked up by flat index, with one extra False cell that every sample off the grid reads.
+    off_grid = rows * cols
+    map_flat = np.append(map_near.ravel(), False)
+    truth_flat = np.append(truth_near.ravel(), False)
     doubled = np.zeros(len(cells), bool)
     for start in range(0, len(cells), chunk):
         rc = cells[start:start + chunk]
-        centre = truth.cell_to_world(rc)  # (C, 2)
-        n = normals[rc[:, 0], rc[:, 1]]  # (C, 2)
-        t = np.column_stack([-n[:, 1], n[:, 0]])
-        # Sample points (C, offsets, along, 2).
-        xy = (centre[:, None, None, :] + offsets[None, :, None, None] * n[:, None, None, :]
-              + along[None, None, :, None] * t[:, None, None, :])
-        col = np.floor((xy[..., 0] - truth.origin[0]) / res).astype(np.int64)
-        row = np.floor((xy[..., 1] - truth.origin[1]) / res).astype(np.int64)
+        cx, cy = truth.cell_to_world(rc).T  # (C,) each
+        nx, ny = normals[start:start + chunk].T
+        tx, ty = -ny, nx
+        # Sample points (C, offsets, along), per coordinate.
+        x = (cx[:, None, None] + offsets[None, :, None] * nx[:, None, None]) + along[None, None, :] * tx[:, None, None]
+        y = (cy[:, None, None] + offsets[None, :, None] * ny[:, None, None]) + along[None, None, :] * ty[:, None, None]
+        col = np.floor((x - truth.origin[0]) / res).astype(np.int64)
+        row = np.floor((y - truth.origin[1]) / res).astype(np.int64)
         inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
-        row, col = np.clip(row, 0, rows - 1), np.clip(col, 0, cols - 1)
-        map_run = (map_near[row, col] & inside).mean(axis=2) >= support  # (C, offsets)
-        true_run = (truth_near[row, col] & inside).mean(axis=2) > 0.0
+        flat = np.where(inside, row * cols + col, off_grid)
+        map_run = np.count_nonzero(map_flat[flat], axis=2) / len(along) >= support  # (C, offsets)
+        true_run = truth_flat[flat].any(axis=2)
         shown = map_run[:, in_place].any(axis=1)
         fake = np.zeros(len(rc), bool)
         for side in (offsets > tolerance, offsets < -tolerance):
             order = np.flatnonzero(side)
             order = order[np.argsort(np.abs(offsets[order]))]  # outwards from the wall
             fake |= _unexplained_run(map_run[:, order], true_run[:, order], np.abs(offsets[order]) >= min_gap)
-        defined = np.any(n != 0, axis=1)
+        defined = (nx != 0) | (ny != 0)
         doubled[start:start + chunk] = shown & fake & defined
     return float(doubled.mean()), truth.cell_to_world(cells[doubled])
