@@ -223,3 +223,15 @@ def test_bad_parameters_are_input_errors():
     frame = Frame(0, 0.0, np.zeros((48, 64, 3), np.uint8), np.zeros((48, 64), np.float32), None, context.intrinsics)
     with pytest.raises(InputError, match="odometry"):
         method.step(frame)
+
+
+@pytest.mark.parametrize("low, high", [(-50, 50), (0, 30), (-30, -1), (3, 4), (-(1 << 20), 1 << 20)])
+def test_group_cells_2d_is_np_unique_of_the_64_bit_key(low, high):
+    from longslam.geometry.cells import group_cells_2d
+
+    ij = np.random.default_rng(0).integers(low, high + 1, size=(3000, 2))
+    i, j, inverse = group_cells_2d(ij[:, 0], ij[:, 1])
+    keys, expected_inverse = np.unique((ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF), return_inverse=True)
+    np.testing.assert_array_equal(i, keys >> 32)
+    np.testing.assert_array_equal(j, (keys & 0xFFFFFFFF).astype(np.uint32).astype(np.int32))
+    np.testing.assert_array_equal(inverse, expected_inverse)

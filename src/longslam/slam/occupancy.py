@@ -19,6 +19,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
+from longslam.geometry.cells import group_cells_2d
 from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 
 
@@ -50,10 +51,8 @@ def _empty_cells() -> np.ndarray:
 def _unique_cells(cells: np.ndarray) -> np.ndarray:
     if not len(cells):
         return _empty_cells()
-    # Unique on one int64 key per cell: much faster than np.unique(axis=0) on rows.
-    cells = cells.astype(np.int64)
-    keys = np.unique((cells[:, 0] << 32) + (cells[:, 1] & 0xFFFFFFFF))
-    cells = np.column_stack([keys >> 32, (keys & 0xFFFFFFFF).astype(np.uint32).astype(np.int32)])
+    i, j, _ = group_cells_2d(cells[:, 0], cells[:, 1])
+    cells = np.column_stack([i, j])
     # int16 covers +-1.6 km at 5 cm; fall back to int32 only for unusually fine cells.
     small = np.abs(cells).max() < np.iinfo(np.int16).max
     return cells.astype(np.int16 if small else np.int32)

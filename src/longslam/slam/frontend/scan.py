@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.frame import Intrinsics
+from longslam.geometry.cells import group_cells_2d
 
 
 @dataclass(frozen=True)
@@ -64,10 +65,8 @@ def cell_average(xy: np.ndarray, cell: float) -> np.ndarray:
     """Mean of the points in each `cell`-sized square: (M, 2), M <= N."""
     if not len(xy):
         return np.zeros((0, 2))
-    ij = np.floor(xy / cell).astype(np.int64)
-    key = (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
-    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    inverse = inverse.ravel()
+    i, j, inverse = group_cells_2d(np.floor(xy[:, 0] / cell).astype(np.int64), np.floor(xy[:, 1] / cell).astype(np.int64))
+    counts = np.bincount(inverse, minlength=len(i))
     sx = np.bincount(inverse, weights=xy[:, 0], minlength=len(counts))
     sy = np.bincount(inverse, weights=xy[:, 1], minlength=len(counts))
     return np.column_stack([sx / counts, sy / counts])
