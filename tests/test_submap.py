@@ -134,6 +134,8 @@ def test_method_gives_a_pose_per_frame_a_grid_and_stats(hall_sequences, tmp_path
     method = create_method("submap", context, {"submap_interval": 10})
     frames = list(noisy)
     online = [method.step(f) for f in frames]
+    # Finished submaps keep compacted voxels only.
+    assert all(s.tsdf.compacted for s in method.submaps if s.finished)
     result = method.finish()
     assert len(result.trajectory) == len(frames) == len(result.online)
     np.testing.assert_allclose(result.online.poses, np.array(online))
@@ -147,8 +149,8 @@ def test_method_gives_a_pose_per_frame_a_grid_and_stats(hall_sequences, tmp_path
     assert result.grid is not None and (result.grid.data == 100).sum() > 100 and (result.grid.data == 0).sum() > 100
     assert result.cloud.shape[1] == 3 and len(result.cloud) > 1000
     assert (tmp_path / "mesh.ply").exists()
-    # Finished submaps keep compacted voxels only.
-    assert all(s.tsdf.compacted for s in method.submaps)
+    # The submaps' voxels went into the fused map; the submaps keep none.
+    assert all(s.tsdf.compacted and s.tsdf.num_blocks == 0 for s in method.submaps)
 
 
 def test_without_noise_the_trajectory_is_the_odometry(hall_sequences):
@@ -235,3 +237,24 @@ def test_group_cells_2d_is_np_unique_of_the_64_bit_key(low, high):
     np.testing.assert_array_equal(i, keys >> 32)
     np.testing.assert_array_equal(j, (keys & 0xFFFFFFFF).astype(np.uint32).astype(np.int32))
     np.testing.assert_array_equal(inverse, expected_inverse)
+
+
+def test_fusing_with_release_gives_the_same_map_and_empties_the_submaps():
+    from longslam.slam.submap.global_map import fuse_submaps
+
+    def submap(shift):
+        tsdf = TSDF(0.2, 0.8)
+        ys, zs = np.meshgrid(np.linspace(-2, 2, 60), np.linspace(0, 2, 30))
+        wall = np.column_stack([np.full(ys.size, 3.0 + shift), ys.ravel(), zs.ravel()])
+        tsdf.integrate_points(wall, np.zeros(3))
+        tsdf.compact()
+        return tsdf
+
+    poses = [np.eye(4), planar_pose(0.3, 0.1, 0.05)]
+    kept = fuse_submaps([(submap(0.0), poses[0]), (submap(0.1), poses[1])], 0.2, 0.8)
+    released = [submap(0.0), submap(0.1)]
+    fused = fuse_submaps(list(zip(released, poses)), 0.2, 0.8, release=True)
+    for a, b in zip(kept.observed(), fused.observed()):
+        np.testing.assert_array_equal(a, b)
+    assert fused.num_blocks == kept.num_blocks > 0
+    assert all(t.num_blocks == 0 and t.nbytes < 1000 for t in released)

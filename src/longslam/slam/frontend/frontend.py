@@ -26,6 +26,7 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.frame import Frame, Intrinsics
 from longslam.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
+from longslam.memory_release import release_free_memory
 from longslam.slam.graph import Edge
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
@@ -318,7 +319,11 @@ class FrontEnd:
         without loops this is the online trajectory itself."""
         if self.config.mode == "wheel" and not self._smoother.loops:
             return self.online_trajectory()
-        return self._smoother.solve()
+        poses = self._smoother.solve()
+        # The solve's graphs are gone; what comes next (a method's map) should not start on top
+        # of their freed heap.
+        release_free_memory()
+        return poses
 
     def camera_poses(self, xyyaw: np.ndarray) -> np.ndarray:
         """(N, 3) planar poses -> (N, 4, 4) camera-in-world poses (after the first frame)."""

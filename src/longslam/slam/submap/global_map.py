@@ -9,24 +9,44 @@ from pathlib import Path
 import numpy as np
 
 from longslam.io.ply import vertex_rows, write_ply
+from longslam.memory_release import release_free_memory
 from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
-from longslam.slam.submap.tsdf import BLOCK, TSDF
+from longslam.slam.submap.tsdf import BLOCK, TSDF, pack
 
 
-def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncation: float) -> TSDF:
+def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncation: float, release: bool = False) -> TSDF:
     """One world-frame TSDF from (submap TSDF, submap origin pose 4x4) pairs: every observed voxel
     of every submap moved by its submap's pose into the voxel of the global grid containing it,
-    where the submaps' distances are averaged by weight."""
+    where the submaps' distances are averaged by weight. With `release`, each submap's voxels
+    are dropped once fused, so that the submaps and the fused map are not held in full together
+    (at 1 km: 43 MB of submaps beside 68 MB of fused map)."""
     fused = TSDF(voxel, truncation)
+    # The blocks the fused map will have, counted first, so that its arrays are allocated once:
+    # growing them by doubling copied 32 MB at 1 km, with the old copy still held.
+    fused.reserve(len(np.unique(np.concatenate(
+        [np.zeros(0, np.int64)] + [_fused_blocks(moved, voxel) for one in submaps for moved, _, _ in _moved_voxels(*one)]))))
     for tsdf, pose in submaps:
-        # A few blocks at a time: a whole submap's voxels as float64 index, centre and moved-centre
-        # arrays raised the 1 km run's peak by 40 MB.
-        for ijk, sdf, weight in tsdf.observed_chunks():
-            if not len(ijk):
-                continue
-            centres = (ijk + 0.5) * tsdf.voxel
-            fused.merge(centres @ pose[:3, :3].T + pose[:3, 3], sdf, weight)
+        for moved, sdf, weight in _moved_voxels(tsdf, pose):
+            fused.merge(moved, sdf, weight)
+        if release:
+            tsdf.release()
+            release_free_memory(collect=False)  # the submap's arrays lived on the heap
     return fused
+
+
+def _moved_voxels(tsdf: TSDF, pose: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(voxel centres moved by `pose`, distances, weights) of a submap, a few blocks at a time: a
+    whole submap's voxels as float64 index, centre and moved-centre arrays raised the 1 km run's
+    peak by 40 MB."""
+    for ijk, sdf, weight in tsdf.observed_chunks():
+        if len(ijk):
+            centres = (ijk + 0.5) * tsdf.voxel
+            yield centres @ pose[:3, :3].T + pose[:3, 3], sdf, weight
+
+
+def _fused_blocks(points: np.ndarray, voxel: float) -> np.ndarray:
+    """Packed keys of the blocks `TSDF.merge` puts these points in."""
+    return np.unique(pack(np.column_stack([np.floor(points[:, a] / voxel).astype(np.int64) >> 4 for a in range(3)])))
 
 
 COMPACT_ROWS = 250_000  # cell rows gathered before duplicates are merged (grid_from_tsdf)

@@ -319,7 +319,10 @@ class SubmapMethod:
             poses = origins[np.array(self._frame_submap)] @ in_submap
         trajectory = Trajectory(stamps, poses, source="submap")
         online = Trajectory(stamps, np.array(self._online), source="submap online")
-        fused = fuse_submaps([(s.tsdf, origins[s.index]) for s in self.submaps], c.voxel_size, c.truncation)
+        map_bytes = self.map_bytes()
+        # The submaps' voxels go into the fused map and are dropped as they go: the run is over,
+        # and holding both at once was the 1 km run's peak.
+        fused = fuse_submaps([(s.tsdf, origins[s.index]) for s in self.submaps], c.voxel_size, c.truncation, release=True)
         cloud, _ = fused.surface_points(with_normals=False)
         grid = grid_from_tsdf(fused, cloud, self._mount.floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)
         mesh_path = None
@@ -340,7 +343,7 @@ class SubmapMethod:
             "graph_edges": {k: self.graph.count(k) for k in (ODOMETRY, REGISTRATION, LOOP)},
             stats.OPTIMIZATIONS: self.graph.optimizations,
             stats.CAMERA_HEIGHT: self._mount.camera_height,
-            stats.MAP_BYTES: self.map_bytes(),
+            stats.MAP_BYTES: map_bytes,
             "map_bytes_before_finish": bytes_before,
             "fused_map_bytes": fused.nbytes,
             "fused_blocks": fused.num_blocks,

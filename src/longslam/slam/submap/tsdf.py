@@ -131,18 +131,28 @@ class TSDF:
         if new:
             need = len(self._slot)
             if need > len(self._sdf):
-                cap = max(need, 2 * len(self._sdf), 16)
-                for name in ("_sdf", "_weight"):
-                    old = getattr(self, name)
-                    grown = np.zeros((cap, BLOCK_VOXELS), old.dtype)
-                    grown[: len(old)] = old
-                    setattr(self, name, grown)
-                keys = np.zeros(cap, np.int64)
-                keys[: len(self._keys)] = self._keys
-                self._keys = keys
+                self._grow(max(need, 2 * len(self._sdf), 16))
             self._keys[need - len(new): need] = new
             self._sorted = None
         return slots
+
+    def _grow(self, capacity: int) -> None:
+        for name in ("_sdf", "_weight"):
+            old = getattr(self, name)
+            grown = np.zeros((capacity, BLOCK_VOXELS), old.dtype)
+            grown[: len(old)] = old
+            setattr(self, name, grown)
+        keys = np.zeros(capacity, np.int64)
+        keys[: len(self._keys)] = self._keys
+        self._keys = keys
+
+    def reserve(self, blocks: int) -> None:
+        """Room for `blocks` blocks in all. Growing copies the voxel arrays, which holds twice
+        their memory for a moment; a TSDF whose size is known ahead (a fusion) grows once."""
+        if self.compacted:
+            raise InputError("a compacted TSDF is read-only")
+        if blocks > len(self._sdf):
+            self._grow(int(blocks))
 
     def _find(self, block_keys: np.ndarray) -> np.ndarray:
         """Slot of each block key, -1 where the block does not exist."""
@@ -184,6 +194,15 @@ class TSDF:
         index arrays at once."""
         for start in range(0, len(self._slot), blocks_per_chunk):
             yield self.observed(min_weight, slice(start, start + blocks_per_chunk))
+
+    def release(self) -> None:
+        """Drop every voxel (the map's fusion took them over): an empty, read-only TSDF."""
+        self._slot = {}
+        self._keys = np.zeros(0, np.int64)
+        self._sdf = np.zeros((0, BLOCK_VOXELS), np.int8 if self.compacted else np.float32)
+        self._weight = np.zeros((0, BLOCK_VOXELS), np.float16 if self.compacted else np.float32)
+        self._sorted = None
+        self.compacted = True
 
     def compact(self) -> None:
         """Make read-only and small: int8 distances, float16 weights, unobserved blocks dropped."""
