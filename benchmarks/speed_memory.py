@@ -37,7 +37,7 @@ GROWTH_TARGET = 0.20
 
 
 def run_process(command: list[str], log: Path) -> tuple[float, float, int]:
-    """(wall seconds, peak RSS in MB, exit status) of one child process; its output goes to `log`."""
+    """(wall seconds, peak RSS in MiB, exit status) of one child process; its output goes to `log`."""
     with open(log, "w") as out:
         start = time.perf_counter()
         child = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT)
@@ -51,7 +51,7 @@ def run_process(command: list[str], log: Path) -> tuple[float, float, int]:
 
 
 def rss_at(stats: dict, distance: np.ndarray, metres: float) -> float:
-    """Resident MB sampled at the frame where the route passes `metres` (its end if shorter)."""
+    """Resident MiB sampled at the frame where the route passes `metres` (its end if shorter)."""
     samples = np.array(stats["rss_samples"], dtype=np.float64)[:-1]  # the last is after finish
     frame = min(int(np.searchsorted(distance, metres)), len(distance) - 1)
     k = min(int(np.searchsorted(samples[:, 0], frame)), len(samples) - 1)
@@ -73,7 +73,7 @@ def main() -> None:
     distance = reader.ground_truth.distances()
     duration = float(reader.timestamps[-1] - reader.timestamps[0])
     print(f"{seq.name}: {len(reader)} frames, {duration:.0f} s, {distance[-1]:.0f} m; {os.cpu_count()} cores")
-    print(f"{'variant':15s} {'wall s':>7s} {'x real':>7s} {'peak MB':>8s} {'at 500 m':>9s} {'at end':>7s} {'growth':>7s}  target")
+    print(f"{'variant':15s} {'wall s':>7s} {'x real':>7s} {'peak MiB':>8s} {'at 500 m':>9s} {'at end':>7s} {'growth':>7s}  target")
     for variant in args.variants:
         method, _, frontend = variant.partition("-")
         command = [sys.executable, "-m", "longslam.cli", "run", str(seq), "--method", method,
@@ -94,8 +94,10 @@ def main() -> None:
             ok = duration / wall >= FUSED_MIN_REAL_TIME
             targets.append(f">= {FUSED_MIN_REAL_TIME:.0f}x real time: {'met' if ok else 'MISSED'}")
         if args.route == "paper-1km" and method in PEAK_TARGET_MB and not frontend:
-            ok = peak <= PEAK_TARGET_MB[method]
-            targets.append(f"peak <= {PEAK_TARGET_MB[method]} MB: {'met' if ok else 'MISSED'}")
+            # The targets are in MB (10^6 bytes); the kernel counts KiB.
+            peak_mb = peak * 1024 * 1024 / 1e6
+            ok = peak_mb <= PEAK_TARGET_MB[method]
+            targets.append(f"peak {peak_mb:.0f} MB <= {PEAK_TARGET_MB[method]} MB: {'met' if ok else 'MISSED'}")
             targets.append(f"growth <= {GROWTH_TARGET:.0%}: {'met' if growth <= GROWTH_TARGET else 'MISSED'}")
         print(f"{variant:15s} {wall:7.1f} {duration / wall:7.1f} {peak:8.0f} {at_500:9.0f} {at_end:7.0f} {growth:7.1%}  "
               + "; ".join(targets))
