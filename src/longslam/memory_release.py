@@ -11,8 +11,23 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import gc
 import sys
+
+
+@functools.cache
+def _malloc_trim():
+    """glibc's malloc_trim, looked up once (finding the C library runs `ldconfig`); None
+    elsewhere."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        trim = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
+    except (OSError, AttributeError):  # musl or another C library without it
+        return None
+    trim.argtypes = [ctypes.c_size_t]
+    return trim
 
 
 def release_free_memory(collect: bool = True) -> None:
@@ -20,12 +35,6 @@ def release_free_memory(collect: bool = True) -> None:
     unless `collect` is False; a no-op without glibc."""
     if collect:
         gc.collect()
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        trim = libc.malloc_trim
-    except (OSError, AttributeError):  # musl or another C library without it
-        return
-    trim.argtypes = [ctypes.c_size_t]
-    trim(0)
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)

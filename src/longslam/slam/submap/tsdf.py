@@ -22,6 +22,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
+from longslam.geometry.cells import box_groups, box_is_dense
 
 BLOCK = 16  # voxels per block side
 BLOCK_VOXELS = BLOCK**3
@@ -42,9 +43,9 @@ def unpack(keys: np.ndarray) -> np.ndarray:
     return np.column_stack([(keys >> (2 * _BITS)) & _MASK, (keys >> _BITS) & _MASK, keys & _MASK]) - _OFFSET
 
 
-def _local_index(ijk: np.ndarray) -> np.ndarray:
-    loc = ijk & (BLOCK - 1)
-    return loc[:, 0] + BLOCK * (loc[:, 1] + BLOCK * loc[:, 2])
+def _local_index(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """A voxel's index within its block (x fastest), from its global indices per axis."""
+    return (i & (BLOCK - 1)) + BLOCK * ((j & (BLOCK - 1)) + BLOCK * (k & (BLOCK - 1)))
 
 
 def group_cells(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
@@ -52,26 +53,22 @@ def group_cells(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> tuple[tuple[np.n
     cells, ordered as their packed keys; inverse (N,)). That is what
     `np.unique(pack(ijk), return_inverse=True)` gives, in that order, so sums over groups come
     out the same. One depth image spans a box of a few hundred thousand voxels, so a presence
-    array over the box replaces the sort."""
+    array over the box replaces the sort (`geometry.cells.box_groups`)."""
     if not len(i):
         empty = np.zeros(0, np.int64)
         return (empty, empty, empty), empty
     low = (int(i.min()), int(j.min()), int(k.min()))
     span = (int(i.max()) - low[0] + 1, int(j.max()) - low[1] + 1, int(k.max()) - low[2] + 1)
     cells = span[0] * span[1] * span[2]
-    if cells > 8 * len(i) + (1 << 20):  # a sparse spread: the sort is cheaper
+    if not box_is_dense(cells, len(i)):
         keys, inverse = np.unique(pack(np.column_stack([i, j, k])), return_inverse=True)
         ijk = unpack(keys)
         return (ijk[:, 0], ijk[:, 1], ijk[:, 2]), inverse.reshape(-1)
     # Row-major over (i, j, k) is the packed keys' order.
-    linear = ((i - low[0]) * span[1] + (j - low[1])) * span[2] + (k - low[2])
-    present = np.zeros(cells, bool)
-    present[linear] = True
-    occupied = np.flatnonzero(present)
-    rank = np.cumsum(present, dtype=np.int64) - 1
+    occupied, inverse = box_groups(((i - low[0]) * span[1] + (j - low[1])) * span[2] + (k - low[2]), cells)
     ui, rest = np.divmod(occupied, span[1] * span[2])
     uj, uk = np.divmod(rest, span[2])
-    return (ui + low[0], uj + low[1], uk + low[2]), rank[linear]
+    return (ui + low[0], uj + low[1], uk + low[2]), inverse
 
 
 def _dot(ax, ay, az, bx, by, bz):
@@ -174,7 +171,7 @@ class TSDF:
         sdf = np.zeros(len(ijk), np.float32)
         weight = np.zeros(len(ijk), np.float32)
         if ok.any():
-            local = _local_index(ijk[ok])
+            local = _local_index(*ijk[ok].T)
             sdf[ok] = self._sdf[slots[ok], local].astype(np.float32) * np.float32(self._sdf_scale)
             weight[ok] = self._weight[slots[ok], local]
         return sdf, weight
@@ -318,7 +315,7 @@ class TSDF:
         w_new, wd_new = w_new[good], wd_new[good]
         blocks, binv = group_cells(i >> 4, j >> 4, k >> 4)
         slots = self._allocate(pack(np.column_stack(blocks)))[binv]
-        local = (i & (BLOCK - 1)) + BLOCK * ((j & (BLOCK - 1)) + BLOCK * (k & (BLOCK - 1)))
+        local = _local_index(i, j, k)
         w_old = self._weight[slots, local].astype(np.float64)
         d_old = self._sdf[slots, local].astype(np.float64)
         total = w_old + w_new
