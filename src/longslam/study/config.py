@@ -245,8 +245,13 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
 
 def _camera(r: _Reader, table: dict, key: str) -> CameraSettings:
     try:
-        return from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in table.items()}, key)
+        return from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in table.items()}, "camera setting")
     except InputError as err:
+        # The settings layer names the field (hfov_deg); the file has the user's key (fov).
+        bad = re.match(r"camera setting: parameter (\w+)=", str(err))
+        if bad:
+            fields = {field: name for name, field in CAMERA_KEYS.items()}
+            raise r.error(f"{key}.{fields.get(bad.group(1), bad.group(1))}", str(err)[bad.end():]) from None
         raise r.error(key, str(err)) from None
 
 
