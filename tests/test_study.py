@@ -416,3 +416,39 @@ def test_an_old_one_camera_study_folder_reports_and_resumes(study, env, tmp_path
     summary = run_study(load_study(file), old, report=False, progress=False)
     assert (summary.planned, summary.skipped, summary.ran) == (8, 8, 0)
     assert sorted(r["key"] for r in _rows(old)) == sorted(r["key"] for r in rows)
+
+
+def test_a_camera_column_beside_the_papers_rows():
+    from longslam.study.report.render import table_html, table_markdown
+
+    runs = [
+        {"method": "odometry", "route": "paper-300m", "noise": "small", "seed": s, "status": "ok", "camera_name": camera,
+         "ate": ate + 0.01 * s, "e_trans": 0.01, "e_rot": 0.02, "peak_rss_bytes": 2e8}
+        for s in range(2) for camera, ate in (("qvga", 0.5), ("vga", 0.2))
+    ]
+    config = {"cameras": {"qvga": {"width": 320}, "vga": {"width": 640}}}
+    results = StudyResults(Path("."), config, runs, runs, ["paper-300m"], ["small"], ["odometry"], ["qvga", "vga"])
+    table = accuracy_table(results)
+    assert table.row_cameras == ["qvga"] * 3 + ["vga"] * 3 + [""] * 6  # the paper's rows have no camera
+    ate = {camera: row[0] for camera, (_, metric), row in zip(table.row_cameras, table.row_labels, table.rows) if metric == "ATE [m]"}
+    assert ate["qvga"].text == "0.505 ± 0.0071" and ate["vga"].text == "0.205 ± 0.0071" and ate["vga"].best
+    markdown = table_markdown(table)
+    assert "| method | camera | metric | paper-300m: small |" in markdown
+    assert "| odometry | qvga | ATE [m] |" not in markdown and "|  | vga | E_trans |" in markdown
+    assert "| RTAB-Map (paper) |  | E_trans | 0.017 ± 0.002 |" in markdown
+    page = table_html(table)
+    assert page.count('class="camera"') == 4 and '<th colspan="3"></th>' in page
+    assert _row_widths(page) == [4] * len(table.rows)  # method, camera, metric, the one column
+
+
+def _row_widths(page: str) -> list[int]:
+    """The width of each body row of an HTML table, counting the cells that rows above span into it."""
+    widths, carried = [], []  # carried: rows still to cover, per spanning cell
+    for row in re.findall(r"<tr>(.*?)</tr>", page.split("<tbody>")[1]):
+        spans = [int(n or 1) for n in re.findall(r'<t[hd](?: rowspan="(\d+)")?[ >]', row)]
+        widths.append(len(spans) + len(carried))
+        carried = [n - 1 for n in carried + spans if n > 1]
+    return widths
+    # One camera: no camera column, as before cameras could be named.
+    one = StudyResults(Path("."), {}, runs[:1], runs[:1], ["paper-300m"], ["small"], ["odometry"], ["qvga"])
+    assert accuracy_table(one).row_cameras == [] and "| method | metric |" in table_markdown(accuracy_table(one))
