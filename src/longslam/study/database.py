@@ -112,7 +112,7 @@ class ResultsDB:
         row: dict[str, Any] = {
             "key": spec.key, "study": spec.study, "world": spec.world, "route": spec.route, "noise": spec.noise,
             "method": spec.method, "method_name": spec.method_name, "params": spec.params, "seed": spec.seed,
-            "camera": spec.camera, "camera_name": spec.camera_label, "follower": spec.follower, "align": spec.align,
+            "camera": spec.camera, "camera_name": getattr(spec, "camera_name", "") or DEFAULT_CAMERA, "follower": spec.follower, "align": spec.align,
             "config_hash": spec.config_hash, "spec": spec.describe(),
             "status": record.status, "error": record.error, "traceback": record.traceback,
             "finished_at": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),

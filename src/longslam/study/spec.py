@@ -44,11 +44,6 @@ class RunSpec:
         return f"{self.route}/{camera}{self.noise}/{self.method}/seed-{self.seed}"
 
     @property
-    def camera_label(self) -> str:
-        """The camera's name as the database and the report give it."""
-        return self.camera_name or DEFAULT_CAMERA
-
-    @property
     def config_hash(self) -> str:
         """Changes whenever anything that affects the run's result changes."""
         from longslam.world.source import world_identity
