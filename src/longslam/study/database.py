@@ -3,10 +3,10 @@
 Table `runs` has one row per run key (`route/noise/method/seed-N`, or `route/camera/noise/method/
 seed-N` in a study with named cameras; its primary key, so a run is there at most once): its
 configuration (`camera_name` is the camera's name, "camera" for the one camera of a `[camera]`
-study and for every run recorded before cameras had names; `camera` holds its settings), status ('ok' or 'error' with the error text), the
-headline metrics as columns (ate, e_trans, e_rot, peak_rss_bytes, map_precision, ...), the full
-metrics, curves against distance travelled and harness figures as JSON text, and the paths of its
-files relative to the study folder. Table `study` holds the study's configuration.
+study and for every run recorded before cameras had names; `camera` holds its settings), status
+('ok' or 'error' with the error text), the headline metrics as columns (ate, e_trans, e_rot,
+peak_rss_bytes, map_precision, ...), the full metrics, curves against distance travelled and
+harness figures as JSON text, and the paths of its files relative to the study folder. Table `study` holds the study's configuration.
 
     sqlite3 DIR/results.sqlite "select method, noise, avg(ate) from runs where status='ok' group by 1, 2"
 """
@@ -112,7 +112,8 @@ class ResultsDB:
         row: dict[str, Any] = {
             "key": spec.key, "study": spec.study, "world": spec.world, "route": spec.route, "noise": spec.noise,
             "method": spec.method, "method_name": spec.method_name, "params": spec.params, "seed": spec.seed,
-            "camera": spec.camera, "camera_name": getattr(spec, "camera_name", "") or DEFAULT_CAMERA, "follower": spec.follower, "align": spec.align,
+            "camera": spec.camera, "camera_name": getattr(spec, "camera_name", "") or DEFAULT_CAMERA,
+            "follower": spec.follower, "align": spec.align,
             "config_hash": spec.config_hash, "spec": spec.describe(),
             "status": record.status, "error": record.error, "traceback": record.traceback,
             "finished_at": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),

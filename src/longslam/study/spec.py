@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import asdict, dataclass, field
+from itertools import product
 from typing import Any
 
 from longslam.sim.camera import CameraSettings
@@ -77,25 +78,24 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
     runs = []
     for seed in config.seeds:
         for route in config.routes:
-            for camera_name, camera in config.camera_axis():
-                for noise in config.noise:
-                    for entry in config.methods:
-                        runs.append(
-                            RunSpec(
-                                study=config.name,
-                                world=config.world,
-                                route=route.name,
-                                waypoints=tuple(route.waypoints),
-                                noise=noise,
-                                method=entry.label,
-                                method_name=entry.method,
-                                params=dict(entry.params),
-                                seed=seed,
-                                camera=asdict(camera),
-                                follower=asdict(config.follower),
-                                align=config.align,
-                                map_tolerance_cells=config.map_tolerance_cells,
-                                camera_name=camera_name,
-                            )
+            for (camera_name, camera), noise in product(config.camera_axis(), config.noise):
+                for entry in config.methods:
+                    runs.append(
+                        RunSpec(
+                            study=config.name,
+                            world=config.world,
+                            route=route.name,
+                            waypoints=tuple(route.waypoints),
+                            noise=noise,
+                            method=entry.label,
+                            method_name=entry.method,
+                            params=dict(entry.params),
+                            seed=seed,
+                            camera=asdict(camera),
+                            follower=asdict(config.follower),
+                            align=config.align,
+                            map_tolerance_cells=config.map_tolerance_cells,
+                            camera_name=camera_name,
                         )
+                    )
     return runs
