@@ -172,11 +172,11 @@ def test_real_systems_study_file_loads():
     config = load_study(ROOT / "studies" / "real-systems.toml", [*method_names(), "orbslam3"])
     assert config.name == "real-systems"
     assert [r.name for r in config.routes] == ["paper-300m", "paper-1km"]
-    assert config.noise == ("small", "medium", "large", "xlarge") and config.seeds == (0, 1, 2)
+    assert config.noise == ("small", "medium", "large", "xlarge") and config.seeds == (0,)
     assert [m.label for m in config.methods] == ["odometry", "keyframe", "submap", "orbslam3"]
     assert [(c.name, c.settings.width, c.settings.height, c.settings.hfov_deg, c.settings.max_depth)
             for c in config.cameras] == [("qvga", 320, 240, 90.0, 8.0), ("vga", 640, 480, 90.0, 8.0)]
-    assert len(plan_runs(config)) == 2 * 2 * 4 * 4 * 3
+    assert len(plan_runs(config)) == 2 * 2 * 4 * 4 * 1
 
 
 @pytest.mark.parametrize(
