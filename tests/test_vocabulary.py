@@ -17,11 +17,10 @@ from longslam.cli import main
 from longslam.errors import InputError
 from longslam.recording import rendered_sequence
 from longslam.sim.routes import Route
-from longslam.vocabulary import (
-    Vocabulary, build_tree, format_text, hamming, kmeans, majority, read_vocabulary, write_vocabulary,
-)
+import longslam.vocabulary.kmeans as kmeans_module
+from longslam.vocabulary import Vocabulary, build_tree, format_text, read_vocabulary, write_vocabulary
 from longslam.vocabulary.build import OrbExtractor, chosen_frames, sequence_descriptors
-from longslam.vocabulary.kmeans import seed_centres
+from longslam.vocabulary.kmeans import hamming, kmeans, majority, seed_centres
 
 # A few metres along the hall of the university world, past its pillars: ~45 frames with texture.
 ROUTE = Route("voc-check", "university", ((114.0, 24.5), (114.0, 29.0)))
@@ -59,6 +58,13 @@ def test_majority_sets_a_bit_held_by_at_least_half_the_rows():
     assert majority(rows)[0] == 0b11000000  # bit 7 in 3 of 3, bit 6 in 2 of 3, bit 5 in 1 of 3
     # FORB::meanValue: with an even count a bit held by exactly half is set.
     assert majority(rows[1:])[0] == 0b11100000  # bit 5 in 1 of 2
+
+
+def test_hamming_without_numpys_bitwise_count(monkeypatch):
+    rng = np.random.default_rng(5)
+    a, b = rng.integers(0, 256, (6, 32), dtype=np.uint8), rng.integers(0, 256, (4, 32), dtype=np.uint8)
+    monkeypatch.setattr(kmeans_module, "_HAS_BITWISE_COUNT", False)  # numpy < 2: the byte table
+    assert np.array_equal(hamming(a, b), naive_hamming(a, b))
 
 
 def test_kmeans_finds_known_clusters():
@@ -155,6 +161,16 @@ def test_text_file_round_trips_without_a_final_newline(tmp_path):
     assert format_text(back) == raw.decode()
 
 
+def test_writing_never_replaces_a_file_unasked(tmp_path):
+    voc = build_tree(random_images(5, images=2), 3, 1, np.random.default_rng(0))
+    path = tmp_path / "voc.txt"
+    path.write_text("someone else's")
+    with pytest.raises(InputError, match="was written by another process"):
+        write_vocabulary(voc, path, overwrite=False)
+    assert path.read_text() == "someone else's"
+    assert [p.name for p in tmp_path.iterdir()] == ["voc.txt"]  # no partial file left
+
+
 def test_reader_refuses_what_orbslam3_would_misread(tmp_path):
     voc = build_tree(random_images(4, images=3), 3, 2, np.random.default_rng(0))
     good = format_text(voc)
@@ -224,6 +240,19 @@ def test_cli_builds_from_a_sequence(hall_sequence, tmp_path, capsys):
     assert "exists already" in capsys.readouterr().err
     assert main(args + ["--overwrite"]) == 0
     assert out.read_bytes() == first
+
+
+def test_cli_builds_from_a_route_through_the_render_cache(hall_sequence, tmp_path, monkeypatch):
+    # The route again as a file of the same name: its frames are the cached ones, not rendered anew.
+    route_file = tmp_path / f"{ROUTE.name}.txt"
+    route_file.write_text("".join(f"{x} {y}\n" for x, y in ROUTE.waypoints))
+    monkeypatch.setenv("LONGSLAM_CACHE", str(hall_sequence.parent))
+    cached = sorted(hall_sequence.parent.iterdir())
+    options = ["--k", "5", "--levels", "2", "--max-frames", "4", "--features", "200"]
+    assert main(["vocabulary", "build", "--route", str(route_file), "--out", str(tmp_path / "a.txt"), *options]) == 0
+    assert sorted(hall_sequence.parent.iterdir()) == cached
+    assert main(["vocabulary", "build", "--sequence", str(hall_sequence), "--out", str(tmp_path / "b.txt"), *options]) == 0
+    assert (tmp_path / "a.txt").read_bytes() == (tmp_path / "b.txt").read_bytes()
 
 
 def test_cli_errors_name_the_value(hall_sequence, tmp_path, capsys):

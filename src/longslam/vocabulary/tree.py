@@ -37,6 +37,10 @@ class Vocabulary:
     weighting: int = TF_IDF
 
     def __post_init__(self) -> None:
+        # Contiguous arrays of fixed types: `transform` views the descriptors as uint64 words.
+        object.__setattr__(self, "parents", np.ascontiguousarray(self.parents, dtype=np.int64))
+        object.__setattr__(self, "descriptors", check_descriptors(self.descriptors, "node descriptors"))
+        object.__setattr__(self, "weights", np.ascontiguousarray(self.weights, dtype=np.float64))
         n = len(self.parents)
         if n < 2:
             raise ValueError("a vocabulary needs a root and at least one word")
@@ -105,8 +109,7 @@ def idf_weights(vocabulary: Vocabulary, images: Sequence[np.ndarray]) -> np.ndar
     `setNodeWeights` for TF_IDF); 0 for a word no image holds, as DBoW2 leaves it."""
     words = len(vocabulary.words)
     seen = np.zeros(words, dtype=np.int64)
-    images = [image for image in images]
-    if images:
+    if len(images):
         sizes = np.array([len(image) for image in images])
         labels = vocabulary.transform(np.concatenate(images))
         image_of = np.repeat(np.arange(len(images)), sizes)
