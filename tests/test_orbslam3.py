@@ -144,9 +144,10 @@ def corridor(tmp_path_factory):
     return root, seq, vocabulary
 
 
-def _run(seq: Path, out: Path, vocabulary: Path, timeout: float = 300) -> subprocess.CompletedProcess:
+def _run(seq: Path, out: Path, vocabulary: Path, timeout: float = 300, pace: float = 1.0) -> subprocess.CompletedProcess:
+    # Paced as in use (5 s for the corridor): fed faster, its mapping falls behind on a loaded machine.
     command = LONGSLAM + ["run", "--method", "orbslam3", str(seq), "--out", str(out),
-                          "--param", f"vocabulary={vocabulary}", "--param", "pace=0"]
+                          "--param", f"vocabulary={vocabulary}", "--param", f"pace={pace}"]
     return subprocess.run(command, capture_output=True, text=True, timeout=timeout)
 
 
@@ -168,10 +169,16 @@ def test_runs_into_the_world_frame_with_every_frame_posed(corridor):
     truth = read_tum(seq / "groundtruth.txt")
     final, online = read_tum(out / "trajectory.txt"), read_tum(out / "online.txt")
     assert len(final) == len(online) == len(truth)
+    # No alignment: it starts at the first odometry pose and must go where the robot went. A wrong
+    # frame (optical z taken as up, a mirrored axis) is off by metres; ORB-SLAM3's own error on
+    # these 8 m was 1.7-3.5 % of the distance in 4 runs (its threads make every run differ).
     error = np.linalg.norm(final.positions - truth.positions, axis=1)
-    assert error.mean() < 0.1 and error[-1] < 0.2  # no alignment: it starts at the first odometry pose
-    travelled = final.positions[-1] - final.positions[0]
-    assert travelled[0] > 7.0 and abs(travelled[1]) < 0.3 and abs(travelled[2]) < 0.3  # down the spine (+x)
+    assert error.mean() < 0.25 and error[-1] < 0.5
+    travelled, true_travel = final.positions[-1] - final.positions[0], truth.positions[-1] - truth.positions[0]
+    assert abs(travelled[0] - true_travel[0]) < 0.05 * true_travel[0]  # down the spine (+x)
+    assert abs(travelled[1]) < 0.3 and abs(travelled[2]) < 0.3
+    heading = np.arctan2(final.poses[:, 1, 2], final.poses[:, 0, 2])  # the optical axis in the floor plane
+    assert np.abs(heading).max() < np.radians(5)
     stats = json.loads((out / "stats.json").read_text())
     method = stats["method_stats"]
     assert sum(method["tracking_states"].values()) == len(truth)
@@ -194,7 +201,7 @@ def test_survives_frames_it_cannot_track(corridor):
         target.unlink()  # the frames are hard links into the render cache: replace, don't write through
         cv2.imwrite(str(target), black)
     out = root / "dark-run"
-    done = _run(dark, out, vocabulary, timeout=300)
+    done = _run(dark, out, vocabulary, timeout=300, pace=0)
     assert done.returncode == 0, done.stderr
     truth = read_tum(dark / "groundtruth.txt")
     assert len(read_tum(out / "trajectory.txt")) == len(truth)

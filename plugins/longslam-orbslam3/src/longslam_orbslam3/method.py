@@ -147,17 +147,25 @@ class OrbSlam3Method:
     # -- the end ------------------------------------------------------------------------------
 
     def _wait_for_global_ba(self) -> float:
-        """ORB-SLAM3 1.0's Shutdown does not wait for a global bundle adjustment that a loop
-        closure started: wait here while its console says one is running and the process works."""
+        """ORB-SLAM3 1.0's Shutdown does not wait for the global bundle adjustment a loop closure
+        starts, nor for keyframes local mapping has still to process. Wait while its threads work
+        (the process's CPU: nothing else runs once the last frame is in) or its console says a
+        global BA is running, until they are idle for a second or `gba_wait` runs out. Its build
+        in pyorbslam3 0.1.1 prints "*Loop detected" but not the BA's start and end (they are at
+        a verbosity it does not print), so the CPU is what tells."""
         t0 = time.perf_counter()
+        idle_since = None
         cpu = time.process_time()
         while time.perf_counter() - t0 < self.config.gba_wait:
-            if not read_counts(self.context.console_log, self._log_start).global_ba_running:
-                break
-            time.sleep(0.5)
-            busy = time.process_time() - cpu
+            time.sleep(0.25)
+            busy = (time.process_time() - cpu) / 0.25
             cpu = time.process_time()
-            if busy < 0.05:  # no thread works: the BA ended without saying so
+            working = busy > 0.05 or read_counts(self.context.console_log, self._log_start).global_ba_running
+            if working:
+                idle_since = None
+            elif idle_since is None:
+                idle_since = time.perf_counter()
+            elif time.perf_counter() - idle_since >= 1.0:
                 break
         return time.perf_counter() - t0
 
