@@ -185,6 +185,10 @@ def test_reader_refuses_what_orbslam3_would_misread(tmp_path):
         path.write_text(text)
         with pytest.raises(InputError, match=message):
             read_vocabulary(path)
+    # As ORB-SLAM3's saveToTextFile writes it: "k L  scoring weighting", "... byte  weight", a final newline.
+    saved = "\n".join(line.rsplit(" ", 1)[0] + "  " + line.rsplit(" ", 1)[1] for line in good.split("\n")[1:])
+    (tmp_path / "saved.txt").write_text("3 2  0 0\n" + saved + "\n")
+    assert format_text(read_vocabulary(tmp_path / "saved.txt", final_newline=True)) == good
     leaf = voc.words[0]
     lines = good.split("\n")
     fields = lines[leaf].split()
