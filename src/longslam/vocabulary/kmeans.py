@@ -60,7 +60,10 @@ def hamming(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _nearest(descriptors: np.ndarray, centres: np.ndarray) -> np.ndarray:
     """Index of each descriptor's nearest centre (the first on a tie, as DBoW2's strict '<')."""
-    return np.argmin(hamming(descriptors, centres), axis=1)
+    out = np.empty(len(descriptors), dtype=np.int64)
+    for start in range(0, len(descriptors), CHUNK):  # never the whole (n, k) distance matrix
+        out[start:start + CHUNK] = np.argmin(hamming(descriptors[start:start + CHUNK], centres), axis=1)
+    return out
 
 
 def majority(descriptors: np.ndarray) -> np.ndarray:
