@@ -294,7 +294,8 @@ ORBSLAM3_CHECK = textwrap.dedent("""
 
 def orbslam3_settings(sequence: Path) -> str:
     """An ORB-SLAM3 RGB-D settings file (Examples/RGB-D/TUM1.yaml's File.version 1.0 layout) for
-    the sequence's pinhole camera, depth in its PNGs' units."""
+    the sequence's pinhole camera, depth in its PNGs' units, every depth within range "close"
+    (TUM1.yaml's 40 baselines, 3.1 m, loses tracking in the hall)."""
     camera = json.loads((sequence / "camera.json").read_text())
     return textwrap.dedent(f"""\
         %YAML:1.0
@@ -312,7 +313,7 @@ def orbslam3_settings(sequence: Path) -> str:
         Camera.height: {camera["height"]}
         Camera.fps: 10
         Camera.RGB: 1
-        Stereo.ThDepth: 40.0
+        Stereo.ThDepth: {camera["max_depth"] / 0.07732}
         Stereo.b: 0.07732
         RGBD.DepthMapFactor: {float(camera["depth_scale"])}
         ORBextractor.nFeatures: 1000
