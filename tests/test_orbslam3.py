@@ -204,3 +204,21 @@ def test_survives_frames_it_cannot_track(corridor):
     assert method["maps"] >= 1
     final = read_tum(out / "trajectory.txt")
     assert np.isfinite(final.poses).all()
+
+
+@pytest.mark.parametrize("text, message", [
+    ("garbage here\n1 2 3", "not a DBoW2 text vocabulary"),
+    ("", "not a DBoW2 text vocabulary"),
+    ("10 6 0 0\n0 1 " + " ".join(["0"] * 32) + " 0.5", "1 node lines"),
+    ("1 6 0 0\nx", "out of range"),
+])
+def test_a_file_that_is_no_vocabulary_is_refused(tmp_path, text, message):
+    """pyorbslam3 would hand ORB-SLAM3 any file, which then tracks with garbage."""
+    from longslam_orbslam3.vocabulary import resolve_vocabulary
+
+    bad = tmp_path / "voc.txt"
+    bad.write_text(text)
+    with pytest.raises(Exception, match=message):
+        resolve_vocabulary(str(bad))
+    with pytest.raises(Exception, match="no such file"):
+        resolve_vocabulary(str(tmp_path / "missing.txt"))
