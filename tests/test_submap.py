@@ -14,6 +14,7 @@ from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.routes import Route
 from longslam.slam.api import MethodContext
 from longslam.slam.catalog import check_params, create_method
+from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.method import SubmapMethod
 from longslam.slam.submap.registration import register
@@ -32,6 +33,9 @@ def hall_sequences(tmp_path_factory):
     exact = simulate_in_own_cache(root, HALL_LOOP, "none", 0, SMALL, name="none")
     noisy = simulate_in_own_cache(root, HALL_LOOP, "large", 1, SMALL, name="large")
     return SequenceReader(exact), SequenceReader(noisy)
+
+
+WHEEL = {"frontend.mode": "wheel"}  # the paper's configuration: motion from the wheel odometry alone
 
 
 def run(reader: SequenceReader, frames=None, **params):
@@ -156,7 +160,7 @@ def test_method_gives_a_pose_per_frame_a_grid_and_stats(hall_sequences, tmp_path
 def test_without_noise_the_trajectory_is_the_odometry(hall_sequences):
     exact, _ = hall_sequences
     # The paper's configuration: motion from the wheel odometry alone.
-    _, _, result = run(exact, registration=False, frontend="wheel")
+    _, _, result = run(exact, registration=False, **WHEEL)
     np.testing.assert_allclose(result.trajectory.poses, exact.odometry.poses, atol=1e-9)
 
 
@@ -165,8 +169,8 @@ def test_registration_lowers_the_error_on_a_loop(hall_sequences):
     # no rigid registration can undo; over 5 s the submaps are rigid enough to pull the loop in.
     # On the wheel odometry alone (the paper's configuration), so the registration's effect shows.
     _, noisy = hall_sequences
-    _, _, with_registration = run(noisy, submap_interval=5, frontend="wheel")
-    _, _, without = run(noisy, submap_interval=5, registration=False, frontend="wheel")
+    _, _, with_registration = run(noisy, submap_interval=5, **WHEEL)
+    _, _, without = run(noisy, submap_interval=5, registration=False, **WHEEL)
     odometry_ate = ate(noisy.ground_truth, noisy.odometry)
     assert ate(noisy.ground_truth, without.trajectory) == pytest.approx(odometry_ate, rel=1e-6)
     assert with_registration.stats["registrations_accepted"] > 0
@@ -176,7 +180,7 @@ def test_registration_lowers_the_error_on_a_loop(hall_sequences):
 def test_the_fused_front_end_beats_the_wheel_only_configuration(hall_sequences):
     _, noisy = hall_sequences
     _, _, fused = run(noisy, submap_interval=5)
-    _, _, wheel = run(noisy, submap_interval=5, frontend="wheel")
+    _, _, wheel = run(noisy, submap_interval=5, **WHEEL)
     assert fused.stats["frontend"]["mode"] == "fused"
     fused_ate, wheel_ate = ate(noisy.ground_truth, fused.trajectory), ate(noisy.ground_truth, wheel.trajectory)
     assert fused_ate < wheel_ate, (fused_ate, wheel_ate)
@@ -219,9 +223,9 @@ def test_bad_parameters_are_input_errors():
         check_params("submap", {"voxel_size": "inf"})
     config = check_params("submap", {"voxel_size": "0.1", "loop_closure": "true", "registration_min_points": 50.0})
     assert (config.voxel_size, config.loop_closure, config.registration_min_points) == (0.1, True, 50)
-    with pytest.raises(InputError, match="frontend"):
-        check_params("submap", {"frontend": "magic"})
-    method = SubmapMethod(context, SubmapConfig(frontend="wheel"))
+    with pytest.raises(InputError, match="front end: mode must be one of fused, wheel"):
+        check_params("submap", {"frontend.mode": "magic"})
+    method = SubmapMethod(context, SubmapConfig(frontend=FrontEndConfig(mode="wheel")))
     frame = Frame(0, 0.0, np.zeros((48, 64, 3), np.uint8), np.zeros((48, 64), np.float32), None, context.intrinsics)
     with pytest.raises(InputError, match="odometry"):
         method.step(frame)

@@ -11,7 +11,9 @@ Modes:
   registration of the depth band 0.2-1.5 m above the floor. Without wheel odometry in the
   frames it runs on the scans alone with a constant-velocity prediction, and says so in `stats`.
 - "wheel": the wheel odometry alone, with steps no robot makes in one frame (jumps) replaced by
-  no motion; the paper's configuration, and exactly what the keyframe method did before.
+  no motion; the paper's configuration. It needs odometry in every frame. The final trajectory
+  is the online one until a method adds loops; then the smoother spreads their corrections
+  over the frames, trusting the wheel steps as given (no bias states).
 """
 
 from __future__ import annotations
@@ -44,7 +46,9 @@ TRANSLATING_STEP = 1e-4
 @dataclass(frozen=True)
 class FrontEndConfig:
     mode: str = "fused"
-    camera_height: float | None = None  # m; default: the first odometry pose's z, else 1.25
+    # m above the floor; None: the first odometry pose's z (the floor is z = 0), or
+    # `default_camera_height` without odometry.
+    camera_height: float | None = None
     default_camera_height: float = 1.25
     jump_distance: float = 1.0  # m in one frame: a bigger odometry step is a jump, not motion
     jump_angle: float = 0.8  # rad in one frame
@@ -88,6 +92,10 @@ class FrontEndConfig:
             raise InputError("front end: jump_distance and jump_angle must be positive")
         if self.scan_anchor_lag < 1:
             raise InputError("front end: scan_anchor_lag must be at least 1")
+        if self.camera_height is not None and not self.camera_height > 0:
+            raise InputError(f"front end: camera_height must be positive (or none: inferred), got {self.camera_height}")
+        if not self.default_camera_height > 0:
+            raise InputError(f"front end: default_camera_height must be positive, got {self.default_camera_height}")
 
 
 class FrontEnd:
@@ -137,14 +145,22 @@ class FrontEnd:
         self._time += time.perf_counter() - t0
         return pose.copy()
 
+    @property
+    def images_every_frame(self) -> tuple[str, ...]:
+        """The images `step` reads on every frame: none on wheels alone (a method may read them
+        lazily for its own keyframes), colour and depth when fused."""
+        return ("rgb", "depth") if self.config.mode == "fused" else ()
+
     def _start(self, frame: Frame) -> None:
         cfg = self.config
+        if frame.odometry is None and cfg.mode == "wheel":
+            raise InputError(f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the front end's "
+                             f"mode 'wheel' needs a sequence with odometry.txt (mode 'fused' runs without)")
         if frame.odometry is not None:
             self.mount = CameraMount.from_first_pose(np.asarray(frame.odometry, dtype=np.float64), cfg.camera_height)
-            # The same jump filter as the methods always had: the "wheel" mode is exactly it.
             self._wheels = PlanarOdometry(self.mount, cfg.jump_distance, cfg.jump_angle)
         else:
-            self.mount = CameraMount(cfg.camera_height or cfg.default_camera_height, 0.0)
+            self.mount = CameraMount(cfg.default_camera_height if cfg.camera_height is None else cfg.camera_height, 0.0)
             self._odom = np.zeros(3)  # a sequence without odometry starts at the origin
         self._extract = ScanExtractor(self.intrinsics, self.mount.camera_in_base, cfg.scan)
         if cfg.visual and cfg.mode == "fused":
