@@ -342,7 +342,7 @@ class SubmapMethod:
         """Every frame's pose from the front end's smoother, with the submap graph's loop edges
         (and registration edges, see `frontend_registrations`) between the submaps' first
         frames. An edge the optimised graph explains poorly (the robust kernel down-weighted it)
-        is left out: the smoother has no kernel."""
+        is left out: the smoother takes each edge as a plain Gaussian."""
         c = self.config
         registrations = c.frontend_registrations
         if registrations is None:
