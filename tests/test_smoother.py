@@ -5,7 +5,9 @@ import numpy as np
 
 from longslam.geometry import compose_xyyaw as compose
 from longslam.geometry import relative_xyyaw as relative
-from longslam.slam.frontend.smoother import FullSmoother, MotionNoise, SmootherConfig, WheelStep
+from longslam.slam.frontend.filter import MotionNoise
+from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
+from longslam.slam.graph.factors import WheelStep
 
 
 def _smoother(frames: int = 80, seed: int = 3) -> tuple[FullSmoother, np.ndarray]:

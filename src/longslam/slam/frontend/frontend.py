@@ -34,7 +34,10 @@ from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
 from longslam.slam.frontend.visual import VisualConfig, VisualOdometry
-from longslam.slam.frontend.smoother import BiasFilter, FullSmoother, MotionNoise, SmootherConfig, WheelStep
+from longslam.slam.frontend.visual_gates import GateBounds, VisualGates
+from longslam.slam.frontend.filter import BiasFilter, MotionNoise
+from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
+from longslam.slam.graph.factors import WheelStep
 
 relative = relative_xyyaw
 
@@ -107,7 +110,7 @@ class FrontEnd:
         self.intrinsics = intrinsics
         self.mount: CameraMount | None = None  # known at the first frame
         self._extract: ScanExtractor | None = None
-        self._visual: VisualOdometry | None = None
+        self._gates: VisualGates | None = None
         self._filter: BiasFilter | None = None
         self._map = LocalMap(self.config.local_map)
         # In "wheel" mode the smoother (used only when loops are added) trusts the wheels as given.
@@ -118,7 +121,6 @@ class FrontEnd:
         self._has_wheels: bool | None = None
         self._online: list[np.ndarray] = []
         self._last_insert: np.ndarray | None = None
-        self._forward_refusals = 0
         self._time = 0.0
         self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0,
                        "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
@@ -163,8 +165,12 @@ class FrontEnd:
             self.mount = CameraMount(cfg.default_camera_height if cfg.camera_height is None else cfg.camera_height, 0.0)
             self._odom = np.zeros(3)  # a sequence without odometry starts at the origin
         self._extract = ScanExtractor(self.intrinsics, self.mount.camera_in_base, cfg.scan)
+        tracker = None
         if cfg.visual and cfg.mode == "fused":
-            self._visual = VisualOdometry(self.intrinsics, self.mount.camera_in_base, cfg.visual_tracking)
+            tracker = VisualOdometry(self.intrinsics, self.mount.camera_in_base, cfg.visual_tracking)
+        self._gates = VisualGates(tracker, GateBounds(
+            cfg.visual_gate_distance, cfg.visual_gate_angle, cfg.visual_gate_sigmas, cfg.visual_max_bias,
+            cfg.visual_bias_reset_after, cfg.noise.bias_forward_reset, cfg.use_bias), self.counts)
         self._filter = BiasFilter(np.zeros(3), cfg.noise, use_bias=cfg.use_bias and bool(self._has_wheels))
 
     @property
@@ -180,7 +186,7 @@ class FrontEnd:
         self._odom = self._wheels.update(np.asarray(frame.odometry, dtype=np.float64))
         self.counts["odometry_jumps"] = self._wheels.jumps
         if previous is None:
-            self._filter.state[:3] = self._odom
+            self._filter.place(self._odom)
             return None
         delta = relative(previous, self._odom)
         return WheelStep(float(delta[0]), float(delta[1]), float(delta[2]), abs(delta[0]) > TRANSLATING_STEP)
@@ -200,9 +206,10 @@ class FrontEnd:
         if wheel is not None:
             bias = flt.bias if cfg.use_bias else np.zeros(2)
             expected = np.array([wheel.forward - (bias[0] if wheel.moving else 0.0), wheel.lateral, wheel.yaw - bias[1]])
-            bias_var = flt.cov[3, 3] if cfg.use_bias else 0.0
+            bias_var = flt.forward_bias_variance if cfg.use_bias else 0.0
             flt.predict_wheel(wheel)
-            visual = self._gated_wheel_visual(frame, wheel, expected, bias_var, vis_sigmas)
+            visual = self._gates.against_wheels(frame, wheel, expected, bias_var, self._wheel_variances(wheel)[0],
+                                                vis_sigmas[0], flt)
             if visual is not None and cfg.use_bias:
                 raw = np.array([wheel.forward, wheel.yaw])
                 flt.update_bias(raw - visual[[0, 2]], self._wheel_variances(wheel) + vis_sigmas[[0, 2]] ** 2, wheel.moving)
@@ -210,16 +217,16 @@ class FrontEnd:
             # No wheels: the visual step where it tracks, else the last step again (constant
             # velocity), loosely.
             cv = relative(self._online[-2], self._online[-1]) if k > 1 else np.zeros(3)
-            visual = self._visual_step(frame, cv, cfg.visual_gate_distance_no_wheels, cfg.visual_gate_angle_no_wheels,
-                                       ransac=True)
+            visual = self._gates.against_prediction(frame, cv, cfg.visual_gate_distance_no_wheels,
+                                                    cfg.visual_gate_angle_no_wheels)
             vis_sigmas = np.asarray(cfg.visual_sigmas_no_wheels, dtype=np.float64)
             if visual is not None:
                 flt.predict_step(visual, vis_sigmas)
             else:
                 cv_step = cv
                 flt.predict_constant_velocity(cv_step)
-        elif self._visual is not None:
-            self._visual(frame.rgb, frame.depth, np.zeros(3))  # keeps the first image
+        else:
+            self._gates.first(frame)
         predicted = flt.pose
         scan = self._extract(frame.depth)
         self.counts["scan_points"] += len(scan)
@@ -254,62 +261,6 @@ class FrontEnd:
         n = self.config.noise
         return np.array([(n.forward_min + n.forward_rel * abs(wheel.forward)) ** 2,
                          (n.yaw_min + n.yaw_rel * abs(wheel.yaw)) ** 2])
-
-    def _gated_wheel_visual(self, frame: Frame, wheel: WheelStep, expected: np.ndarray, bias_var: float,
-                            vis_sigmas: np.ndarray) -> np.ndarray | None:
-        """The RGB-D step if it agrees with the wheels: sideways and in heading within fixed gates
-        of the bias-corrected wheel step; forward within `visual_gate_sigmas` of the forward
-        bias's own uncertainty (a Mahalanobis gate), so the gate widens when the bias is unsure.
-
-        The wheels' bias jumps to a new value every few seconds; a fixed gate around the old
-        value would refuse all the evidence of the new one (measured: a 6 cm/frame jump at
-        xlarge left the estimate 3 m off). So after `visual_bias_reset_after` consecutive
-        forward refusals the forward bias's variance is widened and the gate opens.
-        """
-        cfg = self.config
-        if self._visual is None:
-            return None
-        res = self._visual(frame.rgb, frame.depth, expected)
-        if res is None:
-            self.counts["visual_failed"] += 1
-            return None
-        d = res.step - expected
-        if abs(d[1]) > cfg.visual_gate_distance or abs(wrap_angle(d[2])) > cfg.visual_gate_angle:
-            self.counts["visual_refused"] += 1
-            return None
-        if wheel.moving:
-            spread = np.sqrt(bias_var + self._wheel_variances(wheel)[0] + vis_sigmas[0] ** 2)
-            if abs(d[0]) > max(cfg.visual_gate_sigmas * spread, cfg.visual_gate_distance) and self.config.use_bias \
-                    or abs(res.step[0] - wheel.forward) > cfg.visual_max_bias:
-                self.counts["visual_refused"] += 1
-                self._forward_refusals += 1
-                if self._forward_refusals >= cfg.visual_bias_reset_after:
-                    self._filter.widen_forward_bias(cfg.noise.bias_forward_reset)
-                    self.counts["forward_bias_resets"] += 1
-                    self._forward_refusals = 0
-                return None
-        elif abs(d[0]) > cfg.visual_gate_distance:
-            self.counts["visual_refused"] += 1
-            return None
-        self._forward_refusals = 0
-        self.counts["visual_accepted"] += 1
-        return res.step
-
-    def _visual_step(self, frame: Frame, expected: np.ndarray, gate_distance: float, gate_angle: float,
-                     ransac: bool = False) -> np.ndarray | None:
-        """The gated RGB-D step; with `ransac`, fitted without starting from `expected`."""
-        if self._visual is None:
-            return None
-        res = self._visual(frame.rgb, frame.depth, None if ransac else expected)
-        if res is None:
-            self.counts["visual_failed"] += 1
-            return None
-        d = res.step - expected
-        if np.hypot(d[0], d[1]) > gate_distance or abs(wrap_angle(d[2])) > gate_angle:
-            self.counts["visual_refused"] += 1
-            return None
-        self.counts["visual_accepted"] += 1
-        return res.step
 
     # --- loops and the end ---------------------------------------------------------------------
     def add_loop(self, frame_i: int, frame_j: int, delta_xyyaw: np.ndarray, information: np.ndarray) -> None:
