@@ -18,7 +18,8 @@ from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.method import SubmapMethod
 from longslam.slam.submap.registration import register
-from longslam.slam.submap.tsdf import BLOCK, TSDF, group_cells, pack, unpack
+from longslam.geometry.cells import group_cells_3d, pack_3d, unpack_3d
+from longslam.slam.submap.tsdf import BLOCK, TSDF
 from longslam.world import get_world
 from conftest import simulate_in_own_cache
 
@@ -50,9 +51,9 @@ def test_group_cells_is_np_unique_of_the_packed_keys(spread):
     rng = np.random.default_rng(3)
     ijk = rng.integers(-spread, spread, size=(5000, 3))
     ijk[1::2] = ijk[rng.integers(0, len(ijk), size=len(ijk) // 2)]  # repeats across the array
-    (i, j, k), inverse = group_cells(ijk[:, 0], ijk[:, 1], ijk[:, 2])
-    keys, expected_inverse = np.unique(pack(ijk), return_inverse=True)
-    np.testing.assert_array_equal(np.column_stack([i, j, k]), unpack(keys))
+    (i, j, k), inverse = group_cells_3d(ijk[:, 0], ijk[:, 1], ijk[:, 2])
+    keys, expected_inverse = np.unique(pack_3d(ijk), return_inverse=True)
+    np.testing.assert_array_equal(np.column_stack([i, j, k]), unpack_3d(keys))
     np.testing.assert_array_equal(inverse, expected_inverse)
 
 
@@ -241,6 +242,23 @@ def test_group_cells_2d_is_np_unique_of_the_64_bit_key(low, high):
     np.testing.assert_array_equal(i, keys >> 32)
     np.testing.assert_array_equal(j, (keys & 0xFFFFFFFF).astype(np.uint32).astype(np.int32))
     np.testing.assert_array_equal(inverse, expected_inverse)
+
+
+@pytest.mark.parametrize("spread", [0.3, 400.0])  # a dense box of voxels, a sparse one (sort)
+def test_cell_averages_are_the_sorted_groups_means_to_the_bit(spread):
+    from longslam.geometry.cells import average_2d, average_3d
+
+    points = np.random.default_rng(1).uniform(-spread, spread, size=(4000, 3))
+    for average, dims, cell in ((average_3d, 3, 0.05), (average_2d, 2, 0.05)):
+        xyz = points[:, :dims]
+        index = np.floor(xyz / cell).astype(np.int64)
+        # The reference: the sort of each grouping's key (3D: rows, as the packed keys order them;
+        # 2D: the 64-bit key of i and j's unsigned low half), sums in point order.
+        keys = index if dims == 3 else (index[:, 0] << 32) + (index[:, 1] & 0xFFFFFFFF)
+        _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        inverse = inverse.reshape(-1)
+        expected = np.column_stack([np.bincount(inverse, weights=xyz[:, a]) for a in range(dims)]) / counts[:, None]
+        np.testing.assert_array_equal(average(xyz, cell), expected)
 
 
 def test_fusing_with_release_gives_the_same_map_and_empties_the_submaps():

@@ -10,7 +10,7 @@ import numpy as np
 from longslam.frame import Frame
 from longslam.geometry import wrap_angle
 from longslam.slam.frontend.filter import BiasFilter
-from longslam.slam.frontend.visual import VisualOdometry
+from longslam.slam.frontend.visual import VisualOdometry, VisualStep
 from longslam.slam.graph.factors import WheelStep
 
 
@@ -57,47 +57,51 @@ class VisualGates:
         the filter's forward-bias variance is widened and the gate opens.
         """
         g = self.bounds
-        if self.tracker is None:
-            return None
-        res = self.tracker(frame.rgb, frame.depth, expected)
+        res = self._track(frame, expected)
         if res is None:
-            self.counts["visual_failed"] += 1
             return None
         d = res.step - expected
         if abs(d[1]) > g.distance or abs(wrap_angle(d[2])) > g.angle:
-            self.counts["visual_refused"] += 1
-            return None
+            return self._refused()
         if wheel.moving:
             spread = np.sqrt(bias_variance + wheel_forward_variance + visual_forward_sigma ** 2)
             if abs(d[0]) > max(g.sigmas * spread, g.distance) and g.use_bias \
                     or abs(res.step[0] - wheel.forward) > g.max_bias:
-                self.counts["visual_refused"] += 1
                 self._forward_refusals += 1
                 if self._forward_refusals >= g.reset_after:
                     bias_filter.widen_forward_bias(g.bias_forward_reset)
                     self.counts["forward_bias_resets"] += 1
                     self._forward_refusals = 0
-                return None
+                return self._refused()
         elif abs(d[0]) > g.distance:
-            self.counts["visual_refused"] += 1
-            return None
+            return self._refused()
         self._forward_refusals = 0
-        self.counts["visual_accepted"] += 1
-        return res.step
+        return self._accepted(res.step)
 
     def against_prediction(self, frame: Frame, expected: np.ndarray, gate_distance: float,
                            gate_angle: float) -> np.ndarray | None:
         """Without wheels: the RGB-D step fitted without starting from `expected` (RANSAC), if
         it lies within the gates of that prediction."""
-        if self.tracker is None:
-            return None
-        res = self.tracker(frame.rgb, frame.depth, None)
+        res = self._track(frame, None)
         if res is None:
-            self.counts["visual_failed"] += 1
             return None
         d = res.step - expected
         if np.hypot(d[0], d[1]) > gate_distance or abs(wrap_angle(d[2])) > gate_angle:
-            self.counts["visual_refused"] += 1
+            return self._refused()
+        return self._accepted(res.step)
+
+    def _track(self, frame: Frame, start: np.ndarray | None) -> VisualStep | None:
+        if self.tracker is None:
             return None
+        res = self.tracker(frame.rgb, frame.depth, start)
+        if res is None:
+            self.counts["visual_failed"] += 1
+        return res
+
+    def _refused(self) -> None:
+        self.counts["visual_refused"] += 1
+        return None
+
+    def _accepted(self, step: np.ndarray) -> np.ndarray:
         self.counts["visual_accepted"] += 1
-        return res.step
+        return step
