@@ -26,7 +26,7 @@ from longslam.run.folder import write_result
 from longslam.run.observer import RunObserver
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.settings import to_mapping
-from longslam.slam.api import MethodContext, Result
+from longslam.slam.api import MethodContext, Result, images_every_frame
 from longslam.slam.catalog import get_spec
 
 RSS_SAMPLE_EVERY = 50  # frames between samples of resident memory
@@ -50,7 +50,7 @@ def run_frames(
     spec = get_spec(method_name)
     config = spec.config(params)
     method = spec.build(context, config)
-    wanted = set(getattr(method, "images_every_frame", ())) | set(getattr(observer, "images_every_frame", ()))
+    wanted = set(images_every_frame(method)) | set(getattr(observer, "images_every_frame", ()))
     images = tuple(name for name in IMAGES if name in wanted)
     if images:
         frames = read_ahead(frames, images)
