@@ -56,6 +56,16 @@ class Method(Protocol):
         ...
 
 
+@runtime_checkable
+class Closable(Protocol):
+    """A method that holds threads or a native system (a wrapped C++ SLAM system) defines `close`:
+    the engine calls it when a run stops before `finish` has returned (an error, Ctrl-C), so that
+    nothing of the method outlives its run. `finish` itself must release what it holds."""
+
+    def close(self) -> None:
+        ...
+
+
 def images_every_frame(method: Method) -> tuple[str, ...]:
     """The images the method's `step` reads in every frame (see `Method`)."""
     return tuple(getattr(method, "images_every_frame", ()))
@@ -73,6 +83,10 @@ class MethodContext:
     intrinsics: Intrinsics
     max_depth: float | None
     output_dir: str | None = None  # where a method may keep files (e.g. a database)
+    # The file that receives what native code prints to the process's stdout and stderr during
+    # the run (run/console.py), set by the engine when the run has a folder; a method wrapping a
+    # C++ system may read it (its log lines are often the only report of what happened inside).
+    console_log: str | None = None
 
 
 def frame_odometry(frame: Frame, method: str) -> np.ndarray:

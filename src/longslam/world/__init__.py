@@ -7,6 +7,7 @@ and `load_world(ref)` take either (`source.py`).
 
 from __future__ import annotations
 
+from longslam.world.annex import annex_plan
 from longslam.world.builder import build_mesh
 from longslam.world.catalog import WORLDS, get_world, world_from_plan
 from longslam.world.external import load_mesh_world
@@ -17,6 +18,6 @@ from longslam.world.university import university_plan
 from longslam.world.world import World
 
 __all__ = [
-    "WORLDS", "Box", "FloorPlan", "Rect", "World", "WorldMesh", "build_mesh", "get_world", "load_mesh_world",
+    "WORLDS", "Box", "FloorPlan", "Rect", "World", "WorldMesh", "annex_plan", "build_mesh", "get_world", "load_mesh_world",
     "load_world", "university_plan", "world_from_plan", "world_key", "world_label", "world_ref",
 ]

@@ -1,4 +1,4 @@
-"""The registered worlds: `WORLDS` by name (`university`), each built once per process."""
+"""The registered worlds: `WORLDS` by name (`university`, `annex`), each built once per process."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import functools
 from collections.abc import Callable
 
 from longslam.registry import Registry
+from longslam.world.annex import TEXTURE_SEED as _ANNEX_SEED, annex_plan
 from longslam.world.builder import build_mesh
 from longslam.world.layout import FloorPlan
 from longslam.world.university import university_plan
@@ -29,6 +30,11 @@ def world_from_plan(plan: FloorPlan, seed: int = 0, resolution: float = 0.05) ->
 @WORLDS.decorator("university")
 def _university() -> World:
     return world_from_plan(university_plan(), seed=0)
+
+
+@WORLDS.decorator("annex")
+def _annex() -> World:
+    return world_from_plan(annex_plan(), seed=_ANNEX_SEED)
 
 
 @functools.lru_cache(maxsize=None)
