@@ -15,12 +15,12 @@ def diagonal(sigmas: np.ndarray) -> gtsam.noiseModel.Base:
 
 
 def gaussian(information: np.ndarray, ridge: float = 0.0) -> gtsam.noiseModel.Base:
-    """A Gaussian of the (symmetrised) information matrix; `ridge` * I is added where the
-    information may be singular (a registration's Hessian along a corridor)."""
-    info = 0.5 * (information + information.T)
+    """A Gaussian of a symmetric positive-definite information matrix, or, with `ridge`, of one
+    that may be singular (a registration's Hessian along a corridor): symmetrised, `ridge` * I
+    added."""
     if ridge:
-        info = info + ridge * np.eye(len(info))
-    return gtsam.noiseModel.Gaussian.Information(info)
+        information = 0.5 * (information + information.T) + ridge * np.eye(len(information))
+    return gtsam.noiseModel.Gaussian.Information(information)
 
 
 def robust(base: gtsam.noiseModel.Base, kernel: str, k: float) -> gtsam.noiseModel.Base:
