@@ -49,6 +49,21 @@ def _import_pyorbslam3() -> Any:
     return pyorbslam3
 
 
+def _thread_ticks(exclude: set[str] = frozenset()) -> dict[str, int]:
+    """CPU ticks used so far by each thread of this process (Linux), but those in `exclude`."""
+    ticks = {}
+    for tid in os.listdir("/proc/self/task"):
+        if tid in exclude:
+            continue
+        try:
+            with open(f"/proc/self/task/{tid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:  # the thread ended meanwhile
+            continue
+        ticks[tid] = int(fields[11]) + int(fields[12])  # utime + stime
+    return ticks
+
+
 def _read_euroc(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """ORB-SLAM3's EuRoC trajectory: stamp in ns, tx ty tz qx qy qz qw (camera in map)."""
     if not path.is_file() or path.stat().st_size == 0:
@@ -82,6 +97,7 @@ class OrbSlam3Method:
         self._load_time = 0.0
         self._clock: tuple[float, float] | None = None  # (wall time, stamp) pacing starts from
         self._paced_s = 0.0
+        self._system_threads: set[str] = set()
 
     # -- the run ------------------------------------------------------------------------------
 
@@ -102,6 +118,9 @@ class OrbSlam3Method:
         t0 = time.perf_counter()
         self._slam = self._pos.Slam(self._vocabulary, str(settings), self._pos.Sensor.RGBD, use_viewer=False)
         self._load_time = time.perf_counter() - t0
+        # Threads alive once the system runs (its mapping and loop closing among them): a later one
+        # is a global bundle adjustment (see _wait_for_global_ba).
+        self._system_threads = set(os.listdir("/proc/self/task"))
 
     def _wait_for_turn(self, stamp: float) -> None:
         if self.config.pace <= 0.0:
@@ -148,25 +167,22 @@ class OrbSlam3Method:
 
     def _wait_for_global_ba(self) -> float:
         """ORB-SLAM3 1.0's Shutdown does not wait for the global bundle adjustment a loop closure
-        starts, nor for keyframes local mapping has still to process. Wait while its threads work
-        (the process's CPU: nothing else runs once the last frame is in) or its console says a
-        global BA is running, until they are idle for a second or `gba_wait` runs out. Its build
-        in pyorbslam3 0.1.1 prints "*Loop detected" but not the BA's start and end (they are at
-        a verbosity it does not print), so the CPU is what tells."""
+        starts. It runs in a thread of its own, made after the system's threads: wait while such
+        a thread works (or the console says a BA runs), until `gba_wait` runs out. Its build in
+        pyorbslam3 0.1.1 prints "*Loop detected" but not the BA's start and end, so the thread is
+        what tells. Keyframes still queued for loop detection are dropped, as Shutdown drops them."""
         t0 = time.perf_counter()
-        idle_since = None
-        cpu = time.process_time()
+        ticks = _thread_ticks(exclude=self._system_threads)
         while time.perf_counter() - t0 < self.config.gba_wait:
-            time.sleep(0.25)
-            busy = (time.process_time() - cpu) / 0.25
-            cpu = time.process_time()
-            working = busy > 0.05 or read_counts(self.context.console_log, self._log_start).global_ba_running
-            if working:
-                idle_since = None
-            elif idle_since is None:
-                idle_since = time.perf_counter()
-            elif time.perf_counter() - idle_since >= 1.0:
+            running = read_counts(self.context.console_log, self._log_start).global_ba_running
+            if not ticks and not running:
                 break
+            time.sleep(0.25)
+            now = _thread_ticks(exclude=self._system_threads)
+            working = any(now.get(tid, 0) > used for tid, used in ticks.items()) or set(now) - set(ticks)
+            if not working and not running:
+                break
+            ticks = now
         return time.perf_counter() - t0
 
     def _shutdown(self) -> None:
