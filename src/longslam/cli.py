@@ -81,6 +81,19 @@ def _describe_world(name: str, mesh_floor_z: float | None) -> str:
     return f"world {name} (floor at z = {mesh_floor_z:.3f} m in the mesh file)"
 
 
+def _given_files(paths: list[str | None]) -> dict[str, str]:
+    """The command's inputs that are files or folders on disk (a route or world may be a name)."""
+    return {f"input {p}": p for p in paths if p is not None and os.path.exists(p)}
+
+
+def _check_out_file(args: argparse.Namespace, out: str, what: str, inputs: list[str | None]) -> None:
+    """An output file replaces an existing one only with --overwrite, and never an input."""
+    from longslam.io.outputs import check_not_an_input, check_output_file_free
+
+    check_not_an_input(out, _given_files(inputs), what, inside=False)
+    check_output_file_free(out, args.overwrite, what)
+
+
 def cmd_world(args: argparse.Namespace) -> None:
     from longslam.sim.drive import drive_route
     from longslam.sim.routes import get_route
@@ -89,6 +102,7 @@ def cmd_world(args: argparse.Namespace) -> None:
     from longslam.world import load_world
 
     check_output_file(args.out, PLOT_SUFFIXES, "--out")
+    _check_out_file(args, args.out, "--out", [args.route, args.mesh or args.world, args.places])
     if args.mesh and args.world:
         raise LongslamError("give the world once: --world NAME_OR_FILE (--mesh FILE is the same)")
     ref = _world(args, args.mesh or args.world)
@@ -111,6 +125,9 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.recording import simulate
     from longslam.world import world_label
 
+    from longslam.io.outputs import check_not_an_input
+
+    check_not_an_input(args.out, _given_files([args.route, args.world, args.places]), "sequence folder")
     route = get_route(args.route, _world(args, args.world))
     noise = get_noise(args.noise)
     out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite)
@@ -125,7 +142,7 @@ def cmd_run(args: argparse.Namespace) -> None:
     if args.viz is not None:
         from longslam.viz.live import check_target
 
-        check_target(args.viz)
+        check_target(args.viz, args.overwrite)
     measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
                                 intrinsics=args.intrinsics, viz=args.viz)
     print(
@@ -149,17 +166,34 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
 
 
+class _LazyBar:
+    """A tqdm bar that appears at the first progress report, so an error found before any work
+    is the only line on stderr."""
+
+    def __init__(self, desc: str):
+        self.desc = desc
+        self.bar = None
+
+    def update(self, done: int, total: int) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(desc=self.desc, unit="frame", leave=False)
+        self.bar.total = total
+        self.bar.update(done - self.bar.n)
+
+    def __enter__(self) -> "_LazyBar":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
 def _progress_bar(desc: str):
-    """A tqdm bar and the (done, total) callback that moves it."""
-    from tqdm import tqdm
-
-    bar = tqdm(desc=desc, unit="frame", leave=False)
-
-    def update(done: int, total: int) -> None:
-        bar.total = total
-        bar.update(done - bar.n)
-
-    return bar, update
+    """A progress bar and the (done, total) callback that moves it."""
+    bar = _LazyBar(desc)
+    return bar, bar.update
 
 
 def cmd_export(args: argparse.Namespace) -> None:
@@ -202,8 +236,9 @@ def cmd_demo(args: argparse.Namespace) -> None:
     if args.viz is not None:
         from longslam.viz.live import check_target
 
-        check_target(args.viz)
-    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz)
+        check_target(args.viz, args.overwrite)
+    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz,
+                          overwrite=args.overwrite)
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")
@@ -257,6 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mesh", help="a mesh file: the same as --world FILE")
     p.add_argument("--route", help="a route name or a waypoint file to draw")
     p.add_argument("--out", required=True, help="image file to write (e.g. plan.png)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing image file")
     p.set_defaults(func=cmd_world)
 
     p = sub.add_parser("simulate", help="render a route with noisy odometry into a TUM RGB-D sequence")
@@ -274,7 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")
     p.add_argument("--out", required=True, help="run folder to write")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="method parameter (repeatable)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing run folder (and --viz file)")
     p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                    help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)")
     p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
@@ -326,6 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
                    help="show each method's run live in a rerun viewer, or record FILE-<method>.rrd (needs longslam[viz])")
+    p.add_argument("--overwrite", action="store_true", help="replace existing FILE-<method>.rrd recordings")
     _camera_args(p)
     p.set_defaults(func=cmd_demo)
 

@@ -22,6 +22,7 @@ import longslam
 from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import camera_poses_from_planar, planar_from_camera_poses
+from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
 from longslam.sim.camera import CameraSettings, RGBDCamera
@@ -31,7 +32,7 @@ from longslam.sim.noise import BiasNoise
 from longslam.sim.routes import Route
 from longslam.trajectory import Trajectory
 from longslam.world import load_world, world_key
-from longslam.world.source import is_mesh_ref, world_identity
+from longslam.world.source import MeshSpec, is_mesh_ref, world_identity
 
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1
@@ -127,8 +128,9 @@ def simulate(
 ) -> Path:
     """Write a sequence for (route, noise, seed) to `out`, rendering the route only if not cached."""
     out = check_output_folder(out, "sequence folder")
-    if out.exists() and not overwrite:
-        raise InputError(f"output {out} exists already; choose another path or pass --overwrite")
+    mesh = MeshSpec.from_ref(route.world).path if is_mesh_ref(route.world) else None
+    check_not_an_input(out, {"mesh file": mesh, "render cache": cache_root()}, "sequence folder")
+    check_replaceable(out, SEQUENCE, overwrite)
     check_seed(seed)
     rendered = rendered_sequence(route, camera, follower, progress=progress)
     reader = SequenceReader(rendered)

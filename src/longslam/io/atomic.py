@@ -7,7 +7,7 @@ import errno
 import os
 import shutil
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -18,17 +18,22 @@ _AT_FDCWD, _RENAME_NOREPLACE = -100, 1
 
 
 @contextmanager
-def atomic_path(path: str | Path, overwrite: bool = True) -> Iterator[Path]:
+def atomic_path(path: str | Path, overwrite: bool = True,
+                may_replace: Callable[[Path], None] | None = None) -> Iterator[Path]:
     """Yield a temporary sibling path; on success rename it to `path`, on failure remove it.
 
     With `overwrite=False` an existing `path` is never replaced, even one that another process
     wrote while this one worked: the rename fails, this output is discarded, InputError is raised.
+    With `overwrite=True`, `may_replace(path)` (if given) is called on an existing `path` just
+    before it is replaced, and may raise to keep it (see `longslam.io.outputs`).
     """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
     try:
         yield tmp
         if overwrite:
+            if may_replace is not None and (path.exists() or path.is_symlink()):
+                may_replace(path)
             _replace(tmp, path)
         else:
             try:

@@ -29,6 +29,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
+from longslam.io.atomic import rename_no_replace
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.graph import ODOMETRY, PoseGraph
 from longslam.timestamps import nearest_indices
@@ -48,8 +49,9 @@ def require_rerun() -> Any:
     return rerun
 
 
-def check_target(target: str) -> None:
-    """Refuse a --viz value that is neither the viewer nor a writable .rrd path, before any work."""
+def check_target(target: str, overwrite: bool = False) -> None:
+    """Refuse a --viz value that is neither the viewer nor a writable .rrd path, before any work;
+    an existing .rrd file is replaced only with `overwrite`, as run folders are."""
     if target == VIEWER:
         return
     path = Path(target)
@@ -57,8 +59,13 @@ def check_target(target: str) -> None:
         raise InputError(f"--viz {target}: expected no value (a live viewer) or a file ending in .rrd")
     if path.is_dir():
         raise InputError(f"--viz {target} is a folder; expected a .rrd file")
-    if not path.absolute().parent.is_dir():
-        raise InputError(f"--viz {target}: the folder {path.absolute().parent} does not exist")
+    parent = path.absolute().parent
+    if not parent.is_dir():
+        raise InputError(f"--viz {target}: the folder {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"--viz {target}: the folder {parent} is not writable")
+    if (path.exists() or path.is_symlink()) and not overwrite:
+        raise InputError(f"--viz {target} exists already; choose another file or pass --overwrite")
 
 
 class LiveView:
@@ -66,10 +73,12 @@ class LiveView:
 
     images_every_frame = ("rgb", "depth")  # shown every frame: the engine decodes them ahead
 
-    def __init__(self, target: str, name: str, truth: Trajectory | None = None, every: int = 10, map_stride: int = 8):
-        check_target(target)
+    def __init__(self, target: str, name: str, truth: Trajectory | None = None, every: int = 10, map_stride: int = 8,
+                 overwrite: bool = False):
+        check_target(target, overwrite)
         self.rr = require_rerun()
         self.target = target
+        self.overwrite = overwrite
         self.name = name
         self.truth = truth
         self.every = max(int(every), 1)
@@ -94,7 +103,15 @@ class LiveView:
         self.rec.disconnect()
         if self._tmp is not None:
             if exc_type is None:
-                os.replace(self._tmp, self.target)
+                if self.overwrite:
+                    os.replace(self._tmp, self.target)
+                else:  # a file another process wrote meanwhile is kept
+                    try:
+                        rename_no_replace(self._tmp, self.target)
+                    except FileExistsError:
+                        self._tmp.unlink()
+                        raise InputError(f"--viz {self.target} was written by another process while this run "
+                                         "went on; it was left as it is (pass --overwrite to replace it)") from None
             elif self._tmp.exists():
                 self._tmp.unlink()
         return False

@@ -21,6 +21,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
+from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
 from longslam.io.rosbag.conventions import (
@@ -195,8 +196,9 @@ def import_bag(
     """Write the bag's frames as a sequence folder at `out`. Returns what was imported."""
     require_rosbags()
     bag, out = Path(bag), check_output_folder(out, "sequence folder")
-    if (out.exists() or out.is_symlink()) and not overwrite:
-        raise InputError(f"{out} exists already; choose another path or pass --overwrite")
+    # --overwrite replaces a sequence, never the bag or a folder holding it (or the user's files).
+    check_not_an_input(out, {"input bag": bag}, "sequence folder")
+    check_replaceable(out, SEQUENCE, overwrite)
     if not (isinstance(max_diff, (int, float)) and math.isfinite(max_diff) and max_diff > 0):
         raise InputError(f"--max-diff must be a positive number of seconds, got {max_diff!r}")
     reader = _Bag(bag)
