@@ -172,3 +172,56 @@ def test_viz_into_a_read_only_folder_is_a_clear_error(seq, tmp_path, capsys):
         _one_line_error(capsys, "not writable")
     finally:
         ro.chmod(0o755)
+
+
+# ------------------------------------------------------------------ report: its files and its database
+
+
+def _empty_study_folder(path: Path) -> Path:
+    from longslam.study.database import DB_NAME, ResultsDB
+
+    path.mkdir()
+    with ResultsDB(path / DB_NAME) as db:
+        db.set_study({"name": "s", "routes": [], "noise": [], "methods": [], "seeds": [0]})
+    return path
+
+
+def test_report_keeps_a_report_md_longslam_did_not_write(tmp_path, capsys):
+    out = _empty_study_folder(tmp_path / "study")
+    (out / "report.md").write_text("my notes on the study\n")
+    assert main(["report", str(out)]) == 2
+    _one_line_error(capsys, "report.md", "not a report longslam wrote", "--overwrite")
+    assert (out / "report.md").read_text() == "my notes on the study\n"
+    assert main(["report", str(out), "--overwrite"]) == 0
+    assert main(["report", str(out)]) == 0  # its own report is rewritten without asking
+
+
+def test_report_on_a_database_without_its_tables_refuses(tmp_path, capsys):
+    import sqlite3
+
+    out = tmp_path / "study"
+    out.mkdir()
+    conn = sqlite3.connect(out / "results.sqlite")
+    conn.execute("CREATE TABLE notes (x TEXT)")
+    conn.commit()
+    conn.close()
+    (out / "report.md").write_text("# longslam study report: the last one\n")
+    assert main(["report", str(out)]) == 2
+    _one_line_error(capsys, "results.sqlite", "no table runs")
+    assert (out / "report.md").read_text() == "# longslam study report: the last one\n"
+    conn = sqlite3.connect(out / "results.sqlite")
+    assert [r[0] for r in conn.execute("SELECT name FROM sqlite_master")] == ["notes"]  # nothing created
+    conn.close()
+
+
+def test_report_on_broken_json_names_the_run_and_column(tmp_path, capsys):
+    import sqlite3
+
+    out = _empty_study_folder(tmp_path / "study")
+    conn = sqlite3.connect(out / "results.sqlite")
+    conn.execute("INSERT INTO runs (key, status, route, noise, method, seed, params) "
+                 "VALUES ('r/none/odometry/seed-0', 'ok', 'r', 'none', 'odometry', 0, '{broken')")
+    conn.commit()
+    conn.close()
+    assert main(["report", str(out)]) == 2
+    _one_line_error(capsys, "r/none/odometry/seed-0", "params", "not valid JSON")

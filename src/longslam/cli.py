@@ -278,7 +278,7 @@ def cmd_study(args: argparse.Namespace) -> None:
 def cmd_report(args: argparse.Namespace) -> None:
     from longslam.study.report import write_report
 
-    page = write_report(args.dir)
+    page = write_report(args.dir, overwrite=args.overwrite)
     print(f"wrote {page} and {page.with_suffix('.md')}")
 
 
@@ -378,6 +378,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("report", help="write report.md and report.html of a study folder")
     p.add_argument("dir", help="study folder (holds results.sqlite)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a report.md or report.html that longslam did not write (its own are always rewritten)")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")

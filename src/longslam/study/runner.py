@@ -77,6 +77,10 @@ def run_study(
     specs = plan_runs(config)
     check_routes(config)
     check_out_folder(out)
+    if report:
+        from longslam.study.report.render import check_report_files
+
+        check_report_files(out)
     out.mkdir(parents=True, exist_ok=True)
     with study_lock(out):
         return _run_locked(config, out, specs, start, executor, address, jobs, retry_failed, report, progress)

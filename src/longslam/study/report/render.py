@@ -9,6 +9,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
+from longslam.errors import InputError
 from longslam.io.atomic import write_text_atomic
 from longslam.study.database import DB_NAME
 from longslam.study.paper import CITATION
@@ -181,9 +182,31 @@ def render_html(report: Report, out: Path) -> str:
     return "\n".join(parts) + "\n"
 
 
-def write_report(out: str | Path, figures: bool = True) -> Path:
+REPORT_FILES = {"report.md": "# longslam study report", "report.html": "<title>longslam study report"}
+
+
+def check_report_files(out: str | Path, overwrite: bool = False) -> None:
+    """A report.md or report.html that longslam did not write (a user's own, recognised by its
+    opening) is replaced only with `overwrite`; longslam's own report of the folder is rewritten."""
+    for name, opening in REPORT_FILES.items():
+        path = Path(out) / name
+        if path.is_dir():
+            raise InputError(f"{path} is a folder; the report needs that name for a file")
+        if path.exists() and not overwrite:
+            try:
+                with open(path, errors="replace") as handle:
+                    head = handle.read(4096)
+            except OSError as err:
+                raise InputError(f"{path} cannot be read to check it is longslam's report: {err.strerror}") from None
+            if opening not in head:
+                raise InputError(f"{path} exists and is not a report longslam wrote; choose another folder, "
+                                 "move it, or pass --overwrite")
+
+
+def write_report(out: str | Path, figures: bool = True, overwrite: bool = False) -> Path:
     """Write DIR/report.md (+ DIR/report_files/*.png) and DIR/report.html; returns the HTML's path."""
     out = Path(out)
+    check_report_files(out, overwrite)
     report = build_report(out, figures)
     write_text_atomic(out / "report.md", render_markdown(report))
     page = out / "report.html"
