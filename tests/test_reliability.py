@@ -225,3 +225,96 @@ def test_report_on_broken_json_names_the_run_and_column(tmp_path, capsys):
     conn.close()
     assert main(["report", str(out)]) == 2
     _one_line_error(capsys, "r/none/odometry/seed-0", "params", "not valid JSON")
+
+
+# ------------------------------------------------------------------ BAD 3: seeds SQLite cannot store
+
+
+def _study_file(tmp_path: Path, seeds: str, extra: str = "", name: str = "s.toml") -> Path:
+    (tmp_path / "r.txt").write_text("20 31.25\n21 31.25\n")
+    study = tmp_path / name
+    study.write_text(f'routes = ["r.txt"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = {seeds}\n'
+                     '[camera]\nwidth = 16\nheight = 12\n' + extra)
+    return study
+
+
+@pytest.mark.parametrize("seeds, needle", [
+    ("[1180591620717411303424]", "seeds[0]: seed 1180591620717411303424"),
+    ("[0, 9223372036854775808]", "seeds[1]: seed 9223372036854775808"),
+])
+def test_a_seed_sqlite_cannot_store_is_refused_in_a_study(tmp_path, capsys, seeds, needle):
+    study = _study_file(tmp_path, seeds)
+    assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
+    _one_line_error(capsys, str(study), needle, "2**63 - 1")
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_largest_seed_is_drawn_and_recorded(tmp_path):
+    from longslam.study.database import ResultsDB
+    from longslam.study.config import load_study
+    from longslam.study.spec import plan_runs
+    from longslam.run.record import RunRecord
+
+    config = load_study(_study_file(tmp_path, "[9223372036854775807]"))
+    (spec,) = plan_runs(config)
+    with ResultsDB(tmp_path / "db.sqlite") as db:  # the OverflowError of issue 21 came from here
+        db.record(spec, RunRecord.failed("x"), None)
+        assert db.runs()[0]["seed"] == 2**63 - 1
+
+
+@pytest.mark.parametrize("command", ["simulate", "demo"])
+def test_a_seed_out_of_range_on_the_command_line(tmp_path, capsys, monkeypatch, command):
+    from longslam import recording
+
+    monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before the seed was checked"))
+    args = ["--route", "demo"] if command == "simulate" else []
+    assert main([command, *args, "--seed", str(2**64), "--out", str(tmp_path / "x")]) == 2
+    _one_line_error(capsys, str(2**64), "2**63 - 1")
+    assert not (tmp_path / "x").exists()
+
+
+# ------------------------------------------------------------------ BAD 2: values that eat the machine
+
+
+@pytest.mark.parametrize("method, param, needle", [
+    ("keyframe", "grid_cell=0.000001", "grid_cell must be from 0.01 to 10 m"),
+    ("keyframe", "max_features=1000000000", "max_features must be from 1 to 100000"),
+    ("keyframe", "cloud_voxel=1e-5", "cloud_voxel"),
+    ("submap", "voxel_size=0.001", "voxel_size must be from 0.02 to 5 m"),
+    ("submap", "grid_resolution=0.0001", "grid_resolution"),
+    ("submap", "truncation=100", "truncation (100) may be at most 40 x voxel_size (8 m)"),
+])
+def test_size_like_parameters_are_refused_before_the_run(seq, tmp_path, capsys, method, param, needle):
+    assert main(["run", "--method", method, str(seq), "--out", str(tmp_path / "run"), "--param", param]) == 2
+    _one_line_error(capsys, needle, "100" if "truncation" in param else "got")
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_huge_camera_is_a_clear_error_not_a_memory_error(tmp_path, capsys, monkeypatch):
+    from longslam import recording
+
+    monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered a huge camera"))
+    assert main(["simulate", "--route", "demo", "--width", "100000", "--height", "100000", "--out", str(tmp_path / "s")]) == 2
+    _one_line_error(capsys, "width must be at most 7680 pixels", "100000")
+    assert main(["simulate", "--route", "demo", "--width", "7680", "--height", "7680", "--out", str(tmp_path / "s")]) == 2
+    _one_line_error(capsys, "7680 x 7680 = 58982400 pixels", "GB")
+    assert not (tmp_path / "s").exists()
+
+
+def test_an_absurd_study_grid_is_refused_with_its_count_before_anything(tmp_path, capsys):
+    study = _study_file(tmp_path, "1000000000")
+    assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
+    _one_line_error(capsys, "seeds", "1000000000", "100000")
+    study = _study_file(tmp_path, "30000")
+    text = study.read_text().replace('noise = ["none"]', 'noise = ["none", "small", "large", "xlarge"]')
+    study.write_text(text)
+    assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
+    _one_line_error(capsys, "1 route x 4 noise levels x 1 method x 30000 seeds = 120000 runs", "100000")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_study_shows_its_run_count_first(tmp_path, capsys):
+    study = _study_file(tmp_path, "2")
+    assert main(["study", str(study), "--out", str(tmp_path / "out"), "--no-report"]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[0] == "study s: 1 route x 1 noise level x 1 method x 2 seeds = 2 runs"

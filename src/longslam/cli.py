@@ -263,6 +263,7 @@ def cmd_study(args: argparse.Namespace) -> None:
     if args.jobs is not None and args.jobs < 1:
         raise LongslamError(f"--jobs must be at least 1, got {args.jobs}")
     config = load_study(args.file)
+    print(f"study {config.name}: {config.grid_text()}", flush=True)  # before anything is allocated
     summary = run_study(
         config, args.out, executor=args.executor, address=args.address, jobs=args.jobs,
         retry_failed=args.retry_failed, report=not args.no_report,

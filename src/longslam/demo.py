@@ -12,7 +12,7 @@ from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
-from longslam.recording import simulate
+from longslam.recording import check_seed, simulate
 from longslam.slam.catalog import method_names
 from longslam.viz.plots import plot_plan
 from longslam.world import load_world
@@ -61,6 +61,7 @@ def run_demo(
     `viz`: "viewer" shows each run live in a rerun viewer; a path FILE.rrd records each method's
     run to FILE-<method>.rrd beside it, replacing an existing one only with `overwrite`."""
     out = check_output_folder(out, "demo folder")
+    check_seed(seed, "--seed")
     route, noise = get_route(route_name), get_noise(noise_name)
     methods = methods or method_names()
     if viz is not None and viz != "viewer":

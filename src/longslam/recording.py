@@ -100,10 +100,26 @@ def rendered_sequence(
     return path
 
 
-def check_seed(seed: int) -> int:
-    """numpy's generators take whole numbers from 0 up; say so before any rendering."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed {seed!r}: expected a whole number >= 0")
+# numpy's generators take any whole number from 0 up, but a study's database keeps the seed in an
+# SQLite INTEGER (signed 64 bits): a larger seed would run, then fail to be recorded on every resume.
+MAX_SEED = 2**63 - 1
+SEED_RANGE = f"a whole number from 0 to 2**63 - 1 = {MAX_SEED}"
+
+
+def seed_problem(seed: object) -> str | None:
+    """None for a seed every part of longslam can hold; else what is wrong with it."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        return f"expected {SEED_RANGE}, got {seed!r}"
+    if not 0 <= int(seed) <= MAX_SEED:
+        return f"{int(seed)} is out of range; expected {SEED_RANGE}"
+    return None
+
+
+def check_seed(seed: int, what: str = "seed") -> int:
+    """The seed as an int, or InputError naming it; say so before any rendering."""
+    problem = seed_problem(seed)
+    if problem is not None:
+        raise InputError(f"{what} {seed!r}: {problem}")
     return int(seed)
 
 

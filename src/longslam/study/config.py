@@ -51,6 +51,9 @@ TOP_KEYS = (
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
 VARIANT_KEYS = ("method", "params")
+# A study planning more runs than this is a typo (seeds = 1000000000), not an experiment: at a few
+# seconds a run on the smallest route it would take days, and its plan alone fills the memory.
+MAX_RUNS = 100_000
 
 
 class StudyConfigError(InputError):
@@ -79,6 +82,17 @@ class StudyConfig:
     align: str = "none"
     map_tolerance_cells: float = 2.0
     source: str = ""  # the study file
+
+    @property
+    def run_count(self) -> int:
+        """How many runs the study plans: one per route, noise level, method and seed."""
+        return len(self.routes) * len(self.noise) * len(self.methods) * len(self.seeds)
+
+    def grid_text(self) -> str:
+        """The grid in words, e.g. '2 routes x 4 noise levels x 3 methods x 5 seeds = 120 runs'."""
+        parts = [(len(self.routes), "route"), (len(self.noise), "noise level"), (len(self.methods), "method"),
+                 (len(self.seeds), "seed")]
+        return " x ".join(f"{n} {w}{'' if n == 1 else 's'}" for n, w in parts) + f" = {self.run_count} runs"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (stored in the results database)."""
@@ -205,11 +219,15 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     except InputError as err:
         raise r.error("follower", str(err)) from None
 
-    return StudyConfig(
+    config = StudyConfig(
         name=name, world=world, routes=tuple(routes), noise=tuple(noise), methods=tuple(methods),
         seeds=tuple(seeds), camera=camera, follower=follower, align=align,
         map_tolerance_cells=float(tolerance), source=str(path),
     )
+    if config.run_count > MAX_RUNS:
+        raise StudyConfigError(f"study file {path}: {config.grid_text()}, more than a study may plan ({MAX_RUNS}); "
+                               "fewer seeds, routes, noise levels or methods")
+    return config
 
 
 def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
@@ -245,12 +263,19 @@ def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
 
 
 def _seeds(r: _Reader, value: Any) -> list[int]:
+    from longslam.recording import MAX_SEED, seed_problem
+
     if _is_int(value):
         if value < 1:
             raise r.error("seeds", f"a count of seeds must be at least 1, got {value}")
+        if value > MAX_RUNS:  # before range(): a huge count is refused, not allocated
+            raise r.error("seeds", f"a count of {value} seeds is more runs than a study may plan ({MAX_RUNS})")
         return list(range(value))
     if not isinstance(value, list) or not value or not all(_is_int(s) and s >= 0 for s in value):
         raise r.error("seeds", f"expected a count (e.g. 5) or a non-empty list of integers >= 0 (e.g. [0, 1]), got {value!r}")
+    for i, seed in enumerate(value):
+        if seed > MAX_SEED:
+            raise r.error(f"seeds[{i}]", f"seed {seed}: {seed_problem(seed)}")
     if len(set(value)) != len(value):
         raise r.error("seeds", f"a seed is listed twice in {value!r}")
     return list(value)
