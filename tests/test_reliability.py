@@ -318,3 +318,25 @@ def test_a_study_shows_its_run_count_first(tmp_path, capsys):
     assert main(["study", str(study), "--out", str(tmp_path / "out"), "--no-report"]) == 0
     out = capsys.readouterr().out
     assert out.splitlines()[0] == "study s: 1 route x 1 noise level x 1 method x 2 seeds = 2 runs"
+
+
+# ------------------------------------------------------------------ BAD 4: two studies in one folder
+
+
+def test_a_different_study_into_a_study_folder_is_refused_unless_extended(tmp_path, capsys):
+    from longslam.study.database import ResultsDB
+
+    a = _study_file(tmp_path, "1", name="a.toml")
+    out = tmp_path / "out"
+    assert main(["study", str(a), "--out", str(out), "--no-report"]) == 0
+    assert main(["study", str(a), "--out", str(out), "--no-report"]) == 0  # the same study: resumed
+    b = _study_file(tmp_path, "[1]", name="b.toml")
+    capsys.readouterr()
+    before = _tree(out)
+    assert main(["study", str(b), "--out", str(out), "--no-report"]) == 2
+    line = _one_line_error(capsys, str(out), "study 'a'", "study 'b'", "name, seeds", "--extend")
+    assert "1 seed)" in line
+    assert _tree(out) == before
+    assert main(["study", str(b), "--out", str(out), "--no-report", "--extend"]) == 0
+    with ResultsDB(out / "results.sqlite") as db:
+        assert db.study()["name"] == "a" and db.study()["seeds"] == [0, 1] and db.count() == 2

@@ -266,7 +266,7 @@ def cmd_study(args: argparse.Namespace) -> None:
     print(f"study {config.name}: {config.grid_text()}", flush=True)  # before anything is allocated
     summary = run_study(
         config, args.out, executor=args.executor, address=args.address, jobs=args.jobs,
-        retry_failed=args.retry_failed, report=not args.no_report,
+        retry_failed=args.retry_failed, report=not args.no_report, extend=args.extend,
     )
     print(
         f"study {config.name}: {summary.planned} runs, {summary.skipped} done before, {summary.ran} run now "
@@ -375,6 +375,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, help="runs at once (default: one per core, or the Ray cluster's CPUs)")
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded with an error")
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
+    p.add_argument("--extend", action="store_true",
+                   help="add this study's runs to a folder that holds another study (another name, routes, noise "
+                        "levels, methods or seeds); without it such a folder is refused")
     p.set_defaults(func=cmd_study)
 
     p = sub.add_parser("report", help="write report.md and report.html of a study folder")

@@ -152,12 +152,21 @@ class ResultsDB:
         return int(self._conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0])
 
 
+def connect_read_only(path: str | Path) -> sqlite3.Connection:
+    """A connection that writes nothing beside the database: without a write-ahead log left by a
+    process that died, the file is opened immutable (no -shm file); with one, read-only."""
+    path = Path(path)
+    wal = path.with_name(path.name + "-wal")
+    mode = "mode=ro" if wal.exists() else "immutable=1"
+    return sqlite3.connect(f"{path.absolute().as_uri()}?{mode}", uri=True)  # as_uri: a '?' or '#' in the path is escaped
+
+
 def check_results_tables(path: str | Path) -> None:
     """Refuse a results database without its tables, read-only, before anything would create them:
     a report of such a file would be an empty report over the study's last one."""
     path = Path(path)
     try:
-        conn = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+        conn = connect_read_only(path)
         try:
             tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
         finally:

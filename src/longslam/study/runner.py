@@ -21,6 +21,7 @@ from tqdm import tqdm
 from longslam.study.config import StudyConfig, check_method_params
 from longslam.study.database import DB_NAME, ResultsDB
 from longslam.study.executors import Task, make_executor
+from longslam.study.identity import check_same_study
 from longslam.study.lock import study_lock
 from longslam.study.prepare import (
     check_out_folder, check_routes, clean_partials, prepare_route, render_once, route_dir, world_grid_path,
@@ -68,8 +69,12 @@ def run_study(
     retry_failed: bool = False,
     report: bool = True,
     progress: bool = True,
+    extend: bool = False,
 ) -> StudySummary:
-    """Run every run of `config` not yet in `out`'s database, then write the report."""
+    """Run every run of `config` not yet in `out`'s database, then write the report.
+
+    A folder holding another study (another name or grid) is refused unless `extend`: then the
+    folder's study is widened by this one's routes, noise levels, methods and seeds."""
     start = time.perf_counter()
     out = Path(out)
     # Everything that can be wrong with the study is found before its folder is touched.
@@ -77,23 +82,24 @@ def run_study(
     specs = plan_runs(config)
     check_routes(config)
     check_out_folder(out)
+    recorded = check_same_study(out, config.to_dict(), extend)
     if report:
         from longslam.study.report.render import check_report_files
 
         check_report_files(out)
     out.mkdir(parents=True, exist_ok=True)
     with study_lock(out):
-        return _run_locked(config, out, specs, start, executor, address, jobs, retry_failed, report, progress)
+        return _run_locked(config, out, specs, start, executor, address, jobs, retry_failed, report, progress, recorded)
 
 
 def _run_locked(
     config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, address: str | None,
-    jobs: int | None, retry_failed: bool, report: bool, progress: bool,
+    jobs: int | None, retry_failed: bool, report: bool, progress: bool, recorded: dict | None = None,
 ) -> StudySummary:
     say = tqdm.write if progress else (lambda *a, **k: None)
 
     with ResultsDB(out / DB_NAME) as db:
-        db.set_study(config.to_dict())
+        db.set_study(recorded or config.to_dict())
         todo = runs_to_do(specs, db.finished(), retry_failed)
         skipped = len(specs) - len(todo)
         if skipped:
