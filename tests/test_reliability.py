@@ -340,3 +340,66 @@ def test_a_different_study_into_a_study_folder_is_refused_unless_extended(tmp_pa
     assert main(["study", str(b), "--out", str(out), "--no-report", "--extend"]) == 0
     with ResultsDB(out / "results.sqlite") as db:
         assert db.study()["name"] == "a" and db.study()["seeds"] == [0, 1] and db.count() == 2
+
+
+# ------------------------------------------------------------------ BAD 5: Ray that never answers
+
+
+def test_address_without_ray_is_refused_before_anything(tmp_path, capsys):
+    study = _study_file(tmp_path, "1")
+    assert main(["study", str(study), "--out", str(tmp_path / "out"), "--address", "127.0.0.1:6379"]) == 2
+    _one_line_error(capsys, "--address 127.0.0.1:6379 is for --executor ray")
+    assert not (tmp_path / "out").exists()
+
+
+def test_ray_address_that_refuses_is_a_clear_error_and_creates_nothing(tmp_path, capsys):
+    pytest.importorskip("ray")
+    import socket
+    import time
+
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    study = _study_file(tmp_path, "1")
+    t0 = time.monotonic()
+    assert main(["study", str(study), "--out", str(tmp_path / "out"), "--executor", "ray",
+                 "--address", f"127.0.0.1:{port}"]) == 2
+    assert time.monotonic() - t0 < 30
+    _one_line_error(capsys, f"127.0.0.1:{port}", "no Ray cluster answered")
+    assert not (tmp_path / "out").exists()
+
+
+def test_ray_init_that_hangs_is_given_up(tmp_path, capsys, monkeypatch):
+    ray = pytest.importorskip("ray")
+    import threading
+    import socket
+
+    from longslam.study import executors
+
+    monkeypatch.setattr(executors, "RAY_CONNECT_TIMEOUT_S", 0.5)
+    release = threading.Event()
+    monkeypatch.setattr(ray, "init", lambda **kw: release.wait(30))  # as ray.init retrying an address
+    listener = socket.socket()  # answers TCP, never Ray
+    listener.bind(("127.0.0.1", 0))
+    listener.listen()
+    try:
+        study = _study_file(tmp_path, "1")
+        address = f"127.0.0.1:{listener.getsockname()[1]}"
+        assert main(["study", str(study), "--out", str(tmp_path / "out"), "--executor", "ray", "--address", address]) == 2
+        _one_line_error(capsys, address, "did not start or answer")
+        assert not (tmp_path / "out").exists()
+    finally:
+        release.set()
+        listener.close()
+
+
+def test_a_ray_client_address_without_ray_client_is_a_clear_error(tmp_path, capsys):
+    pytest.importorskip("ray")
+    import importlib.util
+
+    if importlib.util.find_spec("grpc") is not None:
+        pytest.skip("Ray Client is installed here")
+    study = _study_file(tmp_path, "1")
+    assert main(["study", str(study), "--out", str(tmp_path / "out"), "--executor", "ray", "--address", "ray://head:10001"]) == 2
+    _one_line_error(capsys, "ray://head:10001", "ray[client]")
+    assert not (tmp_path / "out").exists()

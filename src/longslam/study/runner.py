@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 from longslam.study.config import StudyConfig, check_method_params
 from longslam.study.database import DB_NAME, ResultsDB
-from longslam.study.executors import Task, make_executor
+from longslam.study.executors import Executor, Task, check_executor_options, make_executor
 from longslam.study.identity import check_same_study
 from longslam.study.lock import study_lock
 from longslam.study.prepare import (
@@ -78,6 +78,7 @@ def run_study(
     start = time.perf_counter()
     out = Path(out)
     # Everything that can be wrong with the study is found before its folder is touched.
+    check_executor_options(executor, address)
     check_method_params(config)
     specs = plan_runs(config)
     check_routes(config)
@@ -87,14 +88,19 @@ def run_study(
         from longslam.study.report.render import check_report_files
 
         check_report_files(out)
-    out.mkdir(parents=True, exist_ok=True)
-    with study_lock(out):
-        return _run_locked(config, out, specs, start, executor, address, jobs, retry_failed, report, progress, recorded)
+    # The executor comes up first: a cluster that does not answer leaves no folder, lock or database.
+    pool = make_executor(executor, address, jobs)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with study_lock(out):
+            return _run_locked(config, out, specs, start, executor, pool, retry_failed, report, progress, recorded)
+    finally:
+        pool.close()
 
 
 def _run_locked(
-    config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, address: str | None,
-    jobs: int | None, retry_failed: bool, report: bool, progress: bool, recorded: dict | None = None,
+    config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, pool: Executor,
+    retry_failed: bool, report: bool, progress: bool, recorded: dict | None = None,
 ) -> StudySummary:
     say = tqdm.write if progress else (lambda *a, **k: None)
 
@@ -116,7 +122,6 @@ def _run_locked(
 
         failed = ran = 0
         if todo:
-            pool = make_executor(executor, address, jobs)
             pending = deque(todo)
             started: dict[str, float] = {}
             bar = tqdm(total=len(specs), initial=skipped, unit="run", desc=f"study {config.name}",
@@ -138,7 +143,7 @@ def _run_locked(
                         bar.update(1)
                     bar.set_postfix_str(f"running {pool.running}, left {len(pending)}, failed {failed}", refresh=True)
             finally:
-                pool.close()
+                pool.close()  # runs still going when the loop stopped (an interrupt) are ended here
                 bar.close()
 
     report_path = None
