@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import time
 from pathlib import Path
 
 import pytest
@@ -403,3 +404,122 @@ def test_a_ray_client_address_without_ray_client_is_a_clear_error(tmp_path, caps
     assert main(["study", str(study), "--out", str(tmp_path / "out"), "--executor", "ray", "--address", "ray://head:10001"]) == 2
     _one_line_error(capsys, "ray://head:10001", "ray[client]")
     assert not (tmp_path / "out").exists()
+
+
+# ------------------------------------------------------------------ POOR: tracebacks become clear errors
+
+
+def test_viz_live_without_a_viewer_or_a_display_is_a_clear_error(seq, tmp_path, capsys, monkeypatch):
+    pytest.importorskip("rerun")
+    import shutil as shutil_module
+
+    from longslam.viz import live
+
+    monkeypatch.setattr(live, "_viewer_listening", lambda port=9876: False)
+    monkeypatch.setattr(shutil_module, "which", lambda *a, **k: None)
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run"), "--viz"]) == 2
+    _one_line_error(capsys, "rerun viewer", "not on PATH", "--viz run.rrd")
+    monkeypatch.undo()
+    monkeypatch.setattr(live, "_viewer_listening", lambda port=9876: False)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run"), "--viz"]) == 2
+    _one_line_error(capsys, "no display", "--viz run.rrd")
+    assert not (tmp_path / "run").exists()
+
+
+def _longslam(*args: str, env: dict | None = None, cwd: Path | None = None):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "longslam.cli", *args], capture_output=True, cwd=cwd,
+                          env={**os.environ, **(env or {})}, timeout=120)
+
+
+def test_non_ascii_paths_under_a_c_locale_and_paths_that_are_not_utf8(tmp_path):
+    seq = write_tiny_sequence(tmp_path / "séquence", n=8)[0]
+    c_locale = {"LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    done = _longslam("run", "--method", "odometry", str(seq), "--out", str(tmp_path / "exécution"), env=c_locale)
+    assert done.returncode == 0, done.stderr.decode(errors="replace")
+    assert b"Traceback" not in done.stderr
+    assert (tmp_path / "exécution" / "config.toml").is_file()
+    raw = os.fsencode(tmp_path) + b"/run\xff"  # not valid UTF-8
+    done = _longslam("run", "--method", "odometry", str(seq), "--out", os.fsdecode(raw))
+    assert done.returncode == 0, done.stderr.decode(errors="replace")
+    assert os.path.isfile(raw + b"/stats.json")
+
+
+# ------------------------------------------------------------------ POOR: nonsense accepted silently
+
+
+def test_index_files_that_disagree_get_a_note_with_counts(tmp_path, capsys):
+    seq = write_tiny_sequence(tmp_path / "seq", n=10)[0]
+    lines = (seq / "depth.txt").read_text().splitlines()
+    (seq / "depth.txt").write_text("\n".join(lines[:-3]) + "\n")  # three colour images without depth
+    gt = (seq / "groundtruth.txt").read_text().splitlines()
+    (seq / "groundtruth.txt").write_text("\n".join(gt[:-5]) + "\n")  # ground truth for part only
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run")]) == 0
+    err = capsys.readouterr().err
+    assert "3 of 10 colour images in rgb.txt have no depth image" in err
+    assert "groundtruth.txt has no pose within 0.02 s for 2 of 7 frames" in err
+
+
+def test_a_principal_point_outside_the_image_is_refused(seq, tmp_path, capsys):
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "r"), "--intrinsics", "10,10,800,6"]) == 2
+    _one_line_error(capsys, "--intrinsics", "principal point", "(800, 6)", "16 x 12")
+    import json
+
+    camera = json.loads((seq / "camera.json").read_text())
+    (seq / "camera.json").write_text(json.dumps({**camera, "cy": -50}))
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "r")]) == 2
+    _one_line_error(capsys, "camera.json", "principal point")
+
+
+def test_a_negative_intrinsic_gets_the_intrinsics_message_not_argparses(seq, tmp_path, capsys):
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "r"), "--intrinsics", "-40,40,8,6"]) == 2
+    _one_line_error(capsys, "--intrinsics '-40,40,8,6'", "fx and fy positive")
+
+
+def test_evaluate_warns_on_partial_coverage_and_on_another_sequence(tmp_path, capsys):
+    import json
+
+    seq = write_tiny_sequence(tmp_path / "seq", n=20)[0]
+    other = write_tiny_sequence(tmp_path / "other", n=20, seed=1)[0]
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run")]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "run"), str(seq), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err
+    assert json.loads(captured.out)["matched_share_estimate"] == 1.0
+    assert main(["evaluate", str(tmp_path / "run"), str(other)]) == 0
+    assert "ran on the sequence" in capsys.readouterr().err
+    half = tmp_path / "half.txt"
+    half.write_text("".join((seq / "groundtruth.txt").read_text().splitlines(keepends=True)[:11]))
+    assert main(["evaluate", str(tmp_path / "run"), str(half), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "only 10 of 20 poses" in captured.err and "(50%)" in captured.err
+    assert json.loads(captured.out)["matched_share_estimate"] == 0.5
+
+
+# ------------------------------------------------------------------ POOR: leftovers of killed processes
+
+
+def test_a_same_host_partial_whose_process_is_gone_is_removed_at_once(tmp_path):
+    import subprocess
+
+    from longslam.io.partials import clean_stale_partials, host_tag, partial_path
+
+    proc = subprocess.Popen(["true"])
+    proc.wait()
+    mine = partial_path(tmp_path / "run", proc.pid)  # just written: no idle wait on this machine
+    assert host_tag() in mine.name and mine.name.startswith(".run.partial-")
+    mine.mkdir()
+    alive = partial_path(tmp_path / "busy")  # this process's
+    alive.mkdir()
+    elsewhere = tmp_path / f".run2.partial-{proc.pid}@another_machine"
+    elsewhere.mkdir()
+    assert clean_stale_partials(tmp_path) == [mine]
+    assert alive.exists() and elsewhere.exists()
+    old = time.time() - 2 * 24 * 3600
+    os.utime(elsewhere, (old, old))
+    assert clean_stale_partials(tmp_path) == [elsewhere]

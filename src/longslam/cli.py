@@ -150,12 +150,18 @@ def cmd_run(args: argparse.Namespace) -> None:
         f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
         + (f", live view {measurements['observer_time_s']:.1f} s" if "observer_time_s" in measurements else "")
     )
+    for note in measurements.get("sequence_notes", []):
+        print(f"note: {args.sequence}: {note}", file=sys.stderr)
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from longslam.run.score import score_files
 
-    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff, min_step=args.min_step)
+    warnings: list[str] = []
+    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff, min_step=args.min_step,
+                         warnings=warnings)
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(scores, allow_nan=False))
         return
@@ -393,8 +399,53 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _tolerant_output() -> None:
+    """Under a C locale without UTF-8 mode stdout is ASCII, and a path that is not valid UTF-8 is
+    not text anywhere: print such characters escaped rather than fail with UnicodeEncodeError."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None:
+            try:
+                reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):
+                pass
+
+
+def _value_options(parser: argparse.ArgumentParser) -> set[str]:
+    """Every option string (of the commands too) that takes one value."""
+    found: set[str] = set()
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                found |= _value_options(sub)
+        elif action.option_strings and action.nargs is None and not isinstance(
+                action, (argparse._StoreTrueAction, argparse._StoreFalseAction, argparse._StoreConstAction)):
+            found.update(action.option_strings)
+    return found
+
+
+def _glue_negative_values(argv: list[str], options: set[str]) -> list[str]:
+    """`--intrinsics -40,40,8,6` as `--intrinsics=-40,40,8,6`: argparse takes a value that starts
+    with '-' (and is not a plain negative number) for an option and says 'expected one argument'."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if token in options and i + 1 < len(argv) and len(argv[i + 1]) > 1 and argv[i + 1][0] == "-" \
+                and (argv[i + 1][1].isdigit() or argv[i + 1][1] == "."):
+            out.append(f"{token}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(token)
+        i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    _tolerant_output()
+    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(_glue_negative_values(argv, _value_options(parser)))
     try:
         args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers below

@@ -103,7 +103,7 @@ def rendered_sequence(
 # numpy's generators take any whole number from 0 up, but a study's database keeps the seed in an
 # SQLite INTEGER (signed 64 bits): a larger seed would run, then fail to be recorded on every resume.
 MAX_SEED = 2**63 - 1
-SEED_RANGE = f"a whole number from 0 to 2**63 - 1 = {MAX_SEED}"
+SEED_RANGE = f"a whole number >= 0 and <= 2**63 - 1 = {MAX_SEED}"
 
 
 def seed_problem(seed: object) -> str | None:

@@ -162,6 +162,8 @@ def _run_into(method_name: str, sequence: str | Path, reader: SequenceReader, ou
                                           observer=observer)
         measurements["sequence"] = str(Path(sequence).resolve())
         measurements["intrinsics"] = {**reader.intrinsics.to_dict(), "source": reader.intrinsics_source}
+        if reader.notes:
+            measurements["sequence_notes"] = list(reader.notes)
         measurements = name_final_folder(measurements, tmp, out)
         write_result(tmp, result, measurements)
     return measurements

@@ -162,7 +162,7 @@ def load_study(path: str | Path, methods_available: list[str] | None = None) -> 
     """Read and check a study file. `methods_available` defaults to the registered methods."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise StudyConfigError(f"study file {path} does not exist") from None
     except (OSError, UnicodeDecodeError) as err:

@@ -133,7 +133,9 @@ class LocalExecutor:
             except (OSError, ValueError):
                 record = RunRecord.failed(f"{_death_message(process.exitcode)}; see {task.log_path}")
                 # The unfinished run folder of the dead process (see longslam.io.atomic).
-                partial = task.run_dir.with_name(f".{task.run_dir.name}.partial-{process.pid}")
+                from longslam.io.partials import partial_path
+
+                partial = partial_path(task.run_dir, process.pid)
                 if partial.exists():
                     shutil.rmtree(partial, ignore_errors=True)
             record.log = record.log or str(task.log_path)

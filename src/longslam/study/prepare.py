@@ -94,7 +94,7 @@ def prepare_route(
     info_path = folder / "route.json"
     settings = {"camera": asdict(camera), "follower": asdict(follower)}
     if info_path.is_file() and grid_path.is_file():
-        info = json.loads(info_path.read_text())
+        info = json.loads(info_path.read_text(encoding="utf-8"))
         if info.get("settings") == json.loads(json.dumps(settings)) and info.get("waypoints_given") == _waypoints_json(route):
             return
     world = load_world(route.world)
@@ -127,7 +127,7 @@ def _waypoints_json(route: Route) -> list:
 
 def load_route_data(out: Path, route: str) -> RouteData:
     folder = route_dir(out, route)
-    info = json.loads((folder / "route.json").read_text())
+    info = json.loads((folder / "route.json").read_text(encoding="utf-8"))
     return RouteData(
         name=route,
         truth=read_tum(folder / "groundtruth.txt"),
