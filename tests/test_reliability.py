@@ -523,3 +523,79 @@ def test_a_same_host_partial_whose_process_is_gone_is_removed_at_once(tmp_path):
     old = time.time() - 2 * 24 * 3600
     os.utime(elsewhere, (old, old))
     assert clean_stale_partials(tmp_path) == [elsewhere]
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("20 31.25\n20 31.25\n", "all the same point"),
+    ("20 31.25\nnan 31.25\n", "waypoint 1 (nan, 31.25) is not a point"),
+])
+def test_a_route_that_goes_nowhere_is_refused(tmp_path, capsys, text, needle):
+    route = tmp_path / "r.txt"
+    route.write_text(text)
+    assert main(["simulate", "--route", str(route), "--out", str(tmp_path / "s")]) == 2
+    _one_line_error(capsys, needle)
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_camera_above_the_ceiling_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
+    assert main(["simulate", "--route", "demo", "--camera-height", "5", "--width", "16", "--height", "12",
+                 "--out", str(tmp_path / "s")]) == 2
+    _one_line_error(capsys, "camera height 5 m", "over the ceiling")
+    assert not (tmp_path / "s").exists() and not (tmp_path / "cache").exists()
+    study = _study_file(tmp_path, "1", "camera_height = 5\n")
+    assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
+    _one_line_error(capsys, "over the ceiling")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_study_camera_string_is_not_coerced_to_a_number(tmp_path, capsys):
+    study = _study_file(tmp_path, "1").read_text().replace("width = 16", 'width = "16"')
+    (tmp_path / "s.toml").write_text(study)
+    assert main(["study", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
+    _one_line_error(capsys, "width='16'", "expected a number, got a string")
+
+
+def test_a_variant_listed_in_methods_is_named_a_variant(tmp_path, capsys):
+    study = _study_file(tmp_path, "1").read_text().replace('methods = ["odometry"]', 'methods = ["odometry", "odo2"]')
+    (tmp_path / "s.toml").write_text(study + '[variants.odo2]\nmethod = "odometry"\n')
+    assert main(["study", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
+    _one_line_error(capsys, "methods[1]", "'odo2' is a variant", "remove it from methods")
+
+
+@pytest.mark.parametrize("value, needle", [("file", "is a file; expected a folder"), ("", None)])
+def test_longslam_cache_that_is_a_file_or_empty(tmp_path, capsys, monkeypatch, value, needle):
+    from longslam.recording import cache_root
+
+    monkeypatch.chdir(tmp_path)
+    if value == "file":
+        (tmp_path / "file").write_text("x")
+        monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "file"))
+        assert main(["simulate", "--route", "demo", "--out", str(tmp_path / "s")]) == 2
+        _one_line_error(capsys, "LONGSLAM_CACHE=", needle)
+    else:
+        monkeypatch.setenv("LONGSLAM_CACHE", "")
+        monkeypatch.setenv("HOME", str(tmp_path / "home"))
+        assert cache_root() == tmp_path / "home" / ".cache" / "longslam"  # not the current folder
+
+
+def test_ros2_folder_without_metadata_and_one_topic_in_two_roles(seq, tmp_path, capsys):
+    pytest.importorskip("rosbags")
+    bag = tmp_path / "bag"
+    assert main(["export", str(seq), "--odom-noise", "large", "--out", str(bag)]) == 0
+    capsys.readouterr()
+    assert main(["import", str(bag), "--out", str(tmp_path / "x"), "--odom", "/groundtruth", "--groundtruth", "/groundtruth"]) == 2
+    _one_line_error(capsys, "--groundtruth /groundtruth is also the --odom topic")
+    (bag / "metadata.yaml").unlink()
+    assert main(["import", str(bag), "--out", str(tmp_path / "x")]) == 2
+    _one_line_error(capsys, f"bag folder {bag} has no metadata.yaml")
+
+
+def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
+    pytest.importorskip("trimesh")
+    from building_mesh import write_building
+
+    ply, _ = write_building(tmp_path / "b")
+    assert main(["world", "--world", str(ply), "--units", "mm", "--out", str(tmp_path / "p.png")]) == 2
+    line = _one_line_error(capsys, "too small to be a building", "leave out --units")
+    assert "--floor" not in line

@@ -39,7 +39,27 @@ RENDER_VERSION = 1
 
 
 def cache_root() -> Path:
-    return Path(os.environ.get("LONGSLAM_CACHE", Path.home() / ".cache" / "longslam"))
+    """The render cache: LONGSLAM_CACHE, or ~/.cache/longslam if it is unset or empty (an empty
+    value would otherwise put the cache in the current folder)."""
+    given = os.environ.get("LONGSLAM_CACHE", "")
+    root = Path(given) if given.strip() else Path.home() / ".cache" / "longslam"
+    if root.exists() and not root.is_dir():
+        raise InputError(f"LONGSLAM_CACHE={given}: {root} is a file; expected a folder for the render cache "
+                         "(or leave LONGSLAM_CACHE unset for ~/.cache/longslam)")
+    for parent in root.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(f"render cache {root}: {parent} is a file, so the cache cannot be made under it")
+            break
+    return root
+
+
+def check_camera_in_world(world, camera: CameraSettings) -> None:
+    """Refuse a camera mounted above the top of the building: it would render the roof."""
+    top = float(np.max(world.mesh.vertices[:, 2])) - world.floor_z if len(world.mesh.vertices) else 0.0
+    if camera.camera_height >= top:
+        raise InputError(f"camera height {camera.camera_height:g} m is at or above the top of world {world.name!r} "
+                         f"({top:.2f} m above its floor): the camera would be over the ceiling")
 
 
 def cache_key(route: Route, camera: CameraSettings, follower: FollowerSettings) -> str:
@@ -74,9 +94,10 @@ def rendered_sequence(
     path = root / cache_key(route, camera, follower)
     if path.is_dir():
         return path
-    root.mkdir(parents=True, exist_ok=True)
     world = load_world(route.world)
+    check_camera_in_world(world, camera)
     driven = drive_route(world, route, follower)
+    root.mkdir(parents=True, exist_ok=True)  # once the route and camera are known to be good
     truth = camera_trajectory(driven.timestamps, driven.xyyaw, camera.camera_height, world.floor_z)
     renderer = RGBDCamera(world.mesh, camera)
     meta = {

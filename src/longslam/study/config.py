@@ -210,12 +210,12 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
 
     camera_table = r.table(data, "camera", CAMERA_KEYS)
     try:
-        camera = from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in camera_table.items()}, "camera")
+        camera = from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in camera_table.items()}, "camera", typed=True)
     except InputError as err:
         raise r.error("camera", str(err)) from None
     follower_table = r.table(data, "follower", FOLLOWER_KEYS)
     try:
-        follower = from_mapping(FollowerSettings, follower_table, "follower")
+        follower = from_mapping(FollowerSettings, follower_table, "follower", typed=True)
     except InputError as err:
         raise r.error("follower", str(err)) from None
 
@@ -291,6 +291,11 @@ def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
         if not isinstance(value, list):
             raise r.error("methods", f'expected "all" or a list of method names; valid values: {_valid(available)}')
         data = dict(data, methods=value)
+        variant_labels = data.get("variants", {}) if isinstance(data.get("variants"), dict) else {}
+        for i, item in enumerate(value):
+            if isinstance(item, str) and item not in available and item in variant_labels:
+                raise r.error(f"methods[{i}]", f"{item!r} is a variant ([variants.{item}]); a variant runs beside the "
+                                               "methods listed without being listed itself: remove it from methods")
         names = r.string_list(data, "methods", available, "method") if value else []
     params = r.table(data, "params", names)
     entries = []

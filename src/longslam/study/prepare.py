@@ -162,8 +162,12 @@ def check_routes(config) -> None:
     a wall or to an unknown place is refused before anything is written."""
     from longslam.world import load_world
 
+    from longslam.recording import check_camera_in_world
+
     for route in config.routes:
-        drive_route(load_world(route.world), route, config.follower)
+        world = load_world(route.world)
+        check_camera_in_world(world, config.camera)
+        drive_route(world, route, config.follower)
 
 
 def check_out_folder(out: Path) -> None:

@@ -63,7 +63,7 @@ def load_mesh_world(
     mesh = read_mesh_file(path)
     vertices = mesh.vertices @ _Y_TO_Z_UP.T if up == "y" else mesh.vertices
     mesh.vertices = np.ascontiguousarray(vertices * UNITS[units])
-    check_metres(mesh, source)
+    check_metres(mesh, source, units)
     zmin, zmax = float(mesh.vertices[:, 2].min()), float(mesh.vertices[:, 2].max())
     if floor_z is None:
         floor_z = find_floor(mesh, source)
