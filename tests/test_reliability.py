@@ -599,3 +599,20 @@ def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
     assert main(["world", "--world", str(ply), "--units", "mm", "--out", str(tmp_path / "p.png")]) == 2
     line = _one_line_error(capsys, "too small to be a building", "leave out --units")
     assert "--floor" not in line
+
+
+def test_report_says_which_figures_it_left_out_and_why(tmp_path, capsys):
+    study = _study_file(tmp_path, "1")
+    out = tmp_path / "out"
+    assert main(["study", str(study), "--out", str(out), "--no-report"]) == 0
+    shutil.rmtree(out / "runs")
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "note: trajectory of r/none/odometry/seed-0 left out of the trajectory figure" in err
+    assert "Left out: trajectory of r/none/odometry/seed-0" in (out / "report.md").read_text()
+    (grid,) = (out / "worlds").iterdir()
+    grid.write_bytes(grid.read_bytes()[:100])  # a truncated grid.npz
+    assert main(["report", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "note: no figures: the world's ground-truth grid cannot be read" in err and str(grid) in err

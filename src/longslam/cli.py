@@ -285,7 +285,10 @@ def cmd_study(args: argparse.Namespace) -> None:
 def cmd_report(args: argparse.Namespace) -> None:
     from longslam.study.report import write_report
 
-    page = write_report(args.dir, overwrite=args.overwrite)
+    left_out: list[str] = []
+    page = write_report(args.dir, overwrite=args.overwrite, left_out=left_out)
+    for what in left_out:
+        print(f"note: {what}", file=sys.stderr)
     print(f"wrote {page} and {page.with_suffix('.md')}")
 
 

@@ -34,7 +34,10 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
-def make_figures(results: StudyResults) -> list[Figure]:
+def make_figures(results: StudyResults, left_out: list[str] | None = None) -> list[Figure]:
+    """The figures the study folder has the files for; each figure or part of one left out, and
+    why, is appended to `left_out` (the report says so rather than dropping it silently)."""
+    left_out = left_out if left_out is not None else []
     from longslam.eval.map_quality import map_scores
     from longslam.gridmap import GridMap
     from longslam.io.trajectory_files import read_tum
@@ -50,12 +53,14 @@ def make_figures(results: StudyResults) -> list[Figure]:
     world = results.config.get("world", "university")
     try:
         truth_grid = load_world_grid(out, world)
-    except InputError:
+    except InputError as err:
+        left_out.append(f"no figures: the world's ground-truth grid cannot be read ({err})")
         return figures
     for route in results.routes:
         try:
             data = load_route_data(out, route)
-        except (OSError, InputError):
+        except (OSError, InputError, ValueError, KeyError) as err:
+            left_out.append(f"no figures of route {route}: its ground truth in routes/{route} cannot be read ({err})")
             continue
         truth_xy = data.truth.positions[:, :2]
         noises = [n for n in results.noise if any(r["route"] == route and r["noise"] == n for r in results.ok)]
@@ -67,7 +72,8 @@ def make_figures(results: StudyResults) -> list[Figure]:
                 try:
                     paths[f"{method}"] = read_tum(out / run["trajectory_path"]).positions[:, :2]
                     seeds.add(run["seed"])
-                except (OSError, InputError, TypeError):
+                except (OSError, InputError, TypeError) as err:
+                    left_out.append(f"trajectory of {run['key']} left out of the trajectory figure ({err})")
                     continue
             name = Path(FIGURES_DIR) / f"trajectories-{_safe(route)}-{_safe(noise)}.png"
             seed_text = ", ".join(str(s) for s in sorted(seeds))
@@ -106,7 +112,8 @@ def make_figures(results: StudyResults) -> list[Figure]:
                     continue
                 try:
                     maps[method] = GridMap.load(out / run["grid_path"])
-                except InputError:
+                except InputError as err:
+                    left_out.append(f"map of {run['key']} left out of the map figures ({err})")
                     continue
                 p, r = run.get("map_precision"), run.get("map_recall")
                 captions[method] = f"precision {p:.2f}, recall {r:.2f}" if p is not None and r is not None else ""

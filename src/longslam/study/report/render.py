@@ -106,7 +106,7 @@ def _world_shown(world: str) -> str:
     return f"`{Path(spec.path).name}` (mesh, sha256 {spec.sha256[:12]})"
 
 
-def build_report(out: str | Path, figures: bool = True) -> Report:
+def build_report(out: str | Path, figures: bool = True, left_out: list[str] | None = None) -> Report:
     results = load_results(out)
     config = results.config
     name = config.get("name", Path(out).name)
@@ -133,7 +133,11 @@ def build_report(out: str | Path, figures: bool = True) -> Report:
         notes.append("No method of this study builds an occupancy grid, so there is no map quality table or map figure.")
     appendix = [] if _paper_columns(results.columns) else paper_tables()
     failures = [f"{r['key']}: {r['error']}" for r in results.runs if r["status"] != "ok"]
-    figs = make_figures(results) if figures else []
+    missing: list[str] = []
+    figs = make_figures(results, missing) if figures else []
+    notes += [f"Left out: {m}." for m in missing]
+    if left_out is not None:
+        left_out.extend(missing)
     return Report(f"longslam study report: {name}", intro, tables, figs, failures, appendix, notes)
 
 
@@ -203,11 +207,12 @@ def check_report_files(out: str | Path, overwrite: bool = False) -> None:
                                  "move it, or pass --overwrite")
 
 
-def write_report(out: str | Path, figures: bool = True, overwrite: bool = False) -> Path:
+def write_report(out: str | Path, figures: bool = True, overwrite: bool = False,
+                 left_out: list[str] | None = None) -> Path:
     """Write DIR/report.md (+ DIR/report_files/*.png) and DIR/report.html; returns the HTML's path."""
     out = Path(out)
     check_report_files(out, overwrite)
-    report = build_report(out, figures)
+    report = build_report(out, figures, left_out)
     write_text_atomic(out / "report.md", render_markdown(report))
     page = out / "report.html"
     write_text_atomic(page, render_html(report, out))
