@@ -616,3 +616,17 @@ def test_report_says_which_figures_it_left_out_and_why(tmp_path, capsys):
     assert main(["report", str(out)]) == 0
     err = capsys.readouterr().err
     assert "note: no figures: the world's ground-truth grid cannot be read" in err and str(grid) in err
+
+
+def test_a_walls_only_mesh_is_said_to_have_no_floor(tmp_path, capsys):
+    trimesh = pytest.importorskip("trimesh")
+    import numpy as np
+
+    corners = [(0, 0), (10, 0), (10, 8), (0, 8), (0, 0)]
+    quads = [np.array([[x0, y0, 0], [x1, y1, 0], [x1, y1, 3], [x0, y0, 3]], float)
+             for (x0, y0), (x1, y1) in zip(corners[:-1], corners[1:])]
+    k = 4 * np.arange(len(quads))[:, None]
+    mesh = tmp_path / "walls.ply"
+    trimesh.Trimesh(np.concatenate(quads), np.concatenate([k + [0, 1, 2], k + [0, 2, 3]]), process=False).export(mesh)
+    assert main(["world", "--world", str(mesh), "--floor", "0", "--out", str(tmp_path / "p.png")]) == 2
+    _one_line_error(capsys, "no floor surface at height 0.000 m", "walls only")
