@@ -74,10 +74,10 @@ def load_mesh_world(
     mesh.vertices[:, 2] -= floor_z
     occupancy = occupancy_from_mesh(mesh, 0.0, resolution)
     if not np.any(occupancy.data == FREE):
-        if not _has_horizontal_surface(mesh, 0.0):
+        if not _has_horizontal_surface(mesh):
             raise InputError(
-                f"{source}: the mesh has no floor surface at height {floor_z:.3f} m (no horizontal triangles there: "
-                "walls only?); free space is where the floor is seen from above, so the mesh needs its floor"
+                f"{source}: the mesh has no floor surface at height {floor_z:.3f} m, nor any horizontal surface (walls "
+                "only?); free space is where the floor is seen from above, so the mesh needs its floor"
             )
         raise InputError(
             f"{source}: no free floor at height {floor_z:.3f} m (nothing seen from above lies on it "
@@ -86,13 +86,13 @@ def load_mesh_world(
     return World(name or path.stem, mesh, occupancy, 0.0, dict(places or {}), None, source_floor_z=float(floor_z))
 
 
-def _has_horizontal_surface(mesh: WorldMesh, z: float, tolerance: float = 0.05) -> bool:
-    """Whether any upward- or downward-facing triangle lies within `tolerance` of height `z`."""
+def _has_horizontal_surface(mesh: WorldMesh) -> bool:
+    """Whether any triangle of the mesh faces up or down."""
     tri = mesh.vertices[mesh.triangles]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(cross, axis=1)
     flat = (norm > 1e-12) & (np.abs(cross[:, 2]) > 0.98 * np.maximum(norm, 1e-12))
-    return bool(np.any(flat & (np.abs(tri[:, :, 2].mean(axis=1) - z) <= tolerance)))
+    return bool(np.any(flat))
 
 
 def _sample_band(mesh: WorldMesh, z0: float, z1: float, spacing: float, max_points: int = 2_000_000):
