@@ -330,3 +330,125 @@ def test_report_page_in_a_headless_browser(study, tmp_path):
     assert "The paper's Table 1 as published" in titles and "The paper's Table 2 as published" in titles
     for table in check["tables"]:
         assert table["rows"] >= 2 and table["height"] > 20, table  # laid out on the page
+
+
+def _cameras_study(root: Path, name: str, cameras: dict[str, tuple[int, int]], methods: list[str]) -> Path:
+    tables = "".join(f"[cameras.{camera}]\nwidth = {w}\nheight = {h}\n" for camera, (w, h) in cameras.items())
+    path = root / f"{name}.toml"
+    path.write_text(f'name = "{name}"\nroutes = ["tiny.txt"]\nnoise = ["large"]\nmethods = {json.dumps(methods)}\nseeds = [0]\n' + tables)
+    return path
+
+
+def test_a_study_with_two_cameras_runs_each_records_both_and_resumes(env):
+    cameras = {"small": (64, 48), "wide": (80, 60)}
+    file = _cameras_study(env, "cameras", cameras, ["odometry", "gridded"])
+    out = env / "cameras-out"
+    summary = run_study(load_study(file), out, jobs=2, progress=False)
+    assert (summary.planned, summary.skipped, summary.ran, summary.failed) == (4, 0, 4, 0)
+    rows = {r["key"]: r for r in _rows(out)}
+    assert set(rows) == {f"tiny/{c}/large/{m}/seed-0" for c in cameras for m in ("odometry", "gridded")}
+    for camera, (width, height) in cameras.items():
+        for method in ("odometry", "gridded"):
+            row = rows[f"tiny/{camera}/large/{method}/seed-0"]
+            assert row["status"] == "ok" and row["camera_name"] == camera and row["route"] == "tiny"
+            assert (json.loads(row["camera"])["width"], json.loads(row["camera"])["height"]) == (width, height)
+            assert row["run_dir"] == f"runs/tiny/{camera}/large/{method}/seed-0"
+            assert (out / row["trajectory_path"]).is_file() and 0 < row["ate"] < 1
+            assert json.loads((out / row["stats_path"]).read_text())["camera"] == camera
+            assert (out / "logs" / "tiny" / camera / "large" / method / "seed-0.log").is_file()
+        # Each camera's ground truth: the walls a camera sees depend on its field of view and range.
+        assert (out / "routes" / "tiny" / camera / "observed.npy").is_file()
+        assert (out / "routes" / "tiny" / camera / "groundtruth.txt").is_file()
+    assert not (out / "routes" / "tiny" / "observed.npy").exists()
+    # One sequence per camera, rendered at its resolution.
+    sequences = {json.loads(r["measurements"])["sequence"] for r in rows.values()}
+    assert len(sequences) == 2
+
+    markdown = (out / "report.md").read_text()
+    page = (out / "report.html").read_text()
+    assert "Cameras: small: 64 x 48, 90.0 degree field of view, depth to 8.0 m; wide: 80 x 60" in markdown
+    for title in ("Table 1", "Table 2", "Table 3", "Runs"):
+        table = markdown.split(f"### {title}")[1].split("###")[0]
+        assert "| method | camera |" in table, title
+        for camera in cameras:
+            assert re.search(rf"\| (odometry|gridded|) \| {camera} \|", table), (title, camera)
+    table1 = markdown.split("### Table 1")[1].split("###")[0]
+    assert re.search(r"\| odometry \| small \| E_trans \| (\*\*)?[0-9.]+(\*\*)? \|", table1)
+    assert re.search(r"\|  \| wide \| E_trans \| (\*\*)?[0-9.]+(\*\*)? \|", table1)
+    assert "<th>camera</th>" in page and 'rowspan="3" class="camera">wide</td>' in page
+    for name in ("trajectories-tiny-small-large", "trajectories-tiny-wide-large", "ate-tiny-small", "ate-tiny-wide",
+                 "memory-tiny-wide", "maps-tiny-small-large", "map-tiny-wide-large-gridded"):
+        assert (out / "report_files" / f"{name}.png").is_file() and f"report_files/{name}.png" in markdown
+    assert "route tiny, camera wide, noise large" in markdown
+
+    # Again: nothing to do. With a third camera: only its runs.
+    before = {k: r["finished_at"] for k, r in rows.items()}
+    again = run_study(load_study(file), out, report=False, progress=False)
+    assert (again.planned, again.skipped, again.ran) == (4, 4, 0)
+    grown = _cameras_study(env, "cameras", {**cameras, "tall": (48, 64)}, ["odometry", "gridded"])
+    more = run_study(load_study(grown), out, jobs=2, report=False, progress=False)
+    assert (more.planned, more.skipped, more.ran, more.failed) == (6, 4, 2, 0)
+    after = {r["key"]: r["finished_at"] for r in _rows(out)}
+    assert {k: after[k] for k in before} == before and len(after) == 6
+
+
+def test_an_old_one_camera_study_folder_reports_and_resumes(study, env, tmp_path):
+    """A study folder from before cameras had names: its database has no camera_name column."""
+    out, _ = study
+    old = tmp_path / "old"
+    shutil.copytree(out, old)
+    with sqlite3.connect(old / DB_NAME) as conn:
+        conn.execute("ALTER TABLE runs DROP COLUMN camera_name")
+    (old / "report.md").unlink()
+    assert main(["report", str(old)]) == 0
+    markdown = (old / "report.md").read_text()
+    assert "| method | metric |" in markdown and "| camera |" not in markdown
+    assert "Camera 64 x 48, 90.0 degree field of view" in markdown
+    assert (old / "report_files" / "trajectories-tiny-large.png").is_file()
+    rows = _rows(old)  # the report opened the database, which now has the column
+    assert "camera_name" in rows[0] and all(r["camera_name"] is None for r in rows)
+    from longslam.study.database import ResultsDB
+
+    with ResultsDB(old / DB_NAME) as db:
+        assert {r["camera_name"] for r in db.runs()} == {"camera"}
+    # The same study again resumes into the same rows: nothing is redone.
+    file = _study(env, "main", ["odometry", "gridded", "crashy", "dies"], ["large"], [0, 1])
+    summary = run_study(load_study(file), old, report=False, progress=False)
+    assert (summary.planned, summary.skipped, summary.ran) == (8, 8, 0)
+    assert sorted(r["key"] for r in _rows(old)) == sorted(r["key"] for r in rows)
+
+
+def test_a_camera_column_beside_the_papers_rows():
+    from longslam.study.report.render import table_html, table_markdown
+
+    runs = [
+        {"method": "odometry", "route": "paper-300m", "noise": "small", "seed": s, "status": "ok", "camera_name": camera,
+         "ate": ate + 0.01 * s, "e_trans": 0.01, "e_rot": 0.02, "peak_rss_bytes": 2e8}
+        for s in range(2) for camera, ate in (("qvga", 0.5), ("vga", 0.2))
+    ]
+    config = {"cameras": {"qvga": {"width": 320}, "vga": {"width": 640}}}
+    results = StudyResults(Path("."), config, runs, runs, ["paper-300m"], ["small"], ["odometry"], ["qvga", "vga"])
+    table = accuracy_table(results)
+    assert table.row_cameras == ["qvga"] * 3 + ["vga"] * 3 + [""] * 6  # the paper's rows have no camera
+    ate = {camera: row[0] for camera, (_, metric), row in zip(table.row_cameras, table.row_labels, table.rows) if metric == "ATE [m]"}
+    assert ate["qvga"].text == "0.505 ± 0.0071" and ate["vga"].text == "0.205 ± 0.0071" and ate["vga"].best
+    markdown = table_markdown(table)
+    assert "| method | camera | metric | paper-300m: small |" in markdown
+    assert "| odometry | qvga | ATE [m] |" not in markdown and "|  | vga | E_trans |" in markdown
+    assert "| RTAB-Map (paper) |  | E_trans | 0.017 ± 0.002 |" in markdown
+    page = table_html(table)
+    assert page.count('class="camera"') == 4 and '<th colspan="3"></th>' in page
+    assert _row_widths(page) == [4] * len(table.rows)  # method, camera, metric, the one column
+
+
+def _row_widths(page: str) -> list[int]:
+    """The width of each body row of an HTML table, counting the cells that rows above span into it."""
+    widths, carried = [], []  # carried: rows still to cover, per spanning cell
+    for row in re.findall(r"<tr>(.*?)</tr>", page.split("<tbody>")[1]):
+        spans = [int(n or 1) for n in re.findall(r'<t[hd](?: rowspan="(\d+)")?[ >]', row)]
+        widths.append(len(spans) + len(carried))
+        carried = [n - 1 for n in carried + spans if n > 1]
+    return widths
+    # One camera: no camera column, as before cameras could be named.
+    one = StudyResults(Path("."), {}, runs[:1], runs[:1], ["paper-300m"], ["small"], ["odometry"], ["qvga"])
+    assert accuracy_table(one).row_cameras == [] and "| method | metric |" in table_markdown(accuracy_table(one))

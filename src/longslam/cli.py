@@ -269,7 +269,6 @@ def cmd_study(args: argparse.Namespace) -> None:
     if args.jobs is not None and args.jobs < 1:
         raise LongslamError(f"--jobs must be at least 1, got {args.jobs}")
     config = load_study(args.file)
-    print(f"study {config.name}: {config.grid_text()}", flush=True)  # before anything is allocated
     summary = run_study(
         config, args.out, executor=args.executor, address=args.address, jobs=args.jobs,
         retry_failed=args.retry_failed, report=not args.no_report, extend=args.extend,
@@ -290,6 +289,29 @@ def cmd_report(args: argparse.Namespace) -> None:
     for what in left_out:
         print(f"note: {what}", file=sys.stderr)
     print(f"wrote {page} and {page.with_suffix('.md')}")
+
+
+def cmd_vocabulary_build(args: argparse.Namespace) -> None:
+    from longslam.sim.routes import get_route
+    from longslam.vocabulary.build import build_vocabulary_file, check_output, rendered_route
+
+    check_output(args.out, args.overwrite)  # before a route is rendered
+    world = _world(args, args.world)
+    if args.sequence is not None:
+        camera = [f"--{k[len('camera_'):].replace('_', '-')}" for k, v in vars(args).items() if k.startswith("camera_") and v is not None]
+        if world is not None or camera:
+            raise LongslamError(f"{(camera or ['--world'])[0]} describes the route to render; a --sequence has its frames already")
+        sequence, source = args.sequence, f"sequence {args.sequence}"
+    else:
+        route = get_route(args.route, world)
+        sequence, source = rendered_route(route, _camera(args)), f"route {route.name}"
+    summary = build_vocabulary_file(
+        sequence, args.out, k=args.k, levels=args.levels, seed=args.seed, features=args.features,
+        every=args.frames_every, max_frames=args.max_frames, overwrite=args.overwrite,
+    )
+    print(f"wrote {summary.path}: {summary.words} words ({summary.nodes - 1} nodes, k={args.k}, L={args.levels}) "
+          f"from {summary.descriptors} ORB descriptors of {summary.frames} frames of {source}, "
+          f"{summary.bytes / 1e6:.1f} MB in {summary.seconds:.0f} s")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -394,6 +416,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true",
                    help="replace a report.md or report.html that longslam did not write (its own are always rewritten)")
     p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("vocabulary", help="ORB vocabularies (DBoW2 text format) for ORB-SLAM3")
+    vocabulary = p.add_subparsers(dest="vocabulary_command", required=True)
+    p = vocabulary.add_parser("build", help="build a DBoW2 ORB vocabulary from a route's or a sequence's frames")
+    given = p.add_mutually_exclusive_group(required=True)
+    given.add_argument("--route", help="route name (see `longslam list`) or a waypoint file; rendered if not cached")
+    given.add_argument("--sequence", metavar="DIR", help="sequence folder (TUM RGB-D layout) to take the frames of")
+    _world_args(p, None)
+    p.add_argument("--out", required=True, help="vocabulary file to write (e.g. voc.txt)")
+    p.add_argument("--k", type=int, default=10, help="branching factor (default 10)")
+    p.add_argument("--levels", type=int, default=5, help="depth levels L (default 5: up to k^L = 100000 words)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the k-means++ draws (default 0)")
+    p.add_argument("--features", type=int, default=1000, help="ORB features per frame (default 1000, as ORB-SLAM3's TUM settings)")
+    p.add_argument("--frames-every", type=int, default=1, metavar="N", help="take every N-th frame (default 1)")
+    p.add_argument("--max-frames", type=int, default=1000,
+                   help="at most this many frames, spread evenly over the sequence (default 1000)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing file")
+    _camera_args(p)
+    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the full traceback of an error")
+    p.set_defaults(func=cmd_vocabulary_build)
 
     p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")
     p.set_defaults(func=cmd_list)

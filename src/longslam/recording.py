@@ -113,7 +113,7 @@ def rendered_sequence(
         "longslam_version": longslam.__version__,
     }
     with SequenceWriter(path, camera.intrinsics, camera.max_depth, meta, overwrite=True) as writer:
-        frames = tqdm(range(len(truth)), desc=f"render {route.name}", unit="frame", disable=not progress, leave=False)
+        frames = tqdm(range(len(truth)), desc=f"render {route.name} ({camera.width} x {camera.height})", unit="frame", disable=not progress, leave=False)
         for i in frames:
             rgb, depth = renderer.render(truth.poses[i])
             writer.add(float(truth.timestamps[i]), rgb, depth)

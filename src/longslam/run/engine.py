@@ -7,6 +7,8 @@ study's runs through `study/execute.py` (frames with odometry drawn on the fly).
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -23,11 +25,12 @@ from longslam.io.partials import clean_stale_partials
 from longslam.io.outputs import RUN, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
+from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
 from longslam.run.observer import RunObserver
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.settings import to_mapping
-from longslam.slam.api import MethodContext, Result
+from longslam.slam.api import Closable, MethodContext, Result
 from longslam.slam.catalog import get_spec
 
 RSS_SAMPLE_EVERY = 50  # frames between samples of resident memory
@@ -46,11 +49,38 @@ def run_frames(
     measurements (times, memory, the config the method ran with and the method's own stats).
 
     `observer` (a live view, say) is shown each frame and the pose returned for it; its time is
-    kept out of the method's figures and reported as `observer_time_s`."""
+    kept out of the method's figures and reported as `observer_time_s`.
+
+    With a `context.output_dir`, what native code prints during the run goes to its
+    `console.log` (run/console.py), and the method is told so through `context.console_log`."""
     baseline_rss = current_rss_bytes()
     spec = get_spec(method_name)
     config = spec.config(params)
+    with contextlib.ExitStack() as stack:
+        if context.output_dir is not None:
+            log = stack.enter_context(native_output_to(Path(context.output_dir) / CONSOLE_LOG))
+            context = dataclasses.replace(context, console_log=str(log))
+        return _run_method(method_name, spec, config, frames, context, params, total, progress, observer, baseline_rss)
+
+
+def _run_method(method_name: str, spec: Any, config: Any, frames: Iterable[Frame], context: MethodContext,
+                params: dict[str, Any] | None, total: int | None, progress: bool,
+                observer: RunObserver | None, baseline_rss: int) -> tuple[Result, dict[str, Any]]:
     method = spec.build(context, config)
+    finished = False
+    try:
+        result, measurements = _feed(method_name, method, config, spec, frames, context, params, total, progress,
+                                     observer, baseline_rss)
+        finished = True
+        return result, measurements
+    finally:
+        if not finished and isinstance(method, Closable):
+            method.close()
+
+
+def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterable[Frame], context: MethodContext,
+          params: dict[str, Any] | None, total: int | None, progress: bool, observer: RunObserver | None,
+          baseline_rss: int) -> tuple[Result, dict[str, Any]]:
     wanted = set(getattr(method, "images_every_frame", ())) | set(getattr(observer, "images_every_frame", ()))
     images = tuple(name for name in IMAGES if name in wanted)
     if images:
@@ -59,6 +89,7 @@ def run_frames(
     rss_samples: list[tuple[int, int]] = []
     first_t = last_t = None
     wall_start = time.perf_counter()
+    cpu_start = time.process_time()
     count = 0
     observer_time = 0.0
     if observer is not None:
@@ -86,6 +117,7 @@ def run_frames(
     t0 = time.perf_counter()
     result = method.finish()
     finish_time = time.perf_counter() - t0
+    cpu_time = time.process_time() - cpu_start
     if observer is not None:
         t0 = time.perf_counter()
         observer.finish(result)
@@ -105,6 +137,10 @@ def run_frames(
         "wall_time_s": wall_time,
         "method_time_s": method_time,
         "finish_time_s": finish_time,
+        # CPU time of the whole process, every thread, from the first frame to the end of `finish`:
+        # a method with threads of its own (ORB-SLAM3's mapping and loop closing) works beside
+        # `step`, which the wall-clock figures above do not see. Reading ahead (and an observer) count too.
+        "process_cpu_time_s": cpu_time,
         "step_time_mean_s": float(steps.mean()),
         "step_time_p95_s": float(np.percentile(steps, 95)),
         "step_time_max_s": float(steps.max()),

@@ -68,8 +68,8 @@ class Route:
 ROUTES: Registry[Route] = Registry("route")
 
 
-def _named(name: str, *waypoints: Waypoint) -> None:
-    ROUTES.register(name, Route(name, "university", tuple(waypoints)))
+def _named(name: str, *waypoints: Waypoint, world: str = "university") -> None:
+    ROUTES.register(name, Route(name, world, tuple(waypoints)))
 
 
 # A loop of about 60 m round the hall's inner pillars, whose first side is driven twice in the
@@ -160,3 +160,12 @@ def get_route(name_or_path: str, world: str | None = None) -> Route:
             "give a route file (waypoints as 'x y' lines, or JSON) for that world"
         )
     return route
+
+# A tour of the `annex` building (the ring both ways, the hall, every room): the default route an
+# ORB vocabulary is trained on, so that appearance-based loop closure is not tuned to `university`.
+_named(
+    "annex-tour",
+    "sw", "south_mid", "hall_center", "hall_w", "hall_e", "north_mid", "ne", "library", "se", "sw",
+    "workshop", "nw", "office", "north_mid", "hall_center", "south_mid", "se", "ne", "nw", "sw",
+    world="annex",
+)

@@ -47,6 +47,16 @@ class Method(Protocol):
         ...
 
 
+@runtime_checkable
+class Closable(Protocol):
+    """A method that holds threads or a native system (a wrapped C++ SLAM system) defines `close`:
+    the engine calls it when a run stops before `finish` has returned (an error, Ctrl-C), so that
+    nothing of the method outlives its run. `finish` itself must release what it holds."""
+
+    def close(self) -> None:
+        ...
+
+
 @dataclass(frozen=True)
 class MethodContext:
     """What a method may know before the first frame: nothing about the simulator."""
@@ -54,6 +64,10 @@ class MethodContext:
     intrinsics: Intrinsics
     max_depth: float | None
     output_dir: str | None = None  # where a method may keep files (e.g. a database)
+    # The file that receives what native code prints to the process's stdout and stderr during
+    # the run (run/console.py), set by the engine when the run has a folder; a method wrapping a
+    # C++ system may read it (its log lines are often the only report of what happened inside).
+    console_log: str | None = None
 
 
 def frame_odometry(frame: Frame, method: str) -> np.ndarray:

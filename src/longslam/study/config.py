@@ -14,6 +14,12 @@
     [camera]                        # optional: width, height, fov, max_depth, camera_height
     width = 320
 
+    [cameras.qvga]                  # or instead of [camera]: several named cameras, an axis of
+    width = 320                     # the study (each route rendered once per camera)
+    [cameras.vga]
+    width = 640
+    height = 480
+
     [follower]                      # optional: the path follower's settings
     linear_speed = 1.5
 
@@ -30,6 +36,7 @@ Every mistake is a `StudyConfigError` naming the file, the key and the valid val
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -46,7 +53,7 @@ from longslam.world.source import same_world, world_label, world_ref
 
 TOP_KEYS = (
     "name", "world", "routes", "noise", "methods", "seeds", "align", "map_tolerance_cells",
-    "camera", "follower", "params", "variants",
+    "camera", "cameras", "follower", "params", "variants",
 )
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
@@ -54,6 +61,8 @@ VARIANT_KEYS = ("method", "params")
 # A study planning more runs than this is a typo (seeds = 1000000000), not an experiment: at a few
 # seconds a run on the smallest route it would take days, and its plan alone fills the memory.
 MAX_RUNS = 100_000
+# A camera's name is a folder of the study (runs/<route>/<camera>/...) and a column of the report.
+CAMERA_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 
 
 class StudyConfigError(InputError):
@@ -70,6 +79,14 @@ class MethodEntry:
 
 
 @dataclass(frozen=True)
+class CameraEntry:
+    """One named camera of a study's `[cameras.NAME]` axis."""
+
+    name: str
+    settings: CameraSettings
+
+
+@dataclass(frozen=True)
 class StudyConfig:
     name: str
     world: str  # a world reference: a registered name, or a mesh file's (longslam.world.source)
@@ -77,26 +94,36 @@ class StudyConfig:
     noise: tuple[str, ...]
     methods: tuple[MethodEntry, ...]
     seeds: tuple[int, ...]
-    camera: CameraSettings = CameraSettings()
+    camera: CameraSettings = CameraSettings()  # the study's one camera, or the first of `cameras`
     follower: FollowerSettings = FollowerSettings()
     align: str = "none"
     map_tolerance_cells: float = 2.0
     source: str = ""  # the study file
+    # The [cameras.*] axis; empty for a study with one (unnamed) [camera], whose runs keep the
+    # keys and folders they had before cameras could be named.
+    cameras: tuple[CameraEntry, ...] = ()
+
+    def camera_axis(self) -> list[tuple[str, CameraSettings]]:
+        """(name, settings) of each camera of the study; the name is "" for a `[camera]` study."""
+        if self.cameras:
+            return [(c.name, c.settings) for c in self.cameras]
+        return [("", self.camera)]
 
     @property
     def run_count(self) -> int:
-        """How many runs the study plans: one per route, noise level, method and seed."""
-        return len(self.routes) * len(self.noise) * len(self.methods) * len(self.seeds)
+        """How many runs the study plans: one per route, camera, noise level, method and seed."""
+        return len(self.routes) * len(self.camera_axis()) * len(self.noise) * len(self.methods) * len(self.seeds)
 
     def grid_text(self) -> str:
-        """The grid in words, e.g. '2 routes x 4 noise levels x 3 methods x 5 seeds = 120 runs'."""
-        parts = [(len(self.routes), "route"), (len(self.noise), "noise level"), (len(self.methods), "method"),
-                 (len(self.seeds), "seed")]
+        """The grid and its run count, counted without planning a run: '2 routes x 4 noise levels x
+        3 methods x 5 seeds = 120 runs' (a camera axis shown when the study names cameras)."""
+        parts = [(len(self.routes), "route")] + ([(len(self.cameras), "camera")] if self.cameras else [])
+        parts += [(len(self.noise), "noise level"), (len(self.methods), "method"), (len(self.seeds), "seed")]
         return " x ".join(f"{n} {w}{'' if n == 1 else 's'}" for n, w in parts) + f" = {self.run_count} runs"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (stored in the results database)."""
-        return {
+        described = {
             "name": self.name,
             "world": self.world,
             "routes": [r.to_dict() for r in self.routes],
@@ -109,6 +136,9 @@ class StudyConfig:
             "map_tolerance_cells": self.map_tolerance_cells,
             "source": self.source,
         }
+        if self.cameras:  # absent for one [camera], so such a study's stored description is unchanged
+            described["cameras"] = {c.name: asdict(c.settings) for c in self.cameras}
+        return described
 
 
 def _valid(values) -> str:
@@ -208,11 +238,13 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     if not _is_number(tolerance) or tolerance < 0:
         raise r.error("map_tolerance_cells", f"expected a number of cells >= 0, got {tolerance!r}")
 
-    camera_table = r.table(data, "camera", CAMERA_KEYS)
-    try:
-        camera = from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in camera_table.items()}, "camera", typed=True)
-    except InputError as err:
-        raise r.error("camera", str(err)) from None
+    if "camera" in data and "cameras" in data:
+        raise r.error(
+            "camera", "a study has either one [camera] or named [cameras.NAME] tables, not both; "
+            "move [camera] into a [cameras.NAME] table, or drop [cameras]"
+        )
+    cameras = _cameras(r, data) if "cameras" in data else []
+    camera = cameras[0].settings if cameras else _camera(r, r.table(data, "camera", CAMERA_KEYS), "camera")
     follower_table = r.table(data, "follower", FOLLOWER_KEYS)
     try:
         follower = from_mapping(FollowerSettings, follower_table, "follower", typed=True)
@@ -222,12 +254,52 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     config = StudyConfig(
         name=name, world=world, routes=tuple(routes), noise=tuple(noise), methods=tuple(methods),
         seeds=tuple(seeds), camera=camera, follower=follower, align=align,
-        map_tolerance_cells=float(tolerance), source=str(path),
+        map_tolerance_cells=float(tolerance), source=str(path), cameras=tuple(cameras),
     )
     if config.run_count > MAX_RUNS:
         raise StudyConfigError(f"study file {path}: {config.grid_text()}, more than a study may plan ({MAX_RUNS}); "
                                "fewer seeds, routes, noise levels or methods")
     return config
+
+
+def _camera(r: _Reader, table: dict, key: str) -> CameraSettings:
+    try:
+        return from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in table.items()}, "camera setting", typed=True)
+    except InputError as err:
+        # The settings layer names the field (hfov_deg); the file has the user's key (fov).
+        bad = re.match(r"camera setting: parameter (\w+)=", str(err))
+        if bad:
+            fields = {field: name for name, field in CAMERA_KEYS.items()}
+            raise r.error(f"{key}.{fields.get(bad.group(1), bad.group(1))}", str(err)[bad.end():]) from None
+        raise r.error(key, str(err)) from None
+
+
+def _cameras(r: _Reader, data: dict) -> list[CameraEntry]:
+    value = data["cameras"]
+    example = "e.g. [cameras.qvga] with width = 320, height = 240"
+    if not isinstance(value, dict) or not value:
+        raise r.error("cameras", f"expected one table per camera ({example}), got {value!r}")
+    entries: list[CameraEntry] = []
+    for name, table in value.items():
+        key = f"cameras.{name}"
+        if not CAMERA_NAME.fullmatch(name):
+            raise r.error(
+                key, f"a camera name is a folder of the study: 1 to 64 letters, digits, '_', '.' or '-', "
+                f"starting with a letter or digit; got {name!r}"
+            )
+        if not isinstance(table, dict):
+            raise r.error(key, f"expected a table of camera settings ({_valid(CAMERA_KEYS)}), got {table!r}")
+        for sub in table:
+            if sub not in CAMERA_KEYS:
+                raise r.error(f"{key}.{sub}", f"unknown key; valid keys: {_valid(CAMERA_KEYS)}")
+        settings = _camera(r, table, key)
+        for other in entries:
+            if other.name.lower() == name.lower():  # one folder on a case-insensitive file system
+                raise r.error(key, f"differs from cameras.{other.name} only in case; choose another name")
+            if other.settings == settings:  # the same runs twice under two names
+                raise r.error(key, f"has the same settings as cameras.{other.name}; give each camera its own")
+        entries.append(CameraEntry(name, settings))
+    return entries
 
 
 def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:

@@ -75,6 +75,8 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
         frames = frames_with_odometry(reader, odometry)
         result, measurements = run_frames(spec.method_name, frames, context, spec.params, total=len(reader), progress=progress)
         measurements.update(sequence=str(rendered), route=spec.route, noise=spec.noise, seed=spec.seed, label=spec.method)
+        if spec.camera_name:
+            measurements["camera"] = spec.camera_name
         measurements = name_final_folder(measurements, tmp, run_dir)
         write_result(tmp, result, measurements)
         scores = score_run(result, measurements, truth, spec.align, load_truth, spec.map_tolerance_cells)

@@ -10,6 +10,10 @@ occupancy grid.
     DIR/routes/<route>/groundtruth.txt   true camera trajectory (TUM)
     DIR/routes/<route>/route.json        waypoints (x, y), length, frames
     DIR/routes/<route>/observed.npy      occupied cells the camera could see (for map recall)
+
+A study with named cameras ([cameras.NAME]) keeps these per camera, in DIR/routes/<route>/<camera>/:
+the true camera trajectory depends on the camera's height, the walls it sees on its field of view
+and depth range.
 """
 
 from __future__ import annotations
@@ -79,17 +83,19 @@ def world_grid_path(out: Path, world: str) -> Path:
     return Path(out) / "worlds" / f"{world_key(world)}.npz"
 
 
-def route_dir(out: Path, route: str) -> Path:
-    return Path(out) / "routes" / route
+def route_dir(out: Path, route: str, camera_name: str = "") -> Path:
+    """The route's ground truth in the study folder; per camera for a named camera."""
+    folder = Path(out) / "routes" / route
+    return folder / camera_name if camera_name else folder
 
 
 def prepare_route(
-    out: Path, route: Route, camera: CameraSettings, follower: FollowerSettings
+    out: Path, route: Route, camera: CameraSettings, follower: FollowerSettings, camera_name: str = ""
 ) -> None:
     """Write the route's ground truth and its world's occupancy into the study folder (once)."""
     from longslam.world import load_world
 
-    folder = route_dir(out, route.name)
+    folder = route_dir(out, route.name, camera_name)
     grid_path = world_grid_path(out, route.world)
     info_path = folder / "route.json"
     settings = {"camera": asdict(camera), "follower": asdict(follower)}
@@ -125,8 +131,8 @@ def _waypoints_json(route: Route) -> list:
     return route.waypoints_json()
 
 
-def load_route_data(out: Path, route: str) -> RouteData:
-    folder = route_dir(out, route)
+def load_route_data(out: Path, route: str, camera_name: str = "") -> RouteData:
+    folder = route_dir(out, route, camera_name)
     info = json.loads((folder / "route.json").read_text(encoding="utf-8"))
     return RouteData(
         name=route,
@@ -166,7 +172,8 @@ def check_routes(config) -> None:
 
     for route in config.routes:
         world = load_world(route.world)
-        check_camera_in_world(world, config.camera)
+        for _, camera in config.camera_axis():
+            check_camera_in_world(world, camera)
         drive_route(world, route, config.follower)
 
 

@@ -1,7 +1,8 @@
-"""Run a study: every (route, noise level, method, seed), in parallel, resumable.
+"""Run a study: every (route, camera, noise level, method, seed), in parallel, resumable.
 
     DIR/results.sqlite    one row per finished run (see `longslam.study.database`)
     DIR/runs/<route>/<noise>/<method>/seed-<n>/   trajectory.txt, online.txt, stats.json, grid.npz...
+    DIR/runs/<route>/<camera>/<noise>/<method>/seed-<n>/   the same, in a study with named cameras
     DIR/logs/...          each local run's stdout and stderr
     DIR/report.md, DIR/report.html
 
@@ -46,8 +47,13 @@ def _task(out: Path, spec: RunSpec) -> Task:
         run_dir=out / "runs" / spec.key,
         log_path=out / "logs" / f"{spec.key}.log",
         grid_path=world_grid_path(out, spec.world),
-        observed_path=route_dir(out, spec.route) / "observed.npy",
+        observed_path=route_dir(out, spec.route, spec.camera_name) / "observed.npy",
     )
+
+
+def plan_text(config: StudyConfig) -> str:
+    """The study's grid, axis by axis: '2 routes x 2 cameras x 4 noise levels x 3 methods x 3 seeds'."""
+    return config.grid_text().rsplit(" = ", 1)[0]
 
 
 def runs_to_do(specs: list[RunSpec], finished: dict[str, tuple[str, str]], retry_failed: bool = False) -> list[RunSpec]:
@@ -77,6 +83,9 @@ def run_study(
     folder's study is widened by this one's routes, noise levels, methods and seeds."""
     start = time.perf_counter()
     out = Path(out)
+    # The grid and its run count first, before anything is planned or allocated.
+    if progress:
+        tqdm.write(f"study {config.name}: {config.grid_text()}")
     # Everything that can be wrong with the study is found before its folder is touched.
     check_executor_options(executor, address)
     check_method_params(config)
@@ -111,13 +120,15 @@ def _run_locked(
         if skipped:
             say(f"{skipped} of {len(specs)} runs are in {out / DB_NAME} already; {len(todo)} to do")
 
-        needed = {spec.route for spec in todo}
+        needed = {(spec.route, spec.camera_name) for spec in todo}
         for route in config.routes:
-            prepare_route(out, route, config.camera, config.follower)
-            # The local processes share this machine's rendering cache: render each route here,
-            # once, before they start. Ray workers render on their own nodes, under a lock.
-            if executor == "local" and route.name in needed:
-                render_once(route, config.camera, config.follower, progress=progress)
+            for camera_name, camera in config.camera_axis():
+                prepare_route(out, route, camera, config.follower, camera_name)
+                # The local processes share this machine's rendering cache: render each route
+                # (per camera) here, once, before they start. Ray workers render on their own
+                # nodes, under a lock.
+                if executor == "local" and (route.name, camera_name) in needed:
+                    render_once(route, camera, config.follower, progress=progress)
         clean_partials(out / "runs")
 
         failed = ran = 0

@@ -1,16 +1,20 @@
-"""The runs of a study: one per (route, noise level, method, seed), as plain picklable data."""
+"""The runs of a study: one per (route, camera, noise level, method, seed), as plain picklable data."""
 
 from __future__ import annotations
 
 import hashlib
 import json
 from dataclasses import asdict, dataclass, field
+from itertools import product
 from typing import Any
 
 from longslam.sim.camera import CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.routes import Route
 from longslam.study.config import StudyConfig
+
+# The name of the one camera of a [camera] study (and of every run recorded before cameras had names).
+DEFAULT_CAMERA = "camera"
 
 
 @dataclass(frozen=True)
@@ -30,11 +34,15 @@ class RunSpec:
     follower: dict[str, Any] = field(default_factory=dict)  # FollowerSettings fields
     align: str = "none"
     map_tolerance_cells: float = 2.0
+    camera_name: str = ""  # a [cameras.NAME] of the study; "" for the one camera of a [camera] study
 
     @property
     def key(self) -> str:
         """Unique name of the run within a study; also its folder under `runs/`."""
-        return f"{self.route}/{self.noise}/{self.method}/seed-{self.seed}"
+        # A [camera] study's runs keep the keys they had before cameras could be named, so an
+        # old study folder resumes into the same rows and folders.
+        camera = f"{self.camera_name}/" if self.camera_name else ""
+        return f"{self.route}/{camera}{self.noise}/{self.method}/seed-{self.seed}"
 
     @property
     def config_hash(self) -> str:
@@ -43,6 +51,9 @@ class RunSpec:
 
         described = self.describe()
         described.pop("study")  # renaming a study does not change its runs
+        # Nor does naming or renaming its camera: the settings are hashed, and the name is in the
+        # key. This also keeps every hash of a study from before cameras could be named.
+        described.pop("camera_name")
         described["world"] = world_identity(self.world)  # a mesh by its content: moving the file is no change
         text = json.dumps(described, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -67,7 +78,7 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
     runs = []
     for seed in config.seeds:
         for route in config.routes:
-            for noise in config.noise:
+            for (camera_name, camera), noise in product(config.camera_axis(), config.noise):
                 for entry in config.methods:
                     runs.append(
                         RunSpec(
@@ -80,10 +91,11 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
                             method_name=entry.method,
                             params=dict(entry.params),
                             seed=seed,
-                            camera=asdict(config.camera),
+                            camera=asdict(camera),
                             follower=asdict(config.follower),
                             align=config.align,
                             map_tolerance_cells=config.map_tolerance_cells,
+                            camera_name=camera_name,
                         )
                     )
     return runs

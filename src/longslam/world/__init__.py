@@ -15,6 +15,7 @@ from longslam.world.builder import build_mesh
 from longslam.world.external import load_mesh_world
 from longslam.world.layout import Box, FloorPlan, Rect
 from longslam.world.mesh import WorldMesh
+from longslam.world.annex import TEXTURE_SEED as _ANNEX_SEED, annex_plan
 from longslam.world.university import university_plan
 from longslam.world.world import World
 
@@ -38,6 +39,11 @@ def _university() -> World:
     return world_from_plan(university_plan(), seed=0)
 
 
+@WORLDS.decorator("annex")
+def _annex() -> World:
+    return world_from_plan(annex_plan(), seed=_ANNEX_SEED)
+
+
 @functools.lru_cache(maxsize=None)
 def get_world(name: str) -> World:
     """The registered world `name`, built on first use and shared afterwards (treat it as
@@ -48,6 +54,6 @@ def get_world(name: str) -> World:
 from longslam.world.source import load_world, world_key, world_label, world_ref  # noqa: E402 (needs WORLDS)
 
 __all__ = [
-    "WORLDS", "Box", "FloorPlan", "Rect", "World", "WorldMesh", "build_mesh", "get_world", "load_mesh_world",
+    "WORLDS", "Box", "FloorPlan", "Rect", "World", "WorldMesh", "annex_plan", "build_mesh", "get_world", "load_mesh_world",
     "load_world", "university_plan", "world_from_plan", "world_key", "world_label", "world_ref",
 ]

@@ -1,5 +1,6 @@
 """The report's figures: trajectories over the floor plan, error and memory against distance
-travelled, and each method's map beside the ground truth."""
+travelled, and each method's map beside the ground truth; per route, and per camera in a study with
+several (their files then named route-camera-...)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from longslam.errors import InputError
-from longslam.study.report.results import StudyResults
+from longslam.study.report.results import StudyResults, on_camera
 
 FIGURES_DIR = "report_files"
 
@@ -22,10 +23,10 @@ class Figure:
     caption: str
 
 
-def _first_seed_runs(results: StudyResults, route: str, noise: str) -> dict[str, dict]:
+def _first_seed_runs(results: StudyResults, route: str, noise: str, camera: str | None = None) -> dict[str, dict]:
     chosen: dict[str, dict] = {}
     for run in sorted(results.ok, key=lambda r: r["seed"]):
-        if (run["route"], run["noise"]) == (route, noise) and run["method"] not in chosen:
+        if (run["route"], run["noise"]) == (route, noise) and on_camera(run, camera) and run["method"] not in chosen:
             chosen[run["method"]] = run
     return {m: chosen[m] for m in results.methods if m in chosen}
 
@@ -37,13 +38,9 @@ def _safe(name: str) -> str:
 def make_figures(results: StudyResults, left_out: list[str] | None = None) -> list[Figure]:
     """The figures the study folder has the files for; each figure or part of one left out, and
     why, is appended to `left_out` (the report says so rather than dropping it silently)."""
-    left_out = left_out if left_out is not None else []
-    from longslam.eval.map_quality import map_scores
-    from longslam.gridmap import GridMap
-    from longslam.io.trajectory_files import read_tum
-    from longslam.viz.plots import plot_curves_by_distance, plot_map_over_truth, plot_maps, plot_plan
-    from longslam.study.prepare import load_route_data, load_world_grid
+    from longslam.study.prepare import load_world_grid
 
+    left_out = left_out if left_out is not None else []
     out = results.out
     folder = out / FIGURES_DIR
     folder.mkdir(parents=True, exist_ok=True)
@@ -57,84 +54,107 @@ def make_figures(results: StudyResults, left_out: list[str] | None = None) -> li
         left_out.append(f"no figures: the world's ground-truth grid cannot be read ({err})")
         return figures
     for route in results.routes:
-        try:
-            data = load_route_data(out, route)
-        except (OSError, InputError, ValueError, KeyError) as err:
-            left_out.append(f"no figures of route {route}: its ground truth in routes/{route} cannot be read ({err})")
-            continue
-        truth_xy = data.truth.positions[:, :2]
-        noises = [n for n in results.noise if any(r["route"] == route and r["noise"] == n for r in results.ok)]
-        for noise in noises:
-            runs = _first_seed_runs(results, route, noise)
-            paths = {"ground truth": truth_xy}
-            seeds = set()
-            for method, run in runs.items():
-                try:
-                    paths[f"{method}"] = read_tum(out / run["trajectory_path"]).positions[:, :2]
-                    seeds.add(run["seed"])
-                except (OSError, InputError, TypeError) as err:
-                    left_out.append(f"trajectory of {run['key']} left out of the trajectory figure ({err})")
-                    continue
-            name = Path(FIGURES_DIR) / f"trajectories-{_safe(route)}-{_safe(noise)}.png"
-            seed_text = ", ".join(str(s) for s in sorted(seeds))
-            plot_plan(truth_grid, out / name, paths, waypoints=data.waypoints, zoom_margin=6.0,
-                      title=f"route {route} ({data.length_m:.0f} m), noise {noise}, seed {seed_text}")
-            figures.append(Figure(name, f"Estimated trajectories over the floor plan with the ground truth: route {route}, noise {noise}, seed {seed_text}."))
+        for camera in results.row_cameras:
+            figures += _route_figures(results, route, camera, truth_grid, left_out)
+    return figures
 
-        for column, ylabel, scale, what in (
-            ("error_curve", "position error [m]", 1.0, "ATE (position error, no alignment)"),
-            ("memory_curve", "resident memory [MB]", 1e-6, "Resident memory of the run's process"),
-        ):
-            panels: dict[str, dict[str, list[np.ndarray]]] = {}
-            for noise in noises:
-                curves: dict[str, list[np.ndarray]] = defaultdict(list)
-                for run in results.ok:
-                    if (run["route"], run["noise"]) == (route, noise) and run[column]:
-                        curve = np.asarray(run[column], dtype=np.float64)
-                        curve[:, 1] *= scale
-                        curves[run["method"]].append(curve)
-                panels[f"noise {noise}"] = {m: curves[m] for m in results.methods if m in curves}
-            if any(panels.values()):
-                kind = "ate" if column == "error_curve" else "memory"
-                name = Path(FIGURES_DIR) / f"{kind}-{_safe(route)}.png"
-                plot_curves_by_distance(panels, out / name, ylabel, title=f"route {route}")
-                figures.append(Figure(name, f"{what} against distance travelled, route {route}: mean over the seeds, band from the lowest to the highest run."))
 
-        # The maps are shown over the walls the camera could see from the route, and the route.
-        seen = truth_grid.cell_to_world(np.argwhere(data.observed)) if data.observed.shape == truth_grid.data.shape else np.zeros((0, 2))
-        extent = np.vstack([truth_xy, seen])
-        lo, hi = extent.min(axis=0) - 1.0, extent.max(axis=0) + 1.0
-        view = (lo[0], hi[0], lo[1], hi[1])
+def _route_figures(results: StudyResults, route: str, camera: str | None, truth_grid,
+                   left_out: list[str]) -> list[Figure]:
+    """The figures of one route: of one camera's runs, or of all (camera None, one camera)."""
+    from longslam.eval.map_quality import map_scores
+    from longslam.gridmap import GridMap
+    from longslam.io.trajectory_files import read_tum
+    from longslam.viz.plots import plot_curves_by_distance, plot_map_over_truth, plot_maps, plot_plan
+    from longslam.study.prepare import load_route_data
+
+    out = results.out
+    figures: list[Figure] = []
+    # Names and titles have the camera only when there are several: a one-camera study's
+    # figures keep their names.
+    tag = f"{_safe(route)}-{_safe(camera)}" if camera else _safe(route)
+    where = f"route {route}, camera {camera}" if camera else f"route {route}"
+    try:
+        data = load_route_data(out, route, results.camera_folder(camera or results.cameras[0]))
+    except (OSError, InputError, ValueError, KeyError) as err:
+        left_out.append(f"no figures of {where}: its ground truth in the study folder's routes/ cannot be read ({err})")
+        return figures
+    truth_xy = data.truth.positions[:, :2]
+    mine = [r for r in results.ok if r["route"] == route and on_camera(r, camera)]
+    noises = [n for n in results.noise if any(r["noise"] == n for r in mine)]
+    for noise in noises:
+        runs = _first_seed_runs(results, route, noise, camera)
+        paths = {"ground truth": truth_xy}
+        seeds = set()
+        for method, run in runs.items():
+            try:
+                paths[f"{method}"] = read_tum(out / run["trajectory_path"]).positions[:, :2]
+                seeds.add(run["seed"])
+            except (OSError, InputError, TypeError) as err:
+                left_out.append(f"trajectory of {run['key']} left out of the trajectory figure ({err})")
+                continue
+        name = Path(FIGURES_DIR) / f"trajectories-{tag}-{_safe(noise)}.png"
+        seed_text = ", ".join(str(s) for s in sorted(seeds))
+        shown = f"route {route} ({data.length_m:.0f} m)" + (f", camera {camera}" if camera else "")
+        plot_plan(truth_grid, out / name, paths, waypoints=data.waypoints, zoom_margin=6.0,
+                  title=f"{shown}, noise {noise}, seed {seed_text}")
+        figures.append(Figure(name, f"Estimated trajectories over the floor plan with the ground truth: {where}, noise {noise}, seed {seed_text}."))
+
+    for column, ylabel, scale, what in (
+        ("error_curve", "position error [m]", 1.0, "ATE (position error, no alignment)"),
+        ("memory_curve", "resident memory [MB]", 1e-6, "Resident memory of the run's process"),
+    ):
+        panels: dict[str, dict[str, list[np.ndarray]]] = {}
         for noise in noises:
-            maps, captions = {}, {}
-            for method, run in _first_seed_runs(results, route, noise).items():
-                if not run.get("grid_path"):
-                    continue
-                try:
-                    maps[method] = GridMap.load(out / run["grid_path"])
-                except InputError as err:
-                    left_out.append(f"map of {run['key']} left out of the map figures ({err})")
-                    continue
-                p, r = run.get("map_precision"), run.get("map_recall")
-                captions[method] = f"precision {p:.2f}, recall {r:.2f}" if p is not None and r is not None else ""
-            if maps:
-                name = Path(FIGURES_DIR) / f"maps-{_safe(route)}-{_safe(noise)}.png"
-                plot_maps(truth_grid, maps, out / name, view=view, path=truth_xy, captions=captions,
-                          title=f"occupancy maps, route {route}, noise {noise}, first seed")
-                figures.append(Figure(name, f"Each method's occupancy grid beside the ground truth: route {route}, noise {noise} (first seed)."))
-            # Each map again, large enough to read, with the true walls over it and its doubled walls.
-            for method, grid in maps.items():
-                run = _first_seed_runs(results, route, noise)[method]
-                quality = run.get("map_quality") or {}
-                if "map_doubled_places" not in quality:
-                    # Recorded before the doubled-wall measure: measure it here, on the map as it is.
-                    tolerance = results.config.get("map_tolerance_cells", 2)
-                    quality = map_scores(grid, truth_grid, tolerance, data.observed, with_places=True)
-                name = Path(FIGURES_DIR) / f"map-{_safe(route)}-{_safe(noise)}-{_safe(method)}.png"
-                share = quality.get("map_doubled_walls")
-                more = f", walls shown twice {100 * share:.1f}%" if share is not None else ""
-                plot_map_over_truth(grid, truth_grid, out / name, view=view, doubled=quality.get("map_doubled_places"),
-                                    title=f"{method}: route {route}, noise {noise}, seed {run['seed']} ({captions[method]}{more})")
-                figures.append(Figure(name, f"{method}'s occupancy grid as it is (black), the true walls over it "
-                                            f"(orange), the walls it shows twice ringed (magenta): route {route}, noise {noise}."))
+            curves: dict[str, list[np.ndarray]] = defaultdict(list)
+            for run in mine:
+                if run["noise"] == noise and run[column]:
+                    curve = np.asarray(run[column], dtype=np.float64)
+                    curve[:, 1] *= scale
+                    curves[run["method"]].append(curve)
+            panels[f"noise {noise}"] = {m: curves[m] for m in results.methods if m in curves}
+        if any(panels.values()):
+            kind = "ate" if column == "error_curve" else "memory"
+            name = Path(FIGURES_DIR) / f"{kind}-{tag}.png"
+            plot_curves_by_distance(panels, out / name, ylabel, title=where)
+            figures.append(Figure(name, f"{what} against distance travelled, {where}: mean over the seeds, band from the lowest to the highest run."))
+
+    # The maps are shown over the walls the camera could see from the route, and the route.
+    seen = truth_grid.cell_to_world(np.argwhere(data.observed)) if data.observed.shape == truth_grid.data.shape else np.zeros((0, 2))
+    extent = np.vstack([truth_xy, seen])
+    lo, hi = extent.min(axis=0) - 1.0, extent.max(axis=0) + 1.0
+    view = (lo[0], hi[0], lo[1], hi[1])
+    for noise in noises:
+        maps, captions = {}, {}
+        first = _first_seed_runs(results, route, noise, camera)
+        for method, run in first.items():
+            if not run.get("grid_path"):
+                continue
+            try:
+                maps[method] = GridMap.load(out / run["grid_path"])
+            except InputError as err:
+                left_out.append(f"map of {run['key']} left out of the map figures ({err})")
+                continue
+            p, r = run.get("map_precision"), run.get("map_recall")
+            captions[method] = f"precision {p:.2f}, recall {r:.2f}" if p is not None and r is not None else ""
+        if maps:
+            name = Path(FIGURES_DIR) / f"maps-{tag}-{_safe(noise)}.png"
+            plot_maps(truth_grid, maps, out / name, view=view, path=truth_xy, captions=captions,
+                      title=f"occupancy maps, {where}, noise {noise}, first seed")
+            figures.append(Figure(name, f"Each method's occupancy grid beside the ground truth: {where}, noise {noise} (first seed)."))
+        # Each map again, large enough to read, with the true walls over it and its doubled walls.
+        for method, grid in maps.items():
+            run = first[method]
+            quality = run.get("map_quality") or {}
+            if "map_doubled_places" not in quality:
+                # Recorded before the doubled-wall measure: measure it here, on the map as it is.
+                tolerance = results.config.get("map_tolerance_cells", 2)
+                quality = map_scores(grid, truth_grid, tolerance, data.observed, with_places=True)
+            name = Path(FIGURES_DIR) / f"map-{tag}-{_safe(noise)}-{_safe(method)}.png"
+            share = quality.get("map_doubled_walls")
+            more = f", walls shown twice {100 * share:.1f}%" if share is not None else ""
+            plot_map_over_truth(grid, truth_grid, out / name, view=view, doubled=quality.get("map_doubled_places"),
+                                title=f"{method}: {where}, noise {noise}, seed {run['seed']} ({captions[method]}{more})")
+            figures.append(Figure(name, f"{method}'s occupancy grid as it is (black), the true walls over it "
+                                        f"(orange), the walls it shows twice ringed (magenta): {where}, noise {noise}."))
     return figures

@@ -25,23 +25,47 @@ def _column_title(column: tuple[str, str]) -> str:
     return f"{route}: {noise}" if route else noise
 
 
+def _row_cameras(table: Table) -> list[str] | None:
+    """Each row's camera, for a table with a camera column; None for one without."""
+    return table.row_cameras if table.row_cameras else None
+
+
 def table_markdown(table: Table) -> str:
     has_metric = any(label[1] for label in table.row_labels)
-    header = ["method"] + (["metric"] if has_metric else []) + [_column_title(c) for c in table.columns]
+    cameras = _row_cameras(table)
+    header = (["method"] + (["camera"] if cameras else []) + (["metric"] if has_metric else [])
+              + [_column_title(c) for c in table.columns])
     lines = [f"### {table.title}", "", table.caption, "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    previous = None
-    for (method, metric), cells in zip(table.row_labels, table.rows):
+    previous = previous_camera = None
+    for i, ((method, metric), cells) in enumerate(zip(table.row_labels, table.rows)):
         shown = method if method != previous else ""
+        lead = [shown]
+        if cameras:
+            camera = (method, cameras[i])
+            lead.append(cameras[i] if camera != previous_camera else "")
+            previous_camera = camera
         previous = method
         texts = [f"**{c.text}**" if c.best else c.text for c in cells]
-        lines.append("| " + " | ".join([shown] + ([metric] if has_metric else []) + texts) + " |")
+        lines.append("| " + " | ".join(lead + ([metric] if has_metric else []) + texts) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _spans(keys: list) -> list[int]:
+    """For rows grouped by `keys`: the number of rows a group spans at its first row, 0 after."""
+    spans = [0] * len(keys)
+    start = 0
+    for i in range(1, len(keys) + 1):
+        if i == len(keys) or keys[i] != keys[start]:
+            spans[start] = i - start
+            start = i
+    return spans
 
 
 def table_html(table: Table) -> str:
     esc = html.escape
     has_metric = any(label[1] for label in table.row_labels)
-    lead = 2 if has_metric else 1
+    cameras = _row_cameras(table)
+    lead = 1 + bool(has_metric) + bool(cameras)
     routes: list[tuple[str, int]] = []
     for route, _ in table.columns:
         if routes and routes[-1][0] == route:
@@ -52,17 +76,20 @@ def table_html(table: Table) -> str:
              f'<table class="results" data-title="{esc(table.title)}"><thead>']
     if any(route for route, _ in routes):
         parts.append(f'<tr><th colspan="{lead}"></th>' + "".join(f'<th colspan="{n}">{esc(r)}</th>' for r, n in routes) + "</tr>")
-    parts.append("<tr><th>method</th>" + ("<th>metric</th>" if has_metric else "")
+    parts.append("<tr><th>method</th>" + ("<th>camera</th>" if cameras else "") + ("<th>metric</th>" if has_metric else "")
                  + "".join(f"<th>{esc(noise)}</th>" for _, noise in table.columns) + "</tr></thead><tbody>")
     counts: dict[str, int] = defaultdict(int)
     for method, _ in table.row_labels:
         counts[method] += 1
+    camera_spans = _spans([(m, c) for (m, _), c in zip(table.row_labels, cameras)]) if cameras else []
     previous = None
-    for (method, metric), cells in zip(table.row_labels, table.rows):
+    for i, ((method, metric), cells) in enumerate(zip(table.row_labels, table.rows)):
         row = "<tr>"
         if method != previous:
             row += f'<th rowspan="{counts[method]}" class="method">{esc(method)}</th>'
         previous = method
+        if cameras and camera_spans[i]:
+            row += f'<td rowspan="{camera_spans[i]}" class="camera">{esc(cameras[i])}</td>'
         if has_metric:
             row += f"<td class='metric'>{esc(metric)}</td>"
         row += "".join(f"<td><strong>{esc(c.text)}</strong></td>" if c.best else f"<td>{esc(c.text)}</td>" for c in cells)
@@ -77,7 +104,7 @@ table.results { border-collapse: collapse; margin: 1em 0 2em; font-size: 13px; }
 p.caption { font-size: 13px; max-width: 1000px; margin: .2em 0; }
 h3 { margin: 1.5em 0 .3em; }
 table.results th, table.results td { border: 1px solid #bbb; padding: 3px 8px; text-align: right; }
-table.results th.method, table.results td.metric { text-align: left; }
+table.results th.method, table.results td.metric, table.results td.camera { text-align: left; }
 table.results thead th { background: #eee; text-align: center; }
 figure { margin: 1em 0 2em; } figure img { max-width: min(100%, 1100px); border: 1px solid #ddd; }
 figcaption { font-size: 13px; color: #444; }
@@ -106,19 +133,24 @@ def _world_shown(world: str) -> str:
     return f"`{Path(spec.path).name}` (mesh, sha256 {spec.sha256[:12]})"
 
 
+def _camera_shown(camera: dict) -> str:
+    return (f"{camera.get('width', '?')} x {camera.get('height', '?')}, {camera.get('hfov_deg', '?')} degree field "
+            f"of view, depth to {camera.get('max_depth', '?')} m")
+
+
 def build_report(out: str | Path, figures: bool = True, left_out: list[str] | None = None) -> Report:
     results = load_results(out)
     config = results.config
     name = config.get("name", Path(out).name)
     seeds = config.get("seeds", [])
-    camera = config.get("camera", {})
+    counts = f"{len(results.ok)} runs ok, {len(results.runs) - len(results.ok)} failed, in `{DB_NAME}`."
+    named = config.get("cameras")
     intro = [
         f"Study `{name}` ({config.get('source', '')}): world {_world_shown(config.get('world', '?'))}, "
         f"routes {', '.join(results.routes)}, noise levels {', '.join(results.noise)}, "
         f"methods {', '.join(results.methods)}, seeds {', '.join(map(str, seeds))}.",
-        f"Camera {camera.get('width', '?')} x {camera.get('height', '?')}, {camera.get('hfov_deg', '?')} degree field "
-        f"of view, depth to {camera.get('max_depth', '?')} m. {len(results.ok)} runs ok, "
-        f"{len(results.runs) - len(results.ok)} failed, in `{DB_NAME}`.",
+        (f"Cameras: {'; '.join(f'{n}: {_camera_shown(c)}' for n, c in named.items())}. {counts}" if named
+         else f"Camera {_camera_shown(config.get('camera', {}))}. {counts}"),
     ]
     tables = [accuracy_table(results), memory_table(results)]
     quality = map_table(results)
@@ -198,7 +230,7 @@ def check_report_files(out: str | Path, overwrite: bool = False) -> None:
             raise InputError(f"{path} is a folder; the report needs that name for a file")
         if path.exists() and not overwrite:
             try:
-                with open(path, errors="replace") as handle:
+                with open(path, encoding="utf-8", errors="replace") as handle:
                     head = handle.read(4096)
             except OSError as err:
                 raise InputError(f"{path} cannot be read to check it is longslam's report: {err.strerror}") from None

@@ -11,7 +11,7 @@ import numpy as np
 from longslam.study.paper import (
     ACCURACY_METRICS, CITATION, PAPER_METHODS, PAPER_NOISE, PAPER_ROUTES, paper_accuracy, paper_memory_gb, paper_route,
 )
-from longslam.study.report.results import StudyResults
+from longslam.study.report.results import StudyResults, on_camera
 
 METRIC_LABELS = {"e_trans": "E_trans", "e_rot": "E_rot [deg/m]", "ate": "ATE [m]"}
 
@@ -54,10 +54,15 @@ class Table:
     columns: list[tuple[str, str]]  # (route, noise)
     row_labels: list[tuple[str, str]]  # (method, metric); metric may be ""
     rows: list[list[Cell]] = field(default_factory=list)
+    # Each row's camera, in a study with several ("" for the paper's rows); empty otherwise, and
+    # then the table has no camera column.
+    row_cameras: list[str] = field(default_factory=list)
 
-    def add_row(self, label: tuple[str, str], cells: list[Cell]) -> None:
+    def add_row(self, label: tuple[str, str], cells: list[Cell], camera: str | None = None) -> None:
         self.row_labels.append(label)
         self.rows.append(cells)
+        if camera is not None or self.row_cameras:
+            self.row_cameras += [""] * (len(self.rows) - 1 - len(self.row_cameras)) + [camera or ""]
 
     def mark_best(self, higher_is_better: bool = False, reversed_metrics: tuple[str, ...] = ()) -> None:
         """Bold the best mean of each column among the rows of each metric (the metrics named in
@@ -79,11 +84,12 @@ def _paper_columns(columns: list[tuple[str, str]]) -> bool:
     return any(paper_route(route) and noise in PAPER_NOISE for route, noise in columns)
 
 
-def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0) -> list[Cell]:
-    """A method's mean ± std of one database column, per (route, noise) column of the table."""
+def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0, camera: str | None = None) -> list[Cell]:
+    """A method's mean ± std of one database column (of one camera's runs if `camera` is given),
+    per (route, noise) column of the table."""
     cells = []
     for route, noise in results.columns:
-        values = [scale * v for v in results.values(method, route, noise, column)]
+        values = [scale * v for v in results.values(method, route, noise, column, camera)]
         cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
     return cells
 
@@ -105,8 +111,11 @@ def _comparison_table(results: StudyResults, title: str, caption: str, metrics: 
     columns = results.columns
     table = Table(title, caption, columns, [])
     for method in results.methods:
-        for column, label, scale in metrics:
-            table.add_row((method, label), _our_cells(results, method, column, scale))
+        for camera in results.row_cameras:
+            if not _has_runs(results, method, camera):
+                continue
+            for column, label, scale in metrics:
+                table.add_row((method, label), _our_cells(results, method, column, scale, camera), camera)
     if _paper_columns(columns):
         numbers = paper_numbers()
         for key, name in PAPER_METHODS.items():
@@ -115,6 +124,11 @@ def _comparison_table(results: StudyResults, title: str, caption: str, metrics: 
                 table.add_row((f"{name} (paper)", label), cells)
     table.mark_best()
     return table
+
+
+def _has_runs(results: StudyResults, method: str, camera: str | None) -> bool:
+    """A method has rows for every camera it ran with (a camera it never ran with, none)."""
+    return camera is None or any(r["method"] == method and on_camera(r, camera) for r in results.runs)
 
 
 def accuracy_table(results: StudyResults) -> Table:
@@ -161,17 +175,19 @@ def map_table(results: StudyResults) -> Table | None:
         results.columns, [],
     )
     for method in with_maps:
-        for column, label in MAP_ROWS:
-            cells = []
-            for route, noise in results.columns:
-                values = [v for r in results.ok
-                          if (r["method"], r["route"], r["noise"]) == (method, route, noise)
-                          and (v := r.get(column)) is not None]  # studies recorded before a column have none
-                cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
-            if label != "precision" and label != "recall" and all(c.value is None for c in cells):
+        for camera in results.row_cameras:
+            if not _has_runs(results, method, camera):
                 continue
-            table.row_labels.append((method, label))
-            table.rows.append(cells)
+            for column, label in MAP_ROWS:
+                cells = []
+                for route, noise in results.columns:
+                    values = [v for r in results.ok
+                              if (r["method"], r["route"], r["noise"]) == (method, route, noise) and on_camera(r, camera)
+                              and (v := r.get(column)) is not None]  # studies recorded before a column have none
+                    cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
+                if label != "precision" and label != "recall" and all(c.value is None for c in cells):
+                    continue
+                table.add_row((method, label), cells, camera)
     table.mark_best(higher_is_better=True, reversed_metrics=("doubled walls",))
     return table
 
@@ -186,14 +202,17 @@ def runs_table(results: StudyResults) -> Table:
         [("", "runs ok / failed"), ("", "time per run [s]"), ("", "method time [s]"), ("", "real-time factor"), ("", "frames")], [],
     )
     for method in results.methods:
-        mine = [r for r in results.runs if r["method"] == method]
-        ok = [r for r in mine if r["status"] == "ok"]
-        def mean(column: str) -> str:
-            values = [r[column] for r in ok if r.get(column) is not None]
-            return format_number(float(np.mean(values))) if values else "–"
-        table.row_labels.append((method, ""))
-        table.rows.append([Cell(f"{len(ok)} / {len(mine) - len(ok)}"), Cell(mean("elapsed_s")), Cell(mean("method_time_s")),
-                           Cell(mean("real_time_factor")), Cell(mean("frames"))])
+        for camera in results.row_cameras:
+            mine = [r for r in results.runs if r["method"] == method and on_camera(r, camera)]
+            if not mine:
+                continue
+            ok = [r for r in mine if r["status"] == "ok"]
+            def mean(column: str) -> str:
+                values = [r[column] for r in ok if r.get(column) is not None]
+                return format_number(float(np.mean(values))) if values else "–"
+            table.add_row((method, ""), [Cell(f"{len(ok)} / {len(mine) - len(ok)}"), Cell(mean("elapsed_s")),
+                                         Cell(mean("method_time_s")), Cell(mean("real_time_factor")), Cell(mean("frames"))],
+                          camera)
     return table
 
 

@@ -1,0 +1,236 @@
+"""The `orbslam3` method: ORB-SLAM3 in RGB-D mode, frames in, poses out.
+
+It uses only longslam's public method API (`longslam.slam.api`): the engine sends ORB-SLAM3's
+console to the run's `console.log` (`MethodContext.console_log`), counts the CPU time of its
+threads (`process_cpu_time_s`), and calls `close` if a run stops early.
+
+ORB-SLAM3 sees the camera images and depth only; the wheel odometry places its first map in the
+building (the first odometry pose, as every longslam method starts) and is not used again.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from longslam.errors import InputError
+from longslam.frame import Frame
+from longslam.geometry import camera_poses_from_planar, poses_from_tum
+from longslam.slam import stats
+from longslam.slam.api import MethodContext, MethodSpec, Result
+from longslam.trajectory import Trajectory
+
+from longslam_orbslam3.anchoring import TRACKED, MapAnchors, final_poses
+from longslam_orbslam3.config import OrbSlam3Config
+from longslam_orbslam3.console_log import read_counts
+from longslam_orbslam3.settings_file import DEPTH_MAP_FACTOR, fps_from_stamps, settings_yaml
+from longslam_orbslam3.vocabulary import resolve_vocabulary
+
+SETTINGS_FILE = "orbslam3.yaml"
+SAVED_TRAJECTORY = "orbslam3_trajectory_euroc.txt"  # ORB-SLAM3's own, its largest map
+SAVED_KEYFRAMES = "orbslam3_keyframes_euroc.txt"
+APT_LIBRARIES = "libgl1 libegl1 libopengl0 libsm6 libice6 libx11-6 libxext6"
+
+
+def _import_pyorbslam3() -> Any:
+    try:
+        import pyorbslam3
+    except ImportError as err:
+        raise InputError(
+            f"method 'orbslam3' needs the pyorbslam3 package and its system libraries ({err}); install them with "
+            f"`apt-get install {APT_LIBRARIES}` and `pip install pyorbslam3==0.1.1`"
+        ) from None
+    return pyorbslam3
+
+
+def _read_euroc(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """ORB-SLAM3's EuRoC trajectory: stamp in ns, tx ty tz qx qy qz qw (camera in map)."""
+    if not path.is_file() or path.stat().st_size == 0:
+        return np.zeros(0), np.zeros((0, 4, 4))
+    rows = np.loadtxt(path, ndmin=2)
+    return rows[:, 0] * 1e-9, poses_from_tum(rows[:, 1:8])
+
+
+class OrbSlam3Method:
+    name = "orbslam3"
+    images_every_frame = ("rgb", "depth")
+
+    def __init__(self, context: MethodContext, config: OrbSlam3Config = OrbSlam3Config()):
+        self._pos = _import_pyorbslam3()
+        self.context = context
+        self.config = config
+        self._vocabulary, self._vocabulary_info = resolve_vocabulary(config.vocabulary)
+        if context.output_dir is not None:
+            self._workdir, self._own_workdir = Path(context.output_dir), False
+        else:
+            self._workdir, self._own_workdir = Path(tempfile.mkdtemp(prefix="longslam-orbslam3-")), True
+        self._log_start = self._log_size()
+        self._slam: Any = None
+        self._pending: Frame | None = None  # the first frame, tracked once the second gives the rate
+        self._anchors: MapAnchors | None = None
+        self._stamps: list[float] = []
+        self._online: list[np.ndarray] = []
+        self._tracked_points = 0
+        self._map_changes = 0
+        self._fps = 0.0
+        self._load_time = 0.0
+        self._clock: tuple[float, float] | None = None  # (wall time, stamp) pacing starts from
+        self._paced_s = 0.0
+
+    # -- the run ------------------------------------------------------------------------------
+
+    def _log_size(self) -> int:
+        log = self.context.console_log
+        return os.path.getsize(log) if log and os.path.exists(log) else 0
+
+    def _start_pose(self, frame: Frame) -> np.ndarray:
+        if frame.odometry is not None:
+            return np.array(frame.odometry, dtype=np.float64)
+        # No odometry (a recorded TUM sequence): the robot at the origin, as the built-in methods start.
+        return camera_poses_from_planar(np.zeros((1, 3)), self.config.camera_height)[0]
+
+    def _start_system(self, fps: float) -> None:
+        self._fps = fps
+        settings = self._workdir / SETTINGS_FILE
+        settings.write_text(settings_yaml(self.context.intrinsics, self.config, fps, self.context.max_depth))
+        t0 = time.perf_counter()
+        self._slam = self._pos.Slam(self._vocabulary, str(settings), self._pos.Sensor.RGBD, use_viewer=False)
+        self._load_time = time.perf_counter() - t0
+
+    def _wait_for_turn(self, stamp: float) -> None:
+        if self.config.pace <= 0.0:
+            return
+        now = time.perf_counter()
+        if self._clock is None:
+            self._clock = (now, stamp)
+            return
+        due = self._clock[0] + (stamp - self._clock[1]) / self.config.pace
+        if due > now:
+            time.sleep(due - now)
+            self._paced_s += due - now
+
+    def _track(self, frame: Frame) -> np.ndarray:
+        self._wait_for_turn(float(frame.timestamp))
+        depth = np.asarray(frame.depth, dtype=np.float32) * np.float32(DEPTH_MAP_FACTOR)
+        result = self._slam.track_rgbd(np.ascontiguousarray(frame.rgb), depth, float(frame.timestamp))
+        state = result.state.name
+        if self._slam.map_changed():
+            self._map_changes += 1
+        self._tracked_points += int(result.num_tracked_points)
+        return self._anchors.update(state, result.pose_wc if state in TRACKED else None)
+
+    def step(self, frame: Frame) -> np.ndarray:
+        if self._anchors is None:
+            self._anchors = MapAnchors(self._start_pose(frame))
+        self._stamps.append(float(frame.timestamp))
+        if self._slam is None and self._pending is None:
+            # The first frame's pose is the start pose whatever ORB-SLAM3 makes of it: a map
+            # begins at the identity, and an untracked frame holds the start.
+            self._pending = frame
+            pose = self._anchors.start.copy()
+            self._online.append(pose)
+            return pose
+        if self._slam is None:
+            self._start_system(fps_from_stamps(np.array(self._stamps)))
+            self._online[0] = self._track(self._pending)
+            self._pending = None
+        pose = self._track(frame)
+        self._online.append(pose)
+        return pose
+
+    # -- the end ------------------------------------------------------------------------------
+
+    def _wait_for_global_ba(self) -> float:
+        """ORB-SLAM3 1.0's Shutdown does not wait for the global bundle adjustment a loop closure
+        starts, nor for keyframes local mapping has still to process. Wait while its threads work
+        (the process's CPU: nothing else runs once the last frame is in) or its console says a
+        global BA is running, until they are idle for a second or `gba_wait` runs out. Its build
+        in pyorbslam3 0.1.1 prints "*Loop detected" but not the BA's start and end (they are at
+        a verbosity it does not print), so the CPU is what tells."""
+        t0 = time.perf_counter()
+        idle_since = None
+        cpu = time.process_time()
+        while time.perf_counter() - t0 < self.config.gba_wait:
+            time.sleep(0.25)
+            busy = (time.process_time() - cpu) / 0.25
+            cpu = time.process_time()
+            working = busy > 0.05 or read_counts(self.context.console_log, self._log_start).global_ba_running
+            if working:
+                idle_since = None
+            elif idle_since is None:
+                idle_since = time.perf_counter()
+            elif time.perf_counter() - idle_since >= 1.0:
+                break
+        return time.perf_counter() - t0
+
+    def _shutdown(self) -> None:
+        if self._slam is not None and not self._slam.is_shutdown():
+            self._slam.shutdown()
+
+    def close(self) -> None:
+        self._shutdown()
+        self._slam = None
+        if self._own_workdir:
+            shutil.rmtree(self._workdir, ignore_errors=True)
+
+    def finish(self) -> Result:
+        if not self._stamps:
+            raise InputError("method 'orbslam3': no frames were given")
+        if self._slam is None:  # a one-frame sequence: ORB-SLAM3 needs a second frame for its rate
+            self._start_system(10.0)
+            self._online[0] = self._track(self._pending)
+            self._pending = None
+        waited = self._wait_for_global_ba()
+        self._shutdown()
+        trajectory_file, keyframe_file = self._workdir / SAVED_TRAJECTORY, self._workdir / SAVED_KEYFRAMES
+        self._slam.save_trajectory_euroc(str(trajectory_file))
+        self._slam.save_keyframe_trajectory_euroc(str(keyframe_file))
+        saved_stamps, saved_poses = _read_euroc(trajectory_file)
+        keyframes = len(_read_euroc(keyframe_file)[0])
+        stamps = np.array(self._stamps)
+        online = np.array(self._online)
+        final, from_saved = final_poses(online, stamps, self._anchors, saved_stamps, saved_poses)
+        console = read_counts(self.context.console_log, self._log_start).counts
+        frames = len(stamps)
+        method_stats = {
+            stats.FRAMES: frames,
+            stats.NODES: keyframes,
+            stats.LOOPS_ACCEPTED: console["loops"],
+            stats.MAP_BYTES: {},
+            "tracking_states": dict(sorted(self._anchors.states.items())),
+            "frames_untracked": self._anchors.frames_untracked,  # online pose held (not OK)
+            "frames_in_final": from_saved,  # the rest of the final trajectory is the online pose
+            "maps": len(self._anchors.anchors),
+            "maps_created": console["maps_created"],
+            "map_merges": console["merges"],
+            "relocalizations": console["relocalizations"],
+            "map_changes": self._map_changes,
+            "global_ba": {"started": console["global_ba_started"], "finished": console["global_ba_finished"],
+                          "stopped": console["global_ba_stopped"], "waited_s": waited},
+            "keyframes_in_final_map": keyframes,
+            "tracked_points_mean": self._tracked_points / frames,
+            "camera_fps": self._fps,
+            "pace": self.config.pace,
+            "paced_wait_s": self._paced_s,  # spent waiting for the next frame's time (in the step times)
+            "vocabulary": self._vocabulary_info,
+            "vocabulary_load_s": self._load_time,
+            "uses_wheel_odometry": "first pose only",
+        }
+        self._slam = None
+        if self._own_workdir:
+            shutil.rmtree(self._workdir, ignore_errors=True)
+        return Result(
+            trajectory=Trajectory(stamps, final, source="orbslam3"),
+            online=Trajectory(stamps, online, source="orbslam3 online"),
+            stats=method_stats,
+        )
+
+
+SPEC = MethodSpec("orbslam3", OrbSlam3Config, OrbSlam3Method,
+                  "ORB-SLAM3 1.0 in RGB-D mode (pyorbslam3): visual only, the wheels place its first map")
