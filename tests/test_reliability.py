@@ -529,7 +529,8 @@ def test_a_same_host_partial_whose_process_is_gone_is_removed_at_once(tmp_path):
     ("20 31.25\n20 31.25\n", "all the same point"),
     ("20 31.25\nnan 31.25\n", "waypoint 1 (nan, 31.25) is not a point"),
 ])
-def test_a_route_that_goes_nowhere_is_refused(tmp_path, capsys, text, needle):
+def test_a_route_that_goes_nowhere_is_refused(tmp_path, capsys, monkeypatch, text, needle):
+    monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
     route = tmp_path / "r.txt"
     route.write_text(text)
     assert main(["simulate", "--route", str(route), "--out", str(tmp_path / "s")]) == 2
@@ -553,7 +554,7 @@ def test_a_study_camera_string_is_not_coerced_to_a_number(tmp_path, capsys):
     study = _study_file(tmp_path, "1").read_text().replace("width = 16", 'width = "16"')
     (tmp_path / "s.toml").write_text(study)
     assert main(["study", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "width='16'", "expected a number, got a string")
+    _one_line_error(capsys, "camera.width: '16'", "expected a whole number, got a string")
 
 
 def test_a_variant_listed_in_methods_is_named_a_variant(tmp_path, capsys):

@@ -112,7 +112,7 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
     for key, raw in flat.items():
         kind, optional = _field_type(cls, key)
         if typed and isinstance(raw, str) and kind in (int, float, bool):
-            expected = "true or false" if kind is bool else "a number"
+            expected = {bool: "true or false", int: "a whole number"}.get(kind, "a finite number")
             raise InputError(f"{what}: parameter {key}={raw!r}: expected {expected}, got a string (write it without quotes)")
         try:
             converted[key] = convert(raw, kind, optional)
