@@ -631,3 +631,14 @@ def test_a_walls_only_mesh_is_said_to_have_no_floor(tmp_path, capsys):
     trimesh.Trimesh(np.concatenate(quads), np.concatenate([k + [0, 1, 2], k + [0, 2, 3]]), process=False).export(mesh)
     assert main(["world", "--world", str(mesh), "--floor", "0", "--out", str(tmp_path / "p.png")]) == 2
     _one_line_error(capsys, "no floor surface at height 0.000 m", "walls only")
+
+
+def test_vocabulary_build_never_writes_into_its_input_sequence(seq, tmp_path, capsys):
+    before = _tree(seq)
+    for out in (seq / "rgb.txt", seq / "voc.txt"):
+        assert main(["vocabulary", "build", "--sequence", str(seq), "--out", str(out), "--overwrite"]) == 2
+        _one_line_error(capsys, str(out), "inside the input")
+        assert _tree(seq) == before
+    assert main(["vocabulary", "build", "--sequence", str(seq), "--out", str(tmp_path / "v.txt"),
+                 "--seed", str(2**64)]) == 2
+    _one_line_error(capsys, "--seed", "2**63 - 1")

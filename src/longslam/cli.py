@@ -296,6 +296,12 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
     from longslam.vocabulary.build import build_vocabulary_file, check_output, rendered_route
 
     check_output(args.out, args.overwrite)  # before a route is rendered
+    from longslam.io.outputs import check_not_an_input
+
+    check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")
+    from longslam.recording import check_seed
+
+    check_seed(args.seed, "--seed")  # the same range wherever a seed enters
     world = _world(args, args.world)
     if args.sequence is not None:
         camera = [f"--{k[len('camera_'):].replace('_', '-')}" for k, v in vars(args).items() if k.startswith("camera_") and v is not None]
