@@ -642,3 +642,11 @@ def test_vocabulary_build_never_writes_into_its_input_sequence(seq, tmp_path, ca
     assert main(["vocabulary", "build", "--sequence", str(seq), "--out", str(tmp_path / "v.txt"),
                  "--seed", str(2**64)]) == 2
     _one_line_error(capsys, "--seed", "2**63 - 1")
+
+
+def test_orbslam3_refuses_images_it_would_crash_on(seq, tmp_path, capsys):
+    pytest.importorskip("longslam_orbslam3", reason="the orbslam3 plugin is not installed")
+    # 16 x 12: ORB-SLAM3 itself stopped with "vector::_M_default_append" (or a segfault) on such images
+    assert main(["run", "--method", "orbslam3", str(seq), "--out", str(tmp_path / "run")]) == 2
+    _one_line_error(capsys, "16 x 12 images are too small for ORB-SLAM3", "at least 120 pixels")
+    assert not (tmp_path / "run").exists()
