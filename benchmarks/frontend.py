@@ -72,7 +72,7 @@ def wrong_loops(reader: SequenceReader, constraints: list, camera_height: float)
 
 def run_method(path: Path, method: str, frontend: str) -> dict:
     reader = SequenceReader(path)
-    m = create_method(method, MethodContext(reader.intrinsics, reader.max_depth, None), {"frontend": frontend})
+    m = create_method(method, MethodContext(reader.intrinsics, reader.max_depth, None), {"frontend.mode": frontend})
     t0 = time.perf_counter()
     for frame in reader:
         m.step(frame)

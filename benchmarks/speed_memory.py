@@ -79,7 +79,7 @@ def main() -> None:
         command = [sys.executable, "-m", "longslam.cli", "run", str(seq), "--method", method,
                    "--out", str(work / "runs" / f"{seq.name}-{variant}"), "--overwrite"]
         if frontend:
-            command += ["--param", f"frontend={frontend}"]
+            command += ["--param", f"frontend.mode={frontend}"]
         wall, peak, status = run_process(command, work / f"{seq.name}-{variant}.log")
         if status:
             print(f"{variant:15s} failed (exit {status})")

@@ -32,7 +32,7 @@ def main() -> None:
     parser.add_argument("--noise", default="large")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--indexes", nargs="+", default=["bruteforce", "flat", "hnsw"])
-    parser.add_argument("--frontend", default="wheel", help="keyframe's frontend parameter (wheel: the paper's)")
+    parser.add_argument("--frontend", default="wheel", help="keyframe's frontend.mode parameter (wheel: the paper's)")
     parser.add_argument("--work", default="out/bench-vocabulary")
     args = parser.parse_args()
     work = Path(args.work)
@@ -43,7 +43,7 @@ def main() -> None:
         out = work / "runs" / f"{seq.name}-{index}"
         params = {"vocabulary_index": index}
         if args.frontend:
-            params["frontend"] = args.frontend
+            params["frontend.mode"] = args.frontend
         scores, measured = run_and_score("keyframe", seq, out, params)
         stats = measured["method_stats"]
         times = np.array(stats["node_time_ms"])

@@ -55,3 +55,22 @@ def simulate_in_own_cache(root: Path, route: Route, noise: str, seed: int,
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
         return simulate(route, get_noise(noise), seed, root / name, camera=camera, progress=False)
+
+
+# The slow set: tests that render a route, run a method end to end on one, or start processes
+# (a study, Ray, ORB-SLAM3). `pytest -m "not slow"` is the fast set for the edit-test loop.
+SLOW_MODULES = {
+    "test_frontend", "test_keyframe", "test_maps", "test_orbslam3", "test_own_building", "test_run_safety",
+    "test_simulate", "test_study", "test_submap", "test_tum_layout", "test_viz_live",
+}
+SLOW_TESTS = {
+    "test_a_file_size_limit_names_the_file", "test_named_routes_have_the_papers_lengths",
+    "test_isolated_run_measures_its_own_process", "test_orbslam3_loads_the_vocabulary_and_tracks",
+    "test_a_part_nothing_anchors_is_damped_not_fatal", "test_a_repeated_waypoint_is_driven_through",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.module.__name__.rsplit(".", 1)[-1] in SLOW_MODULES or item.originalname in SLOW_TESTS:
+            item.add_marker(pytest.mark.slow)

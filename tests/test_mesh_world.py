@@ -103,7 +103,7 @@ def test_world_reference_pins_the_content(folder, tmp_path):
 
 
 def test_world_reference_errors(folder, tmp_path):
-    with pytest.raises(InputError, match=r"unknown world 'nowhere'; valid values: a world name \(university\) or a mesh file"):
+    with pytest.raises(InputError, match=r"unknown world 'nowhere'; valid values: a world name \(university, annex\) or a mesh file"):
         world_ref("nowhere")
     with pytest.raises(InputError, match=r"mesh file .*missing.glb does not exist"):
         world_ref("missing.glb", base=tmp_path)

@@ -104,12 +104,16 @@ def test_cli_reports_bad_names_and_files(tmp_path, capsys):
     assert "NaN" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("name, params", [("odometry", {}), ("keyframe", {"frontend": "wheel"}), ("submap", {"frontend": "wheel"})])
-def test_methods_fed_by_odometry_refuse_frames_without_it(name, params):
+@pytest.mark.parametrize("name, params, who", [
+    ("odometry", {}, "the 'odometry' method"),
+    ("keyframe", {"frontend.mode": "wheel"}, "the front end's mode 'wheel'"),
+    ("submap", {"frontend.mode": "wheel"}, "the front end's mode 'wheel'"),
+])
+def test_methods_fed_by_odometry_refuse_frames_without_it(name, params, who):
     intrinsics = Intrinsics.from_fov(16, 12, 90.0)
     method = create_method(name, MethodContext(intrinsics, 8.0), params)
     frame = Frame(7, 0.7, np.zeros((12, 16, 3), np.uint8), np.ones((12, 16), np.float32), None, intrinsics)
-    with pytest.raises(InputError, match=rf"frame 7 \(t=0.700000\) has no odometry pose; the '{name}' method"):
+    with pytest.raises(InputError, match=rf"frame 7 \(t=0.700000\) has no odometry pose; {who} needs a sequence with odometry.txt"):
         method.step(frame)
 
 

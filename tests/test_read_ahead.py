@@ -50,7 +50,7 @@ def test_methods_say_which_images_they_read_every_frame(tiny_sequence, tmp_path)
     reader = SequenceReader(tiny_sequence)
     context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp_path))
     wanted = {
-        (name, frontend): tuple(getattr(create_method(name, context, {"frontend": frontend}), "images_every_frame", ()))
+        (name, frontend): tuple(getattr(create_method(name, context, {"frontend.mode": frontend}), "images_every_frame", ()))
         for name in ("keyframe", "submap") for frontend in ("wheel", "fused")
     }
     assert wanted[("keyframe", "wheel")] == ()  # nodes only: lazy reads

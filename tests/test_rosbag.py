@@ -70,7 +70,7 @@ def test_a_method_gives_the_same_metrics_after_the_round_trip(sequence, tmp_path
     import_bag(tmp_path / "bag", tmp_path / "back")
     scores = []
     for seq in (sequence, tmp_path / "back"):
-        run_sequence("keyframe", seq, tmp_path / f"run-{seq.name}", {"frontend": "wheel"}, progress=False)
+        run_sequence("keyframe", seq, tmp_path / f"run-{seq.name}", {"frontend.mode": "wheel"}, progress=False)
         truth = SequenceReader(seq).ground_truth
         scores.append(score(truth, read_tum(tmp_path / f"run-{seq.name}" / TRAJECTORY)))
     assert scores[0] == scores[1]

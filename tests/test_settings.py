@@ -8,14 +8,15 @@ from longslam.errors import InputError
 from longslam.settings import from_mapping, parse_key_values, to_mapping, to_toml
 from longslam.sim.camera import CameraSettings
 from longslam.sim.follower import FollowerSettings
+from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.keyframe import KeyframeConfig
 from longslam.slam.submap.config import SubmapConfig
 
 
 def test_values_from_the_command_line_and_toml_get_the_fields_types():
-    config = from_mapping(KeyframeConfig, parse_key_values(["max_features=500", "proximity=off", "camera_height=1.3"]), "keyframe")
-    assert (config.max_features, config.proximity, config.camera_height) == (500, False, 1.3)
-    assert from_mapping(KeyframeConfig, {"camera_height": "none"}, "keyframe").camera_height is None
+    config = from_mapping(KeyframeConfig, parse_key_values(["max_features=500", "proximity=off", "frontend.camera_height=1.3"]), "keyframe")
+    assert (config.max_features, config.proximity, config.frontend.camera_height) == (500, False, 1.3)
+    assert from_mapping(KeyframeConfig, {"frontend.camera_height": "none"}, "keyframe").frontend.camera_height is None
     assert from_mapping(CameraSettings, {"width": 64.0, "hfov_deg": "60"}, "camera") == CameraSettings(width=64, hfov_deg=60.0)
 
 
@@ -41,7 +42,10 @@ def test_unknown_keys_list_the_valid_ones_and_ranges_are_the_configs_own():
         parse_key_values(["voxel_size"])
 
 
-@pytest.mark.parametrize("config", [KeyframeConfig(max_features=300, camera_height=None), SubmapConfig(loop_closure=True)])
+@pytest.mark.parametrize("config", [
+    KeyframeConfig(max_features=300, frontend=FrontEndConfig(mode="wheel", camera_height=1.3)),
+    SubmapConfig(loop_closure=True, frontend_registrations=False),
+])
 def test_a_config_written_as_toml_reads_back_the_same(config):
     text = to_toml({"params": to_mapping(config)})
     back = from_mapping(type(config), tomllib.loads(text)["params"], "back")

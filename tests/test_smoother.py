@@ -5,7 +5,9 @@ import numpy as np
 
 from longslam.geometry import compose_xyyaw as compose
 from longslam.geometry import relative_xyyaw as relative
-from longslam.slam.frontend.smoother import FullSmoother, MotionNoise, SmootherConfig, WheelStep
+from longslam.slam.frontend.filter import MotionNoise
+from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
+from longslam.slam.graph.factors import WheelStep
 
 
 def _smoother(frames: int = 80, seed: int = 3) -> tuple[FullSmoother, np.ndarray]:
@@ -38,7 +40,8 @@ def _smoother(frames: int = 80, seed: int = 3) -> tuple[FullSmoother, np.ndarray
 def test_our_optimizer_reaches_gtsams_levenberg_marquardt_minimum():
     smoother, truth = _smoother()
     ours = smoother.solve()
-    graph, values, _ = smoother.build_graph()
+    built = smoother.build_graph()
+    graph, values = built.graph, built.values
     params = gtsam.LevenbergMarquardtParams()
     params.setRelativeErrorTol(1e-9)
     params.setMaxIterations(100)
@@ -60,7 +63,8 @@ def test_a_part_nothing_anchors_is_damped_not_fatal():
     for k, rec in enumerate(smoother.records):
         if rec.scan is not None and rec.scan[0] <= 40 < k:
             rec.scan = None
-    graph, values, _ = smoother.build_graph()
+    built = smoother.build_graph()
+    graph, values = built.graph, built.values
     try:
         graph.linearize(values).optimize()
         singular = False

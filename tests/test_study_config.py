@@ -60,7 +60,7 @@ def test_shipped_study_files_load():
     assert [r.name for r in paper.routes] == ["paper-300m", "paper-1km"]
     assert paper.noise == ("small", "medium", "large", "xlarge") and paper.seeds == (0, 1, 2, 3, 4)
     # Both front ends run: the methods' default (fused) and the paper's wheel-only configuration.
-    wheel = {m.label: m for m in paper.methods if m.params.get("frontend") == "wheel"}
+    wheel = {m.label: m for m in paper.methods if m.params.get("frontend.mode") == "wheel"}
     assert {"keyframe-wheel", "submap-wheel"} <= set(wheel)
     assert {wheel["keyframe-wheel"].method, wheel["submap-wheel"].method} == {"keyframe", "submap"}
 

@@ -14,10 +14,12 @@ from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.routes import Route
 from longslam.slam.api import MethodContext
 from longslam.slam.catalog import check_params, create_method
+from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.method import SubmapMethod
 from longslam.slam.submap.registration import register
-from longslam.slam.submap.tsdf import BLOCK, TSDF, group_cells, pack, unpack
+from longslam.geometry.cells import group_cells_3d, pack_3d, unpack_3d
+from longslam.slam.submap.tsdf import BLOCK, TSDF
 from longslam.world import get_world
 from conftest import simulate_in_own_cache
 
@@ -34,6 +36,9 @@ def hall_sequences(tmp_path_factory):
     return SequenceReader(exact), SequenceReader(noisy)
 
 
+WHEEL = {"frontend.mode": "wheel"}  # the paper's configuration: motion from the wheel odometry alone
+
+
 def run(reader: SequenceReader, frames=None, **params):
     method = create_method("submap", MethodContext(reader.intrinsics, reader.max_depth, None), params)
     poses = [method.step(f) for f in (frames if frames is not None else reader)]
@@ -46,9 +51,9 @@ def test_group_cells_is_np_unique_of_the_packed_keys(spread):
     rng = np.random.default_rng(3)
     ijk = rng.integers(-spread, spread, size=(5000, 3))
     ijk[1::2] = ijk[rng.integers(0, len(ijk), size=len(ijk) // 2)]  # repeats across the array
-    (i, j, k), inverse = group_cells(ijk[:, 0], ijk[:, 1], ijk[:, 2])
-    keys, expected_inverse = np.unique(pack(ijk), return_inverse=True)
-    np.testing.assert_array_equal(np.column_stack([i, j, k]), unpack(keys))
+    (i, j, k), inverse = group_cells_3d(ijk[:, 0], ijk[:, 1], ijk[:, 2])
+    keys, expected_inverse = np.unique(pack_3d(ijk), return_inverse=True)
+    np.testing.assert_array_equal(np.column_stack([i, j, k]), unpack_3d(keys))
     np.testing.assert_array_equal(inverse, expected_inverse)
 
 
@@ -156,7 +161,7 @@ def test_method_gives_a_pose_per_frame_a_grid_and_stats(hall_sequences, tmp_path
 def test_without_noise_the_trajectory_is_the_odometry(hall_sequences):
     exact, _ = hall_sequences
     # The paper's configuration: motion from the wheel odometry alone.
-    _, _, result = run(exact, registration=False, frontend="wheel")
+    _, _, result = run(exact, registration=False, **WHEEL)
     np.testing.assert_allclose(result.trajectory.poses, exact.odometry.poses, atol=1e-9)
 
 
@@ -165,8 +170,8 @@ def test_registration_lowers_the_error_on_a_loop(hall_sequences):
     # no rigid registration can undo; over 5 s the submaps are rigid enough to pull the loop in.
     # On the wheel odometry alone (the paper's configuration), so the registration's effect shows.
     _, noisy = hall_sequences
-    _, _, with_registration = run(noisy, submap_interval=5, frontend="wheel")
-    _, _, without = run(noisy, submap_interval=5, registration=False, frontend="wheel")
+    _, _, with_registration = run(noisy, submap_interval=5, **WHEEL)
+    _, _, without = run(noisy, submap_interval=5, registration=False, **WHEEL)
     odometry_ate = ate(noisy.ground_truth, noisy.odometry)
     assert ate(noisy.ground_truth, without.trajectory) == pytest.approx(odometry_ate, rel=1e-6)
     assert with_registration.stats["registrations_accepted"] > 0
@@ -176,7 +181,7 @@ def test_registration_lowers_the_error_on_a_loop(hall_sequences):
 def test_the_fused_front_end_beats_the_wheel_only_configuration(hall_sequences):
     _, noisy = hall_sequences
     _, _, fused = run(noisy, submap_interval=5)
-    _, _, wheel = run(noisy, submap_interval=5, frontend="wheel")
+    _, _, wheel = run(noisy, submap_interval=5, **WHEEL)
     assert fused.stats["frontend"]["mode"] == "fused"
     fused_ate, wheel_ate = ate(noisy.ground_truth, fused.trajectory), ate(noisy.ground_truth, wheel.trajectory)
     assert fused_ate < wheel_ate, (fused_ate, wheel_ate)
@@ -219,9 +224,9 @@ def test_bad_parameters_are_input_errors():
         check_params("submap", {"voxel_size": "inf"})
     config = check_params("submap", {"voxel_size": "0.1", "loop_closure": "true", "registration_min_points": 50.0})
     assert (config.voxel_size, config.loop_closure, config.registration_min_points) == (0.1, True, 50)
-    with pytest.raises(InputError, match="frontend"):
-        check_params("submap", {"frontend": "magic"})
-    method = SubmapMethod(context, SubmapConfig(frontend="wheel"))
+    with pytest.raises(InputError, match="front end: mode must be one of fused, wheel"):
+        check_params("submap", {"frontend.mode": "magic"})
+    method = SubmapMethod(context, SubmapConfig(frontend=FrontEndConfig(mode="wheel")))
     frame = Frame(0, 0.0, np.zeros((48, 64, 3), np.uint8), np.zeros((48, 64), np.float32), None, context.intrinsics)
     with pytest.raises(InputError, match="odometry"):
         method.step(frame)
@@ -237,6 +242,23 @@ def test_group_cells_2d_is_np_unique_of_the_64_bit_key(low, high):
     np.testing.assert_array_equal(i, keys >> 32)
     np.testing.assert_array_equal(j, (keys & 0xFFFFFFFF).astype(np.uint32).astype(np.int32))
     np.testing.assert_array_equal(inverse, expected_inverse)
+
+
+@pytest.mark.parametrize("spread", [0.3, 400.0])  # a dense box of voxels, a sparse one (sort)
+def test_cell_averages_are_the_sorted_groups_means_to_the_bit(spread):
+    from longslam.geometry.cells import average_2d, average_3d
+
+    points = np.random.default_rng(1).uniform(-spread, spread, size=(4000, 3))
+    for average, dims, cell in ((average_3d, 3, 0.05), (average_2d, 2, 0.05)):
+        xyz = points[:, :dims]
+        index = np.floor(xyz / cell).astype(np.int64)
+        # The reference: the sort of each grouping's key (3D: rows, as the packed keys order them;
+        # 2D: the 64-bit key of i and j's unsigned low half), sums in point order.
+        keys = index if dims == 3 else (index[:, 0] << 32) + (index[:, 1] & 0xFFFFFFFF)
+        _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        inverse = inverse.reshape(-1)
+        expected = np.column_stack([np.bincount(inverse, weights=xyz[:, a]) for a in range(dims)]) / counts[:, None]
+        np.testing.assert_array_equal(average(xyz, cell), expected)
 
 
 def test_fusing_with_release_gives_the_same_map_and_empties_the_submaps():

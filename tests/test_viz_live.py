@@ -36,8 +36,8 @@ def turning(tmp_path_factory) -> Path:
 
 
 def test_a_run_recorded_to_rrd(turning, tmp_path):
-    plain = run_sequence("keyframe", turning, tmp_path / "plain", {"frontend": "wheel"}, progress=False)
-    shown = run_sequence("keyframe", turning, tmp_path / "shown", {"frontend": "wheel"}, progress=False,
+    plain = run_sequence("keyframe", turning, tmp_path / "plain", {"frontend.mode": "wheel"}, progress=False)
+    shown = run_sequence("keyframe", turning, tmp_path / "shown", {"frontend.mode": "wheel"}, progress=False,
                          viz=str(tmp_path / "run.rrd"))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plain", "run.rrd", "shown"]  # no partial left
     # the view changes nothing in the run, and its cost is measured apart

@@ -424,7 +424,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("vocabulary", help="ORB vocabularies (DBoW2 text format) for ORB-SLAM3")
-    vocabulary = p.add_subparsers(dest="vocabulary_command", required=True)
+    vocabulary = p.add_subparsers(dest="vocabulary_command", required=True, metavar="build")
     p = vocabulary.add_parser("build", help="build a DBoW2 ORB vocabulary from a route's or a sequence's frames")
     given = p.add_mutually_exclusive_group(required=True)
     given.add_argument("--route", help="route name (see `longslam list`) or a waypoint file; rendered if not cached")

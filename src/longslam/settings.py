@@ -76,6 +76,12 @@ def convert(raw: Any, kind: Any, optional: bool = False) -> Any:
         if not isinstance(raw, (str, int, float)) or isinstance(raw, bool):
             raise ValueError("expected a string")
         return str(raw)
+    if typing.get_origin(kind) is tuple:
+        # A fixed-length tuple (tuple[float, float, float]): a list from TOML or JSON.
+        items = typing.get_args(kind)
+        if not isinstance(raw, (list, tuple)) or len(raw) != len(items):
+            raise ValueError(f"expected a list of {len(items)} values")
+        return tuple(convert(value, item) for value, item in zip(raw, items))
     raise ValueError(f"fields of type {kind!r} cannot be set from text")
 
 
@@ -148,17 +154,26 @@ def _toml_value(value: Any) -> str:
     raise TypeError(f"no TOML form for {value!r}")
 
 
+def _toml_lines(table: Mapping[str, Any], prefix: str = "") -> list[str]:
+    lines = []
+    for key, value in table.items():
+        if isinstance(value, Mapping):  # a nested config: dotted keys, as `--param` spells them
+            lines.extend(_toml_lines(value, f"{prefix}{key}."))
+        elif value is None:
+            lines.append(f"# {prefix}{key}: not set (default)")
+        else:
+            lines.append(f"{prefix}{key} = {_toml_value(value)}")
+    return lines
+
+
 def to_toml(tables: Mapping[str, Mapping[str, Any]]) -> str:
-    """TOML text of named tables of plain values; None values are left out (TOML has no null),
-    and a comment says so, so reading the file back gives the default for them."""
+    """TOML text of named tables of plain values, a nested table as dotted keys; None values are
+    left out (TOML has no null), and a comment says so, so reading the file back gives the
+    default for them."""
     lines: list[str] = []
     for name, table in tables.items():
         lines.append(f"[{name}]")
-        for key, value in table.items():
-            if value is None:
-                lines.append(f"# {key}: not set (default)")
-            else:
-                lines.append(f"{key} = {_toml_value(value)}")
+        lines.extend(_toml_lines(table))
         lines.append("")
     return "\n".join(lines)
 

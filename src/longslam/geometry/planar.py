@@ -119,9 +119,9 @@ class CameraMount:
 
     @classmethod
     def from_first_pose(cls, camera_pose: np.ndarray, camera_height: float | None = None) -> "CameraMount":
-        """The mount seen from the first odometry pose; `camera_height` (0 or None: infer) overrides."""
+        """The mount seen from the first odometry pose; `camera_height` (None: infer) overrides."""
         z = float(np.asarray(camera_pose)[2, 3])
-        height = camera_height or z
+        height = z if camera_height is None else camera_height
         return cls(float(height), z - float(height))
 
     @property

@@ -54,9 +54,3 @@ def tum_from_poses(poses: np.ndarray) -> np.ndarray:
     quat = Rotation.from_matrix(poses[:, :3, :3]).as_quat()
     quat[quat[:, 3] < 0] *= -1.0
     return np.column_stack([poses[:, :3, 3], quat])
-
-
-def rotation_angle(rotations: np.ndarray) -> np.ndarray:
-    """Rotation angle in radians of (..., 3, 3) rotation matrices."""
-    trace = np.trace(np.asarray(rotations), axis1=-2, axis2=-1)
-    return np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0))

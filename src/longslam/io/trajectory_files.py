@@ -101,12 +101,3 @@ def write_tum(path: str | Path, trajectory: Trajectory) -> None:
 def write_kitti(path: str | Path, trajectory: Trajectory) -> None:
     rows = trajectory.poses[:, :3, :4].reshape(-1, 12)
     write_text_atomic(path, "".join(" ".join(f"{v:.9e}" for v in row) + "\n" for row in rows))
-
-
-def write_trajectory(path: str | Path, trajectory: Trajectory, fmt: str = TUM) -> None:
-    if fmt == TUM:
-        write_tum(path, trajectory)
-    elif fmt == KITTI:
-        write_kitti(path, trajectory)
-    else:
-        raise InputError(f"unknown trajectory format {fmt!r}; valid formats: {TUM}, {KITTI}")

@@ -30,7 +30,7 @@ from longslam.run.folder import write_result
 from longslam.run.observer import RunObserver
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.settings import to_mapping
-from longslam.slam.api import Closable, MethodContext, Result
+from longslam.slam.api import Closable, MethodContext, Result, images_every_frame
 from longslam.slam.catalog import get_spec
 
 RSS_SAMPLE_EVERY = 50  # frames between samples of resident memory
@@ -81,7 +81,7 @@ def _run_method(method_name: str, spec: Any, config: Any, frames: Iterable[Frame
 def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterable[Frame], context: MethodContext,
           params: dict[str, Any] | None, total: int | None, progress: bool, observer: RunObserver | None,
           baseline_rss: int) -> tuple[Result, dict[str, Any]]:
-    wanted = set(getattr(method, "images_every_frame", ())) | set(getattr(observer, "images_every_frame", ()))
+    wanted = set(images_every_frame(method)) | set(getattr(observer, "images_every_frame", ()))
     images = tuple(name for name in IMAGES if name in wanted)
     if images:
         frames = read_ahead(frames, images)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -18,6 +18,9 @@ from longslam.frame import Frame, Intrinsics
 from longslam.gridmap import GridMap
 from longslam.settings import from_mapping
 from longslam.trajectory import Trajectory
+
+if TYPE_CHECKING:  # a type only: importing the graph would load GTSAM into every run
+    from longslam.slam.graph import PoseGraph
 
 
 @dataclass
@@ -32,9 +35,15 @@ class Result:
 
 @runtime_checkable
 class Method(Protocol):
-    """A SLAM method. It may also set `images_every_frame`, the images ("rgb", "depth") that `step`
-    looks at in every frame: the run engine then decodes them for the next frames on a second
-    thread while the method works (run/read_ahead.py). Without it, images are read when used."""
+    """A SLAM method. Two more parts are optional, read through the functions below (a method
+    without them gets their defaults):
+
+    - `images_every_frame: tuple[str, ...]`, the images ("rgb", "depth") that `step` looks at in
+      every frame: the run engine then decodes them for the next frames on a second thread while
+      the method works (run/read_ahead.py). Default (): images are read when used.
+    - `graph: PoseGraph | None`, the method's pose graph: the live view draws its loop and
+      registration edges. Default None.
+    """
 
     name: str
 
@@ -55,6 +64,16 @@ class Closable(Protocol):
 
     def close(self) -> None:
         ...
+
+
+def images_every_frame(method: Method) -> tuple[str, ...]:
+    """The images the method's `step` reads in every frame (see `Method`)."""
+    return tuple(getattr(method, "images_every_frame", ()))
+
+
+def pose_graph(method: Method) -> PoseGraph | None:
+    """The method's pose graph, or None if it keeps none (see `Method`)."""
+    return getattr(method, "graph", None)
 
 
 @dataclass(frozen=True)
@@ -85,8 +104,8 @@ def frame_odometry(frame: Frame, method: str) -> np.ndarray:
 class MethodSpec:
     """A method under its name: its parameters' dataclass and how to build it from a config.
 
-    `config_type` None means the method takes its parameters as a plain dict (a third-party
-    factory `make_method(context, params)` from before specs existed).
+    `config_type` None means the method takes its parameters as a plain dict: `build` gets the
+    user's values as they are, unchecked.
     """
 
     name: str

@@ -1,7 +1,7 @@
 """A run shown live in a rerun viewer, or recorded to a .rrd file (`longslam run ... --viz`).
 
 An observer of the run engine (`run/observer.py`): it sees each frame and the pose the method
-returned, and reads a method's public `graph` (a `slam.graph.PoseGraph`) for its loop
+returned, and reads a method's pose graph (`slam.api.pose_graph`, part of the method interface) for its loop
 constraints; the methods know nothing of it. rerun (the optional extra `longslam[viz]`) is
 imported only here, when a view is asked for.
 
@@ -33,7 +33,8 @@ from longslam.frame import Frame
 from longslam.io.atomic import rename_no_replace
 from longslam.io.partials import partial_path
 from longslam.slam.api import MethodContext, Result
-from longslam.slam.graph import ODOMETRY, PoseGraph
+from longslam.slam.api import pose_graph
+from longslam.slam.graph import ODOMETRY
 from longslam.timestamps import nearest_indices
 from longslam.trajectory import Trajectory
 
@@ -236,8 +237,8 @@ class LiveView:
     def _log_loops(self, method: Any) -> None:
         """Constraints of the method's pose graph other than odometry, between its nodes' latest
         estimates (planar poses, drawn at the camera's height)."""
-        graph = getattr(method, "graph", None)
-        if not isinstance(graph, PoseGraph) or not self._estimate:
+        graph = pose_graph(method)
+        if graph is None or not self._estimate:
             return
         z = float(self._estimate[-1][2])
         strips, colors = [], []

@@ -77,11 +77,13 @@ def _int(field: str, where: str, name: str) -> int:
         raise InputError(f"{where}: {name} {field!r} is not an integer") from None
 
 
-def read_vocabulary(path: str | Path) -> Vocabulary:
+def read_vocabulary(path: str | Path, final_newline: bool = False) -> Vocabulary:
     """Read a DBoW2 text vocabulary of ORB descriptors, checking what ORB-SLAM3's loader needs.
 
-    Raises InputError naming the file and line for anything the loader would refuse or misread,
-    a final newline included.
+    Raises InputError naming the file and line for anything the loader would refuse or misread.
+    A final newline is refused unless `final_newline`: ORB-SLAM3's own ORBvoc.txt, written by
+    `saveToTextFile`, has one, and ORB-SLAM3 copes with the broken node it makes of it (a leaf
+    by its lack of children but no word, so features that reach it are dropped).
     """
     path = Path(path)
     try:
@@ -90,6 +92,8 @@ def read_vocabulary(path: str | Path) -> Vocabulary:
         raise InputError(f"vocabulary {path} does not exist") from None
     except (OSError, UnicodeDecodeError) as err:
         raise InputError(f"vocabulary {path} cannot be read: {err}") from None
+    if text.endswith("\n") and final_newline:
+        text = text[:-1]
     if text.endswith("\n"):
         raise InputError(f"vocabulary {path} ends with a newline, which ORB-SLAM3's text loader reads "
                          "as one more, broken, node; remove the final newline")

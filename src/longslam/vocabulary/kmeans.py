@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-# Rows compared at once: an XOR block of CHUNK x k x 32 bytes stays a few tens of MB.
-CHUNK = 1 << 16
+# Rows compared at once: the XOR and count blocks of CHUNK x k stay a few MB.
+CHUNK = 1 << 15
 
 _POPCOUNT = np.array([bin(i).count("1") for i in range(256)], dtype=np.uint8)
 _HAS_BITWISE_COUNT = hasattr(np, "bitwise_count")  # numpy >= 2.0
@@ -35,11 +35,16 @@ def check_descriptors(descriptors: np.ndarray, what: str = "descriptors") -> np.
     return np.ascontiguousarray(array)
 
 
-def _popcount_words(x: np.ndarray) -> np.ndarray:
-    """Set bits of each uint64, summed over the last axis."""
-    if _HAS_BITWISE_COUNT:
-        return np.bitwise_count(x).sum(axis=-1, dtype=np.int32)
-    return _POPCOUNT[x.view(np.uint8)].sum(axis=-1, dtype=np.int32)
+def xor_popcount(a64: np.ndarray, b64: np.ndarray) -> np.ndarray:
+    """Hamming distances of descriptors viewed as uint64 words, broadcast over all but the last
+    axis: a64 (..., W) against b64 (..., W) gives (...) uint16."""
+    shape = np.broadcast_shapes(a64.shape[:-1], b64.shape[:-1])
+    total = np.zeros(shape, dtype=np.uint16)
+    # Word by word: a sum over the short last axis is numpy's slow case (1.8x slower here).
+    for w in range(a64.shape[-1]):
+        x = a64[..., w] ^ b64[..., w]
+        total += np.bitwise_count(x) if _HAS_BITWISE_COUNT else _POPCOUNT[x.view(np.uint8)].reshape(*x.shape, 8).sum(axis=-1, dtype=np.uint16)
+    return total
 
 
 def hamming(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -49,13 +54,16 @@ def hamming(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     out = np.empty((len(a64), len(b64)), dtype=np.int32)
     for start in range(0, len(a64), CHUNK):
         block = a64[start:start + CHUNK]
-        out[start:start + len(block)] = _popcount_words(block[:, None, :] ^ b64[None, :, :])
+        out[start:start + len(block)] = xor_popcount(block[:, None, :], b64[None, :, :])
     return out
 
 
 def _nearest(descriptors: np.ndarray, centres: np.ndarray) -> np.ndarray:
     """Index of each descriptor's nearest centre (the first on a tie, as DBoW2's strict '<')."""
-    return np.argmin(hamming(descriptors, centres), axis=1)
+    out = np.empty(len(descriptors), dtype=np.int64)
+    for start in range(0, len(descriptors), CHUNK):  # never the whole (n, k) distance matrix
+        out[start:start + CHUNK] = np.argmin(hamming(descriptors[start:start + CHUNK], centres), axis=1)
+    return out
 
 
 def majority(descriptors: np.ndarray) -> np.ndarray:

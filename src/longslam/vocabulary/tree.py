@@ -15,7 +15,7 @@ from functools import cached_property
 
 import numpy as np
 
-from longslam.vocabulary.kmeans import CHUNK, _popcount_words, check_descriptors, kmeans
+from longslam.vocabulary.kmeans import CHUNK, check_descriptors, kmeans, xor_popcount
 
 # DBoW2's enums (BowVector.h): WeightingType {TF_IDF, TF, IDF, BINARY}, ScoringType {L1_NORM,
 # L2_NORM, CHI_SQUARE, KL, BHATTACHARYYA, DOT_PRODUCT}. ORB-SLAM3's ORBvoc.txt uses TF_IDF and L1_NORM.
@@ -90,13 +90,13 @@ class Vocabulary:
         nodes64 = self.descriptors.view(np.uint64)
         children, is_leaf = self.children, self.is_leaf
         out = np.empty(len(descriptors), dtype=np.int64)
-        for start in range(0, len(descriptors), CHUNK // 4):
-            block = descriptors[start:start + CHUNK // 4].view(np.uint64)
+        for start in range(0, len(descriptors), CHUNK):
+            block = descriptors[start:start + CHUNK].view(np.uint64)
             node = np.zeros(len(block), dtype=np.int64)
             active = np.arange(len(block))
             while active.size:
                 kids = children[node[active]]
-                distance = _popcount_words(block[active][:, None, :] ^ nodes64[kids])
+                distance = xor_popcount(block[active][:, None, :], nodes64[kids]).astype(np.int32)
                 distance[kids < 0] = np.iinfo(np.int32).max
                 node[active] = kids[np.arange(len(active)), np.argmin(distance, axis=1)]
                 active = active[~is_leaf[node[active]]]

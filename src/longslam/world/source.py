@@ -21,6 +21,7 @@ from typing import Any
 
 from longslam.errors import InputError
 from longslam.textfile import read_text
+from longslam.world.catalog import WORLDS, get_world
 from longslam.world.external import UNITS, UP_AXES, default_up, load_mesh_world
 from longslam.world.mesh_file import MESH_SUFFIXES
 from longslam.world.world import World
@@ -71,8 +72,6 @@ def world_ref(value: Any, base: Path | None = None, what: str = "world") -> str:
     """The reference of a world given as a registered name, a mesh file's path (relative to
     `base`), or a table {"mesh": path, "floor": z, "units": "mm", "up": "y", "places": file}.
     An existing reference is returned as it is. Errors name `what`."""
-    from longslam.world import WORLDS
-
     if isinstance(value, dict):
         unknown = [k for k in value if k not in OPTION_KEYS]
         if unknown:
@@ -204,8 +203,6 @@ def _resolve(path: str | Path, base: Path | None) -> Path:
 def load_world(ref: str) -> World:
     """The world of a reference: a registered world, or the mesh world after checking that the
     file still holds the content the reference was made from."""
-    from longslam.world import get_world
-
     if not is_mesh_ref(ref):
         return get_world(ref)
     spec = MeshSpec.from_ref(ref)

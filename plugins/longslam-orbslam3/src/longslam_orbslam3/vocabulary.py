@@ -34,21 +34,22 @@ def check_vocabulary_file(path: Path, what: str) -> None:
         raise InputError(f"{what}: {path} has {nodes} node lines; a vocabulary with k = {k} has at least {k}")
 
 
+def _user_file(given: str, what: str, source: str) -> tuple[str, dict[str, Any]]:
+    path = Path(given).expanduser()
+    if not path.is_file():
+        problem = "a folder" if path.is_dir() else "no such file"
+        raise InputError(f"{what}: {problem} (expected a DBoW2 text vocabulary such as ORBvoc.txt)")
+    check_vocabulary_file(path, what)
+    return str(path.resolve()), {"source": source, "path": str(path.resolve())}
+
+
 def resolve_vocabulary(parameter: str) -> tuple[str, dict[str, Any]]:
     """(path, provenance): `--param vocabulary=PATH`, else $PYORBSLAM3_VOCAB, else longslam's default."""
     if parameter:
-        path = Path(parameter).expanduser()
-        if not path.is_file():
-            raise InputError(f"method 'orbslam3': vocabulary={parameter!r}: {'a folder' if path.is_dir() else 'no such file'} (expected a DBoW2 text vocabulary such as ORBvoc.txt)")
-        check_vocabulary_file(path, f"method 'orbslam3': vocabulary={parameter!r}")
-        return str(path.resolve()), {"source": "parameter", "path": str(path.resolve())}
+        return _user_file(parameter, f"method 'orbslam3': vocabulary={parameter!r}", "parameter")
     env = os.environ.get("PYORBSLAM3_VOCAB")
     if env:
-        path = Path(env).expanduser()
-        if not path.is_file():
-            raise InputError(f"PYORBSLAM3_VOCAB={env!r}: {'a folder' if path.is_dir() else 'no such file'} (expected a DBoW2 text vocabulary such as ORBvoc.txt)")
-        check_vocabulary_file(path, f"PYORBSLAM3_VOCAB={env!r}")
-        return str(path.resolve()), {"source": "PYORBSLAM3_VOCAB", "path": str(path.resolve())}
+        return _user_file(env, f"PYORBSLAM3_VOCAB={env!r}", "PYORBSLAM3_VOCAB")
     from longslam.vocabulary import default_vocabulary
 
     path, info = default_vocabulary()

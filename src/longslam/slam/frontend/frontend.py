@@ -11,7 +11,9 @@ Modes:
   registration of the depth band 0.2-1.5 m above the floor. Without wheel odometry in the
   frames it runs on the scans alone with a constant-velocity prediction, and says so in `stats`.
 - "wheel": the wheel odometry alone, with steps no robot makes in one frame (jumps) replaced by
-  no motion; the paper's configuration, and exactly what the keyframe method did before.
+  no motion; the paper's configuration. It needs odometry in every frame. The final trajectory
+  is the online one until a method adds loops; then the smoother spreads their corrections
+  over the frames, trusting the wheel steps as given (no bias states).
 """
 
 from __future__ import annotations
@@ -32,7 +34,10 @@ from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
 from longslam.slam.frontend.visual import VisualConfig, VisualOdometry
-from longslam.slam.frontend.smoother import BiasFilter, FullSmoother, MotionNoise, SmootherConfig, WheelStep
+from longslam.slam.frontend.visual_gates import GateBounds, VisualGates
+from longslam.slam.frontend.filter import BiasFilter, MotionNoise
+from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
+from longslam.slam.graph.factors import WheelStep
 
 relative = relative_xyyaw
 
@@ -44,7 +49,9 @@ TRANSLATING_STEP = 1e-4
 @dataclass(frozen=True)
 class FrontEndConfig:
     mode: str = "fused"
-    camera_height: float | None = None  # m; default: the first odometry pose's z, else 1.25
+    # m above the floor; None: the first odometry pose's z (the floor is z = 0), or
+    # `default_camera_height` without odometry.
+    camera_height: float | None = None
     default_camera_height: float = 1.25
     jump_distance: float = 1.0  # m in one frame: a bigger odometry step is a jump, not motion
     jump_angle: float = 0.8  # rad in one frame
@@ -88,6 +95,10 @@ class FrontEndConfig:
             raise InputError("front end: jump_distance and jump_angle must be positive")
         if self.scan_anchor_lag < 1:
             raise InputError("front end: scan_anchor_lag must be at least 1")
+        if self.camera_height is not None and not self.camera_height > 0:
+            raise InputError(f"front end: camera_height must be positive (or none: inferred), got {self.camera_height}")
+        if not self.default_camera_height > 0:
+            raise InputError(f"front end: default_camera_height must be positive, got {self.default_camera_height}")
 
 
 class FrontEnd:
@@ -99,7 +110,7 @@ class FrontEnd:
         self.intrinsics = intrinsics
         self.mount: CameraMount | None = None  # known at the first frame
         self._extract: ScanExtractor | None = None
-        self._visual: VisualOdometry | None = None
+        self._gates: VisualGates | None = None
         self._filter: BiasFilter | None = None
         self._map = LocalMap(self.config.local_map)
         # In "wheel" mode the smoother (used only when loops are added) trusts the wheels as given.
@@ -110,7 +121,6 @@ class FrontEnd:
         self._has_wheels: bool | None = None
         self._online: list[np.ndarray] = []
         self._last_insert: np.ndarray | None = None
-        self._forward_refusals = 0
         self._time = 0.0
         self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0,
                        "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
@@ -137,18 +147,30 @@ class FrontEnd:
         self._time += time.perf_counter() - t0
         return pose.copy()
 
+    @property
+    def images_every_frame(self) -> tuple[str, ...]:
+        """The images `step` reads on every frame: none on wheels alone (a method may read them
+        lazily for its own keyframes), colour and depth when fused."""
+        return ("rgb", "depth") if self.config.mode == "fused" else ()
+
     def _start(self, frame: Frame) -> None:
         cfg = self.config
+        if frame.odometry is None and cfg.mode == "wheel":
+            raise InputError(f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the front end's "
+                             f"mode 'wheel' needs a sequence with odometry.txt (mode 'fused' runs without)")
         if frame.odometry is not None:
             self.mount = CameraMount.from_first_pose(np.asarray(frame.odometry, dtype=np.float64), cfg.camera_height)
-            # The same jump filter as the methods always had: the "wheel" mode is exactly it.
             self._wheels = PlanarOdometry(self.mount, cfg.jump_distance, cfg.jump_angle)
         else:
-            self.mount = CameraMount(cfg.camera_height or cfg.default_camera_height, 0.0)
+            self.mount = CameraMount(cfg.default_camera_height if cfg.camera_height is None else cfg.camera_height, 0.0)
             self._odom = np.zeros(3)  # a sequence without odometry starts at the origin
         self._extract = ScanExtractor(self.intrinsics, self.mount.camera_in_base, cfg.scan)
+        tracker = None
         if cfg.visual and cfg.mode == "fused":
-            self._visual = VisualOdometry(self.intrinsics, self.mount.camera_in_base, cfg.visual_tracking)
+            tracker = VisualOdometry(self.intrinsics, self.mount.camera_in_base, cfg.visual_tracking)
+        self._gates = VisualGates(tracker, GateBounds(
+            cfg.visual_gate_distance, cfg.visual_gate_angle, cfg.visual_gate_sigmas, cfg.visual_max_bias,
+            cfg.visual_bias_reset_after, cfg.noise.bias_forward_reset, cfg.use_bias), self.counts)
         self._filter = BiasFilter(np.zeros(3), cfg.noise, use_bias=cfg.use_bias and bool(self._has_wheels))
 
     @property
@@ -164,7 +186,7 @@ class FrontEnd:
         self._odom = self._wheels.update(np.asarray(frame.odometry, dtype=np.float64))
         self.counts["odometry_jumps"] = self._wheels.jumps
         if previous is None:
-            self._filter.state[:3] = self._odom
+            self._filter.place(self._odom)
             return None
         delta = relative(previous, self._odom)
         return WheelStep(float(delta[0]), float(delta[1]), float(delta[2]), abs(delta[0]) > TRANSLATING_STEP)
@@ -184,9 +206,10 @@ class FrontEnd:
         if wheel is not None:
             bias = flt.bias if cfg.use_bias else np.zeros(2)
             expected = np.array([wheel.forward - (bias[0] if wheel.moving else 0.0), wheel.lateral, wheel.yaw - bias[1]])
-            bias_var = flt.cov[3, 3] if cfg.use_bias else 0.0
+            bias_var = flt.forward_bias_variance if cfg.use_bias else 0.0
             flt.predict_wheel(wheel)
-            visual = self._gated_wheel_visual(frame, wheel, expected, bias_var, vis_sigmas)
+            visual = self._gates.against_wheels(frame, wheel, expected, bias_var, self._wheel_variances(wheel)[0],
+                                                vis_sigmas[0], flt)
             if visual is not None and cfg.use_bias:
                 raw = np.array([wheel.forward, wheel.yaw])
                 flt.update_bias(raw - visual[[0, 2]], self._wheel_variances(wheel) + vis_sigmas[[0, 2]] ** 2, wheel.moving)
@@ -194,16 +217,16 @@ class FrontEnd:
             # No wheels: the visual step where it tracks, else the last step again (constant
             # velocity), loosely.
             cv = relative(self._online[-2], self._online[-1]) if k > 1 else np.zeros(3)
-            visual = self._visual_step(frame, cv, cfg.visual_gate_distance_no_wheels, cfg.visual_gate_angle_no_wheels,
-                                       ransac=True)
+            visual = self._gates.against_prediction(frame, cv, cfg.visual_gate_distance_no_wheels,
+                                                    cfg.visual_gate_angle_no_wheels)
             vis_sigmas = np.asarray(cfg.visual_sigmas_no_wheels, dtype=np.float64)
             if visual is not None:
                 flt.predict_step(visual, vis_sigmas)
             else:
                 cv_step = cv
                 flt.predict_constant_velocity(cv_step)
-        elif self._visual is not None:
-            self._visual(frame.rgb, frame.depth, np.zeros(3))  # keeps the first image
+        else:
+            self._gates.first(frame)
         predicted = flt.pose
         scan = self._extract(frame.depth)
         self.counts["scan_points"] += len(scan)
@@ -238,62 +261,6 @@ class FrontEnd:
         n = self.config.noise
         return np.array([(n.forward_min + n.forward_rel * abs(wheel.forward)) ** 2,
                          (n.yaw_min + n.yaw_rel * abs(wheel.yaw)) ** 2])
-
-    def _gated_wheel_visual(self, frame: Frame, wheel: WheelStep, expected: np.ndarray, bias_var: float,
-                            vis_sigmas: np.ndarray) -> np.ndarray | None:
-        """The RGB-D step if it agrees with the wheels: sideways and in heading within fixed gates
-        of the bias-corrected wheel step; forward within `visual_gate_sigmas` of the forward
-        bias's own uncertainty (a Mahalanobis gate), so the gate widens when the bias is unsure.
-
-        The wheels' bias jumps to a new value every few seconds; a fixed gate around the old
-        value would refuse all the evidence of the new one (measured: a 6 cm/frame jump at
-        xlarge left the estimate 3 m off). So after `visual_bias_reset_after` consecutive
-        forward refusals the forward bias's variance is widened and the gate opens.
-        """
-        cfg = self.config
-        if self._visual is None:
-            return None
-        res = self._visual(frame.rgb, frame.depth, expected)
-        if res is None:
-            self.counts["visual_failed"] += 1
-            return None
-        d = res.step - expected
-        if abs(d[1]) > cfg.visual_gate_distance or abs(wrap_angle(d[2])) > cfg.visual_gate_angle:
-            self.counts["visual_refused"] += 1
-            return None
-        if wheel.moving:
-            spread = np.sqrt(bias_var + self._wheel_variances(wheel)[0] + vis_sigmas[0] ** 2)
-            if abs(d[0]) > max(cfg.visual_gate_sigmas * spread, cfg.visual_gate_distance) and self.config.use_bias \
-                    or abs(res.step[0] - wheel.forward) > cfg.visual_max_bias:
-                self.counts["visual_refused"] += 1
-                self._forward_refusals += 1
-                if self._forward_refusals >= cfg.visual_bias_reset_after:
-                    self._filter.widen_forward_bias(cfg.noise.bias_forward_reset)
-                    self.counts["forward_bias_resets"] += 1
-                    self._forward_refusals = 0
-                return None
-        elif abs(d[0]) > cfg.visual_gate_distance:
-            self.counts["visual_refused"] += 1
-            return None
-        self._forward_refusals = 0
-        self.counts["visual_accepted"] += 1
-        return res.step
-
-    def _visual_step(self, frame: Frame, expected: np.ndarray, gate_distance: float, gate_angle: float,
-                     ransac: bool = False) -> np.ndarray | None:
-        """The gated RGB-D step; with `ransac`, fitted without starting from `expected`."""
-        if self._visual is None:
-            return None
-        res = self._visual(frame.rgb, frame.depth, None if ransac else expected)
-        if res is None:
-            self.counts["visual_failed"] += 1
-            return None
-        d = res.step - expected
-        if np.hypot(d[0], d[1]) > gate_distance or abs(wrap_angle(d[2])) > gate_angle:
-            self.counts["visual_refused"] += 1
-            return None
-        self.counts["visual_accepted"] += 1
-        return res.step
 
     # --- loops and the end ---------------------------------------------------------------------
     def add_loop(self, frame_i: int, frame_j: int, delta_xyyaw: np.ndarray, information: np.ndarray) -> None:

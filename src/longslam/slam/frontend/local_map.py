@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from longslam.slam.frontend.scan import cell_average
+from longslam.geometry.cells import average_2d
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class LocalMap:
         if not parts:
             self.points, self.normals, self.tree = np.zeros((0, 2)), np.zeros((0, 2)), None
             return
-        pts = cell_average(np.vstack(parts), cfg.cell)
+        pts = average_2d(np.vstack(parts), cfg.cell)
         k = min(cfg.normal_neighbours, len(pts))
         if k < 3:
             self.points, self.normals, self.tree = np.zeros((0, 2)), np.zeros((0, 2)), None

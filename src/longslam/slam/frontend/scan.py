@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.frame import Intrinsics
-from longslam.geometry.cells import group_cells_2d
+from longslam.geometry.cells import average_2d
 
 
 @dataclass(frozen=True)
@@ -58,15 +58,4 @@ class ScanExtractor:
         xy = z[:, None] * dirs[:, :2] + self._origin[:2]
         r2 = np.einsum("ij,ij->i", xy, xy)
         keep = (r2 >= cfg.min_range ** 2) & (r2 <= cfg.max_range ** 2)
-        return cell_average(xy[keep].astype(np.float64), cfg.cell)
-
-
-def cell_average(xy: np.ndarray, cell: float) -> np.ndarray:
-    """Mean of the points in each `cell`-sized square: (M, 2), M <= N."""
-    if not len(xy):
-        return np.zeros((0, 2))
-    i, j, inverse = group_cells_2d(np.floor(xy[:, 0] / cell).astype(np.int64), np.floor(xy[:, 1] / cell).astype(np.int64))
-    counts = np.bincount(inverse, minlength=len(i))
-    sx = np.bincount(inverse, weights=xy[:, 0], minlength=len(counts))
-    sy = np.bincount(inverse, weights=xy[:, 1], minlength=len(counts))
-    return np.column_stack([sx / counts, sy / counts])
+        return average_2d(xy[keep].astype(np.float64), cfg.cell)

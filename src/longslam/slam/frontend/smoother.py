@@ -1,12 +1,7 @@
-"""The two estimators of the front end over planar poses (x, y, yaw).
+"""The front end's batch estimator over planar poses (x, y, yaw), run at the end.
 
-`BiasFilter` runs online, one frame at a time: an extended Kalman filter over the pose and the
-two wheel biases of the noise model (metres per frame added to the forward step while the
-robot translates; radians per frame added to the heading change), which is the fixed-lag
-smoother of lag one. Its pose feeds the local map and is what `step` returns.
-
-`FullSmoother` runs at the end, over every frame, with GTSAM: the same wheel factors (lateral
-step held tight, the biases as slowly varying states, one per block of frames), the scan-to-map
+`FullSmoother` runs over every frame, as a `slam.graph.FactorGraph`: the wheel factors of the
+online filter (`filter.py`; lateral step held tight, the biases as slowly varying states, one per block of frames), the scan-to-map
 factors (information = the registration's Hessian), and the loop closures a method adds. The
 final trajectory comes from it, so a loop correction spreads as smooth curvature.
 """
@@ -15,217 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import gtsam
 import numpy as np
 
-from longslam.geometry import compose_xyyaw, wrap_angle
-
-X = gtsam.symbol_shorthand.X
-B = gtsam.symbol_shorthand.B
+from longslam.slam.frontend.filter import MotionNoise
+from longslam.slam.graph.factors import FactorGraph, WheelStep
 
 
-@dataclass(frozen=True)
-class MotionNoise:
-    """Per-frame noise of the wheel step and of its biases (stds)."""
-
-    forward_min: float = 0.003  # m
-    forward_rel: float = 0.01  # fraction of the forward step
-    lateral: float = 0.001  # m: wheels do not slip sideways
-    yaw_min: float = 0.0005  # rad
-    yaw_rel: float = 0.01  # fraction of the heading change
-    # Bias random walks per frame: the biases hold for seconds, so they move little per frame,
-    # yet fast enough to follow a new value within a few seconds.
-    bias_forward_walk: float = 0.0008  # m/frame per frame
-    bias_yaw_walk: float = 0.00003  # rad/frame per frame
-    bias_forward_init: float = 0.01  # m/frame
-    bias_forward_reset: float = 0.03  # m/frame, added when the RGB-D steps say the bias jumped
-    bias_yaw_init: float = 0.0005  # rad/frame
-    # Without wheels: a constant-velocity prediction, loose in every direction.
-    cv_forward: float = 0.05  # m
-    cv_lateral: float = 0.02  # m
-    cv_yaw: float = 0.03  # rad
-
-
-@dataclass
-class WheelStep:
-    forward: float
-    lateral: float
-    yaw: float
-    moving: bool
-
-
-class BiasFilter:
-    """EKF over [x, y, yaw, forward bias, yaw bias]."""
-
-    def __init__(self, pose: np.ndarray, noise: MotionNoise, use_bias: bool = True):
-        self.noise = noise
-        self.use_bias = use_bias
-        self.state = np.zeros(5)
-        self.state[:3] = pose
-        self.cov = np.diag([1e-8, 1e-8, 1e-10, noise.bias_forward_init ** 2, noise.bias_yaw_init ** 2])
-
-    @property
-    def pose(self) -> np.ndarray:
-        return self.state[:3].copy()
-
-    @property
-    def bias(self) -> np.ndarray:
-        return self.state[3:].copy()
-
-    def predict_wheel(self, step: WheelStep) -> None:
-        n = self.noise
-        mv = 1.0 if step.moving else 0.0
-        b = self.state[3:] if self.use_bias else np.zeros(2)
-        f, l, dth = step.forward - b[0] * mv, step.lateral, step.yaw - b[1]
-        sigmas = np.array([n.forward_min + n.forward_rel * abs(f), n.lateral, n.yaw_min + n.yaw_rel * abs(dth)])
-        jac_bias = np.array([[-mv, 0.0], [0.0, 0.0], [0.0, -1.0]]) if self.use_bias else np.zeros((3, 2))
-        walk = np.array([n.bias_forward_walk, n.bias_yaw_walk]) if self.use_bias else np.zeros(2)
-        self._predict(np.array([f, l, dth]), sigmas, jac_bias, walk)
-
-    def predict_constant_velocity(self, step: np.ndarray) -> None:
-        n = self.noise
-        self._predict(np.asarray(step, dtype=np.float64), np.array([n.cv_forward, n.cv_lateral, n.cv_yaw]),
-                      np.zeros((3, 2)), np.zeros(2))
-
-    def _predict(self, delta: np.ndarray, sigmas: np.ndarray, jac_bias: np.ndarray, walk: np.ndarray) -> None:
-        th = self.state[2]
-        c, s = np.cos(th), np.sin(th)
-        g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # body step -> world
-        f_mat = np.eye(5)
-        f_mat[0, 2] = -s * delta[0] - c * delta[1]
-        f_mat[1, 2] = c * delta[0] - s * delta[1]
-        f_mat[:3, 3:] = g @ jac_bias
-        q = np.zeros((5, 5))
-        q[:3, :3] = g @ np.diag(sigmas ** 2) @ g.T
-        q[3:, 3:] = np.diag(walk ** 2)
-        self.state[:3] = compose_xyyaw(self.state[:3], delta)
-        self.cov = f_mat @ self.cov @ f_mat.T + q
-
-    def predict_step(self, step: np.ndarray, sigmas: np.ndarray) -> None:
-        """A measured step (e.g. visual) with its stds, when there are no wheels."""
-        self._predict(np.asarray(step, dtype=np.float64), np.asarray(sigmas, dtype=np.float64), np.zeros((3, 2)), np.zeros(2))
-
-    def update_bias(self, residual: np.ndarray, variances: np.ndarray, moving: bool) -> None:
-        """Fuse (wheel step - visual step) in forward and yaw, which measures the two biases.
-
-        The forward part is used only while translating: in place, no forward bias is added.
-        Through the filter's pose-bias covariance the pose moves with the corrected bias.
-        """
-        rows = [0, 1] if moving else [1]
-        h = np.zeros((len(rows), 5))
-        for i, r in enumerate(rows):
-            h[i, 3 + r] = 1.0
-        z = np.asarray(residual, dtype=np.float64)[rows]
-        s = h @ self.cov @ h.T + np.diag(np.asarray(variances)[rows])
-        gain = self.cov @ h.T @ np.linalg.inv(s)
-        self.state += gain @ (z - h @ self.state)
-        self.state[2] = wrap_angle(self.state[2])
-        self.cov = (np.eye(5) - gain @ h) @ self.cov
-        self.cov = 0.5 * (self.cov + self.cov.T)
-
-    def widen_forward_bias(self, std: float) -> None:
-        """The forward bias may have jumped: add `std`^2 to its variance."""
-        self.cov[3, 3] += std ** 2
-
-    def pose_information(self) -> np.ndarray:
-        """Information of the marginal pose (world x, y, yaw): the prior of the registration."""
-        return np.linalg.inv(self.cov[:3, :3])
-
-    def update_pose(self, joint_pose: np.ndarray, scan_hessian: np.ndarray) -> None:
-        """Fuse a scan-to-map result solved jointly with this filter's pose prior.
-
-        The joint optimum z of prior (x, P) and scan term (H) satisfies
-        P^-1 (z - x) + H (z - z_scan) = 0, so H (z_scan - x) = (H + P^-1)(z - x): the scan's
-        information vector is known even where H is singular (along a corridor).
-        """
-        d = np.asarray(joint_pose, dtype=np.float64) - self.state[:3]
-        d[2] = wrap_angle(d[2])
-        info_vec = (scan_hessian + self.pose_information()) @ d
-        lam = np.linalg.inv(self.cov)
-        lam[:3, :3] += scan_hessian
-        cov = np.linalg.inv(lam)
-        cov = 0.5 * (cov + cov.T)
-        self.state += cov[:, :3] @ info_vec
-        self.state[2] = wrap_angle(self.state[2])
-        self.cov = cov
-
-
-LAMBDA_MIN, LAMBDA_MAX, LAMBDA_FACTOR = 1e-5, 1e5, 10.0  # GTSAM's Levenberg-Marquardt defaults
-
-
-def _damped(linear: gtsam.GaussianFactorGraph, dims: dict[int, int], lam: float) -> gtsam.GaussianFactorGraph:
-    """The linear system plus lam * I on every variable (Levenberg-Marquardt's damping)."""
-    damped = linear.clone()
-    root = np.sqrt(lam)
-    for key, dim in dims.items():
-        damped.push_back(gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)))
-    return damped
-
-
-def _optimize(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, dims: dict[int, int],
-              config: "SmootherConfig") -> tuple[gtsam.Values, int]:
-    """Levenberg-Marquardt driven from Python: undamped (Gauss-Newton) steps while they lower the
-    error, damping raised tenfold when a step fails or the system is singular, lowered after
-    each good step. `dims` holds each variable's dimension.
-
-    Not GTSAM's own optimizers: they pass their C++-owned Values to each Python CustomFactor, and
-    pybind11 copies a C++-owned const reference, so every call of every wheel factor copied the
-    whole trajectory and a pass cost O(frames^2): 4.6 s on paper-300m (46 s on paper-1km) against
-    0.65 s here, where the Values stay Python-owned and are passed by reference. Same convergence
-    test as GTSAM's (relative or absolute decrease of the error).
-    """
-    error = graph.error(values)
-    lam = 0.0
-    iteration = 0
-    while iteration < config.iterations:
-        linear = graph.linearize(values)
-        while True:
-            try:
-                system = linear if lam == 0.0 else _damped(linear, dims, lam)
-                candidate = values.retract(system.optimize())
-                new_error = graph.error(candidate)
-            except RuntimeError:  # an indeterminate (or nearly so) system: damp it
-                new_error = np.inf
-            if new_error <= error:
-                break
-            if config.optimizer == "gn" or lam >= LAMBDA_MAX:
-                return values, iteration  # no step lowers the error any more
-            lam = max(lam * LAMBDA_FACTOR, LAMBDA_MIN)
-        iteration += 1
-        decrease = error - new_error
-        values, error = candidate, new_error
-        lam = 0.0 if lam <= LAMBDA_MIN else lam / LAMBDA_FACTOR
-        if decrease <= config.relative_tolerance * (error + decrease) or decrease <= 1e-5:
-            break
-    return values, iteration
-
-
-def _gaussian(information: np.ndarray) -> gtsam.noiseModel.Base:
-    info = 0.5 * (information + information.T) + 1e-6 * np.eye(len(information))
-    return gtsam.noiseModel.Gaussian.Information(info)
-
-
-def _wheel_error(step: WheelStep, this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list | None) -> np.ndarray:
-    keys = this.keys()
-    x1, x2 = values.atPose2(keys[0]), values.atPose2(keys[1])
-    bias = values.atPoint2(keys[2]) if len(keys) > 2 else np.zeros(2)
-    mv = 1.0 if step.moving else 0.0
-    th = step.yaw - bias[1]
-    pred = gtsam.Pose2(step.forward - bias[0] * mv, step.lateral, th)
-    h1, h2 = np.zeros((3, 3), order="F"), np.zeros((3, 3), order="F")
-    delta = x1.between(x2, h1, h2)
-    hp, hd = np.zeros((3, 3), order="F"), np.zeros((3, 3), order="F")
-    err = pred.between(delta, hp, hd)
-    e = gtsam.Pose2.Logmap(err)
-    if jacobians is not None:
-        # Logmap's Jacobian is the identity to first order at the small errors met here.
-        jacobians[0] = hd @ h1
-        jacobians[1] = hd @ h2
-        if len(keys) > 2:
-            c, s = np.cos(th), np.sin(th)
-            dpred_dbias = np.array([[-mv * c, 0.0], [mv * s, 0.0], [0.0, -1.0]])
-            jacobians[2] = hp @ dpred_dbias
-    return e
+# Added to a scan's or loop's information: a registration's Hessian is singular along a corridor.
+INFORMATION_RIDGE = 1e-6
 
 
 @dataclass
@@ -242,7 +34,8 @@ class SmootherConfig:
     bias_states: bool = True
     # "lm": Levenberg-Marquardt (Gauss-Newton steps, damped when one fails); "gn": stop there instead.
     optimizer: str = "lm"
-    # Measured on paper-300m xlarge seed 2 (with GTSAM's own optimizer, before `_optimize`):
+    # Measured on paper-300m xlarge seed 2 (with GTSAM's own optimizer, not the loop of
+    # slam/graph/solver.py):
     # 1e-5 took 27 iterations for ATE 0.567 m; 3e-4 takes 5 for 0.580 m. Without bias states
     # 0.590 m.
     relative_tolerance: float = 3e-4
@@ -259,7 +52,7 @@ class _Record:
 
 
 class FullSmoother:
-    """Batch smoother over every frame: a GTSAM factor graph, solved by `_optimize`."""
+    """Batch smoother over every frame: a factor graph of slam/graph, solved by its solver loop."""
 
     def __init__(self, noise: MotionNoise, config: SmootherConfig | None = None, use_bias: bool = True):
         self.noise = noise
@@ -289,65 +82,53 @@ class FullSmoother:
         n = len(self.initial)
         if n == 0:
             return np.zeros((0, 3))
-        graph, values, dims = self.build_graph()
-        result, self.iterations = _optimize(graph, values, dims, self.config)
-        out = np.empty((n, 3))
-        for k in range(n):
-            p = result.atPose2(X(k))
-            out[k] = (p.x(), p.y(), p.theta())
+        out, self.iterations = self.build_graph().solve(
+            n, iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
+            damping=self.config.optimizer != "gn")
         return out
 
-    def build_graph(self) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, dict[int, int]]:
-        """The factor graph over every frame, its initial values and each variable's dimension."""
+    def build_graph(self) -> FactorGraph:
+        """The factor graph over every frame, with its initial values."""
         n = len(self.initial)
         nz = self.noise
-        graph = gtsam.NonlinearFactorGraph()
-        values = gtsam.Values()
+        graph = FactorGraph()
         for k, p in enumerate(self.initial):
-            values.insert(X(k), gtsam.Pose2(*p))
-        graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(*self.initial[0]), gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-4, 1e-4, 1e-5]))))
+            graph.add_pose(k, p)
+        graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
         blocks_used: set[int] = set()
         for k in range(1, n):
             rec = self.records[k]
             if rec.wheel is not None:
                 sig = np.array(rec.wheel_sigmas, dtype=np.float64)
                 sig[1] = min(sig[1], self.config.lateral_sigma)
-                model = gtsam.noiseModel.Diagonal.Sigmas(sig)
-                keys = [X(k - 1), X(k)]
                 step = rec.wheel
                 if self.use_bias and self.config.bias_states:
                     block = (k - 1) // self.config.bias_block
-                    keys.append(B(block))
                     blocks_used.add(block)
-                    graph.add(gtsam.CustomFactor(model, keys, lambda this, v, h, step=step: _wheel_error(step, this, v, h)))
+                    graph.wheel(k - 1, k, step, sig, bias=block)
                 else:
                     # The step corrected by the online filter's biases: a plain GTSAM factor.
                     b = rec.bias if (self.use_bias and rec.bias is not None) else np.zeros(2)
-                    pred = gtsam.Pose2(step.forward - (b[0] if step.moving else 0.0), step.lateral, step.yaw - b[1])
-                    graph.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), pred, model))
+                    corrected = WheelStep(step.forward - (b[0] if step.moving else 0.0), step.lateral, step.yaw - b[1], step.moving)
+                    graph.wheel(k - 1, k, corrected, sig)
             elif rec.cv_step is not None:
-                model = gtsam.noiseModel.Diagonal.Sigmas(np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]))
-                graph.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), gtsam.Pose2(*rec.cv_step), model))
+                graph.between(k - 1, k, rec.cv_step, sigmas=np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]))
             if rec.visual is not None:
                 step, sigmas = rec.visual
-                graph.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), gtsam.Pose2(*step), gtsam.noiseModel.Diagonal.Sigmas(sigmas)))
+                graph.between(k - 1, k, step, sigmas=sigmas)
             if rec.scan is not None:
                 anchor, meas, info = rec.scan
-                graph.add(gtsam.BetweenFactorPose2(X(anchor), X(k), gtsam.Pose2(*meas), _gaussian(info)))
+                graph.between(anchor, k, meas, information=info, ridge=INFORMATION_RIDGE)
         if blocks_used:
             blocks = sorted(blocks_used)
             last = np.zeros(2)
             for b in range(blocks[0], blocks[-1] + 1):
                 last = self.bias_init.get(b, last)
-                values.insert(B(b), gtsam.Point2(*last))
-            graph.add(gtsam.PriorFactorPoint2(B(blocks[0]), gtsam.Point2(0.0, 0.0),
-                                              gtsam.noiseModel.Diagonal.Sigmas(np.array([nz.bias_forward_init, nz.bias_yaw_init]))))
+                graph.add_bias(b, last)
+            graph.prior_bias(blocks[0], np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
             walk = np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
             for b in range(blocks[0], blocks[-1]):
-                graph.add(gtsam.BetweenFactorPoint2(B(b), B(b + 1), gtsam.Point2(0.0, 0.0), gtsam.noiseModel.Diagonal.Sigmas(walk)))
+                graph.bias_walk(b, b + 1, walk)
         for i, j, delta, info in self.loops:
-            graph.add(gtsam.BetweenFactorPose2(X(i), X(j), gtsam.Pose2(*delta), _gaussian(info)))
-        dims = {X(k): 3 for k in range(n)}
-        if blocks_used:
-            dims.update({B(b): 2 for b in range(blocks[0], blocks[-1] + 1)})
-        return graph, values, dims
+            graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
+        return graph

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 from longslam.errors import InputError
-from longslam.slam.frontend.frontend import MODES as FRONTEND_MODES
+from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.place_recognition import WORD_INDEXES
 
 
@@ -86,23 +86,17 @@ class KeyframeConfig:
     obstacle_max_height: float = 1.5
     cloud_voxel: float = 0.05
     cloud_stride: int = 8  # pixel stride of the depth points kept per node for the 3D map
-    # Bad input: a per-frame odometry step beyond these is a jump, not motion.
-    jump_distance: float = 1.0  # m in one frame
-    jump_angle: float = 0.8  # rad in one frame
-    # Spread each graph correction over the frames between two keyframes (False: every frame
-    # hangs on its own keyframe only, and corrections show as jumps at keyframes).
-    interpolate_corrections: bool = True
-    camera_height: float | None = None  # m above the floor; default: the first odometry pose's z
-    # Where each frame's motion comes from (longslam.slam.frontend): "fused" (wheels with their
-    # biases estimated, scan-to-map and gated RGB-D steps; the final trajectory from the
-    # front end's smoother over every frame with the loop closures; runs without odometry.txt)
-    # or "wheel" (the wheel odometry alone: the paper's configuration).
-    frontend: str = "fused"
+    # Where each frame's motion comes from (longslam.slam.frontend), every field a parameter
+    # (`frontend.mode=wheel`, `frontend.camera_height=1.3`...): mode "fused" (wheels with their
+    # biases estimated, scan-to-map and gated RGB-D steps; runs without odometry.txt) or "wheel"
+    # (the wheel odometry alone: the paper's configuration). Either way the final trajectory
+    # comes from the front end's smoother over every frame, with the graph's loop closures.
+    frontend: FrontEndConfig = field(default_factory=FrontEndConfig)
 
     def __post_init__(self) -> None:
         positive = ("detection_rate", "max_features", "max_words", "min_inliers", "grid_cell", "grid_range",
                     "odom_sigma_min", "loop_sigma_linear", "loop_sigma_angular", "optimize_max_error",
-                    "cloud_voxel", "cloud_stride", "grid_stride", "jump_distance", "jump_angle", "loop_candidates")
+                    "cloud_voxel", "cloud_stride", "grid_stride", "loop_candidates")
         for name in positive:
             if not getattr(self, name) > 0:
                 raise InputError(f"method 'keyframe': parameter {name} must be positive, got {getattr(self, name)}")
@@ -120,5 +114,3 @@ class KeyframeConfig:
                              f"got {self.vocabulary_index!r}")
         if self.obstacle_max_height <= self.obstacle_min_height:
             raise InputError("method 'keyframe': obstacle_max_height must exceed obstacle_min_height")
-        if self.frontend not in FRONTEND_MODES:
-            raise InputError(f"method 'keyframe': parameter frontend must be one of {', '.join(FRONTEND_MODES)}, got {self.frontend!r}")

@@ -7,6 +7,7 @@ from collections.abc import Callable
 import numpy as np
 
 from longslam.geometry import CameraMount
+from longslam.geometry.cells import average_3d
 from longslam.gridmap import GridMap
 from longslam.slam.occupancy import GridVotes, LocalGrid
 
@@ -38,19 +39,5 @@ def assemble_maps(
 
 
 def voxel_filter(points: np.ndarray, voxel: float) -> np.ndarray:
-    """One point (the centroid) per occupied voxel.
-
-    Each voxel's three indices are packed into one int64, so finding the occupied voxels is a
-    sort of one integer per point (np.unique over rows would need several times the memory)."""
-    if not len(points):
-        return np.zeros((0, 3), np.float32)
-    points = np.asarray(points, dtype=np.float64)
-    index = np.floor(points / voxel).astype(np.int64)
-    index -= index.min(axis=0)
-    span = index.max(axis=0) + 1
-    keys = (index[:, 0] * span[1] + index[:, 1]) * span[2] + index[:, 2]
-    del index
-    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
-    del keys
-    centroids = np.column_stack([np.bincount(inverse, weights=points[:, k], minlength=len(counts)) for k in range(3)])
-    return (centroids / counts[:, None]).astype(np.float32)
+    """One point (the centroid) per occupied voxel, float32."""
+    return average_3d(points, voxel).astype(np.float32)

@@ -1,11 +1,13 @@
 """The keyframe method: a graph of RGB-D keyframes in the style of RTAB-Map, 3 DoF (x, y, yaw).
 
-Each node keeps its odometry pose, ORB features with their 3D points, a local occupancy grid
-and a few depth points. Consecutive nodes are linked by the wheel odometry; loop closures
+Each frame's motion comes from the shared front end (`longslam.slam.frontend`); a node keeps
+the front end's pose of its frame (its "odometry"), ORB features with their 3D points, a local
+occupancy grid and a few depth points. Consecutive nodes are linked by that odometry; loop closures
 (`loops.py`) come from a visual bag of words over the nodes in working memory and from proximity
 to the current estimate. Nodes beyond the working-memory budget go to a SQLite long-term memory
 (`memory.py`) and come back when a loop closure lands next to them. The maps are assembled at
-the end (`maps.py`). This module is the per-frame loop that joins them.
+the end (`maps.py`), at the nodes' frames' final poses: every frame's pose from the front end's
+smoother with the graph's accepted loop closures. This module is the per-frame loop that joins them.
 """
 
 from __future__ import annotations
@@ -19,11 +21,11 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.geometry import CameraMount, PlanarOdometry, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
+from longslam.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
 from longslam.slam import stats
-from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
+from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.features import Features, extract
-from longslam.slam.frontend import FrontEnd, FrontEndConfig
+from longslam.slam.frontend import FrontEnd
 from longslam.slam.graph import ODOMETRY, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.loops import SOURCES, LoopCloser, counter_names
@@ -57,21 +59,13 @@ class KeyframeMethod:
         vocabulary = Vocabulary(self.config.word_distance, self.config.max_words, self.config.vocabulary_index)
         self.memory = KeyframeMemory(self.config, self.db, vocabulary, self._node_camera_poses, self.counts)
         self.loops: LoopCloser | None = None  # made at the first frame, when the camera mount is known
-        self._mount: CameraMount | None = None
-        self._odometry: PlanarOdometry | None = None
-        # The fused front end gives each frame's motion; "wheel" keeps the odometry path below.
-        self.frontend: FrontEnd | None = None
-        if config.frontend != "wheel":
-            self.frontend = FrontEnd(context.intrinsics, FrontEndConfig(
-                mode=config.frontend, camera_height=config.camera_height,
-                jump_distance=config.jump_distance, jump_angle=config.jump_angle))
-        # The fused front end looks at every frame; on wheels only nodes (~1 Hz) read images.
-        self.images_every_frame = () if self.frontend is None else ("rgb", "depth")
+        self._mount: CameraMount | None = None  # the front end's, known at the first frame
+        self.frontend = FrontEnd(context.intrinsics, config.frontend)
+        # Beyond what the front end reads, only nodes (~1 Hz) read images.
+        self.images_every_frame = self.frontend.images_every_frame
         self._node_frame: dict[int, int] = {}  # node id -> index of the frame it was made at
         self._last_node: Node | None = None
         self._frame_stamps: list[float] = []
-        self._frame_node: list[int] = []
-        self._frame_odom: list[np.ndarray] = []
         self._online: list[np.ndarray] = []
         self._node_seconds: list[float] = []  # time to make each node (features, loops, memory)
 
@@ -87,10 +81,7 @@ class KeyframeMethod:
 
     # --- per frame ---------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
-        if self.frontend is not None:
-            odom = self._frontend_motion(frame)
-        else:
-            odom = self._corrected_odometry(frame_odometry(frame, self.name))
+        odom = self._frontend_motion(frame)
         self.counts[stats.FRAMES] += 1
         if self._is_new_node(frame.timestamp, odom):
             self._node_frame[len(self.nodes)] = len(self._frame_stamps)
@@ -101,8 +92,6 @@ class KeyframeMethod:
         xyyaw = compose_xyyaw(self.graph.estimate(node.id), relative_xyyaw(node.odom, odom))
         pose = self._mount.to_camera(xyyaw[None])[0]
         self._frame_stamps.append(frame.timestamp)
-        self._frame_node.append(node.id)
-        self._frame_odom.append(odom)
         self._online.append(pose)
         return pose
 
@@ -112,15 +101,6 @@ class KeyframeMethod:
         if self._mount is None:
             self._start(self.frontend.mount)
         self.counts[stats.ODOMETRY_JUMPS] = self.frontend.counts["odometry_jumps"]
-        return pose
-
-    def _corrected_odometry(self, camera_pose: np.ndarray) -> np.ndarray:
-        """Planar odometry with jumps (a step no robot makes in one frame) replaced by no motion."""
-        if self._odometry is None:
-            self._start(CameraMount.from_first_pose(camera_pose, self.config.camera_height))
-            self._odometry = PlanarOdometry(self._mount, self.config.jump_distance, self.config.jump_angle)
-        pose = self._odometry.update(camera_pose)
-        self.counts[stats.ODOMETRY_JUMPS] = self._odometry.jumps
         return pose
 
     def _start(self, mount: CameraMount) -> None:
@@ -218,30 +198,6 @@ class KeyframeMethod:
         return np.array([forward, max(cfg.odom_sigma_min, cfg.odom_sigma_lateral * forward), rot])
 
     # --- the end -------------------------------------------------------------------------------
-    def _final_planar_poses(self) -> np.ndarray:
-        """Each frame's odometry relative to its keyframe, composed onto the keyframe's optimised
-        pose. With `interpolate_corrections`, the frame is also placed from the next keyframe
-        and the two are blended by time, so the correction the graph makes between two
-        keyframes is spread over the frames between them instead of landing as a jump."""
-        frame_node = np.array(self._frame_node)
-        frame_odom = np.array(self._frame_odom)
-        stamps = np.array(self._frame_stamps)
-        estimates = {k: self.graph.estimate(k) for k in self.nodes}
-        own = np.array([compose_xyyaw(estimates[k], relative_xyyaw(self.nodes[k].odom, o))
-                        for k, o in zip(frame_node, frame_odom)])
-        if not self.config.interpolate_corrections:
-            return own
-        out = own.copy()
-        last_node = max(self.nodes)
-        for i in np.flatnonzero(frame_node < last_node):
-            current, following = self.nodes[frame_node[i]], self.nodes[frame_node[i] + 1]
-            span = following.stamp - current.stamp
-            w = (stamps[i] - current.stamp) / span if span > 0 else 0.0
-            other = compose_xyyaw(estimates[following.id], relative_xyyaw(following.odom, frame_odom[i]))
-            out[i, :2] = (1.0 - w) * own[i, :2] + w * other[:2]
-            out[i, 2] = wrap_angle(own[i, 2] + w * wrap_angle(other[2] - own[i, 2]))
-        return out
-
     def _frontend_final(self) -> np.ndarray:
         """Every frame's pose from the front end's smoother, with the graph's accepted loop
         closures (node to node) added as constraints between the nodes' frames."""
@@ -257,19 +213,14 @@ class KeyframeMethod:
         if self.graph.num_loops:
             self.graph.optimize(warm_start=True)
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
-        node_estimate = self.graph.estimate
-        if self.frontend is not None:
-            final = self._frontend_final()
-            node_estimate = lambda node_id: final[self._node_frame[node_id]]  # noqa: E731
-        else:
-            final = self._final_planar_poses()
+        final = self._frontend_final()
         poses = self._mount.to_camera(final)
         trajectory = Trajectory(np.array(self._frame_stamps), poses, source="keyframe")
         online = Trajectory(np.array(self._frame_stamps), np.array(self._online), source="keyframe online")
 
         map_bytes = self.memory_bytes()
         census = self.memory.census()
-        grid_map, cloud = assemble_maps(sorted(self.nodes), node_estimate, self.memory.grid_and_points,
+        grid_map, cloud = assemble_maps(sorted(self.nodes), lambda node_id: final[self._node_frame[node_id]], self.memory.grid_and_points,
                                         self._mount, self.config.grid_cell, self.config.cloud_voxel)
 
         # The database ends holding every node at its optimised pose, so a user can reopen it.
@@ -289,8 +240,7 @@ class KeyframeMethod:
             "node_time_ms": [round(1000.0 * t, 3) for t in self._node_seconds],
             "database": str(self.db_path) if self._own_dir is None else None,
         })
-        if self.frontend is not None:
-            run_stats["frontend"] = self.frontend.stats
+        run_stats["frontend"] = self.frontend.stats
         # The database names itself by file name: its folder is still a temporary one while the
         # run is under way (stats.json gets the final path from the run engine).
         self.db.set_statistics({**run_stats, "database": self.db_path.name})

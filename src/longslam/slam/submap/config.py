@@ -7,10 +7,10 @@ or a study file, through `longslam.settings.from_mapping`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from longslam.errors import InputError
-from longslam.slam.frontend.frontend import MODES as FRONTEND_MODES
+from longslam.slam.frontend import FrontEndConfig
 
 
 # Size-like parameters held to ranges that keep a run within a machine's memory: a TSDF's voxels
@@ -35,19 +35,20 @@ class SubmapConfig:
     integration_stride: int = 2  # every n-th pixel in each direction (a 0.1 m footprint at 8 m)
     # Submaps (the paper and Voxgraph: a new submap every 20 s)
     submap_interval: float = 20.0
-    # Camera height above the floor; 0 = the first odometry pose's z (the floor is at z = 0)
-    camera_height: float = 0.0
-    # Where each frame's motion comes from (longslam.slam.frontend): "fused" (wheels with their
-    # biases estimated, scan-to-map and gated RGB-D steps; the final trajectory from the front
-    # end's smoother over every frame with the graph's registration and loop edges; runs without
-    # odometry.txt) or "wheel" (the wheel odometry alone: the paper's configuration).
-    frontend: str = "fused"
+    # Where each frame's motion comes from (longslam.slam.frontend), every field a parameter
+    # (`frontend.mode=wheel`, `frontend.camera_height=1.3`...): mode "fused" (wheels with their
+    # biases estimated, scan-to-map and gated RGB-D steps; runs without odometry.txt) or "wheel"
+    # (the wheel odometry alone: the paper's configuration). Either way the final trajectory comes
+    # from the front end's smoother over every frame, with the submap graph's edges between the
+    # submaps' first frames.
+    frontend: FrontEndConfig = field(default_factory=FrontEndConfig)
     frontend_max_edge_error: float = 3.0  # sigmas: graph edges beyond this stay out of the smoother
-    # Registration edges into the front end's smoother too (loop edges always go). Off: measured
-    # on paper-300m large seed 1, 22 were fed and 2 were off by 0.55 and 0.81 m against ground truth
-    # with a small graph error (a submap of 20 s carries its own drift), and ATE rose from 0.49 m
-    # (front end alone) to 0.56 m; the front end's scan-to-map factors already hold the local geometry.
-    frontend_registrations: bool = False
+    # Registration edges into the front end's smoother (loop edges always go). None: only in
+    # "wheel" mode, where they are the only correction the smoother gets. Off in "fused" mode:
+    # measured on paper-300m large seed 1, 22 were fed and 2 were off by 0.55 and 0.81 m against
+    # ground truth with a small graph error (a submap of 20 s carries its own drift), and ATE rose
+    # from 0.49 m (front end alone) to 0.56 m; the scan-to-map factors already hold the local geometry.
+    frontend_registrations: bool | None = None
     # Registration constraints between finished submaps whose bounding boxes overlap
     registration: bool = True
     registration_sampling_ratio: float = 0.5  # share of the upright iso-surface points used (see README)
@@ -91,7 +92,7 @@ class SubmapConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value <= 0:
                 raise InputError(f"submap parameter {name} must be positive, got {value!r}")
-        for name in ("camera_height", "registration_min_overlap_area", "loop_min_score", "loop_min_age"):
+        for name in ("registration_min_overlap_area", "loop_min_score", "loop_min_age"):
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:
                 raise InputError(f"submap parameter {name} must be >= 0, got {value!r}")
@@ -111,5 +112,3 @@ class SubmapConfig:
             raise InputError(f"robust_kernel must be cauchy, huber or none, got {self.robust_kernel!r}")
         if self.grid_max_height <= self.grid_min_height:
             raise InputError("grid_max_height must exceed grid_min_height")
-        if self.frontend not in FRONTEND_MODES:
-            raise InputError(f"submap parameter frontend must be one of {', '.join(FRONTEND_MODES)}, got {self.frontend!r}")

@@ -11,7 +11,8 @@ import numpy as np
 from longslam.io.ply import vertex_rows, write_ply
 from longslam.memory_release import release_free_memory
 from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
-from longslam.slam.submap.tsdf import BLOCK, TSDF, pack
+from longslam.geometry.cells import pack_3d
+from longslam.slam.submap.tsdf import BLOCK, TSDF
 
 
 def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncation: float, release: bool = False) -> TSDF:
@@ -46,7 +47,7 @@ def _moved_voxels(tsdf: TSDF, pose: np.ndarray) -> Iterator[tuple[np.ndarray, np
 
 def _fused_blocks(points: np.ndarray, voxel: float) -> np.ndarray:
     """Packed keys of the blocks `TSDF.merge` puts these points in."""
-    return np.unique(pack(np.column_stack([np.floor(points[:, a] / voxel).astype(np.int64) >> 4 for a in range(3)])))
+    return np.unique(pack_3d(np.column_stack([np.floor(points[:, a] / voxel).astype(np.int64) >> 4 for a in range(3)])))
 
 
 COMPACT_ROWS = 250_000  # cell rows gathered before duplicates are merged (grid_from_tsdf)

@@ -1,7 +1,7 @@
 """The `submap` method: Voxgraph's design, TSDF submaps in a pose graph.
 
-- Every frame's depth is integrated into the active submap's TSDF at the frame's odometry pose
-  relative to the submap's origin (the robot's floor pose at the submap's first frame).
+- Each frame's motion comes from the shared front end (`longslam.slam.frontend`). Its depth is
+  integrated into the active submap's TSDF at the front end's pose relative to the submap's origin (the robot's floor pose at the submap's first frame).
 - Every `submap_interval` seconds of frame time the active submap is finished and a new one
   starts. A finished submap keeps its compacted TSDF (int8 distances), a sample of its
   iso-surface points for registration and its bounding box; nothing else.
@@ -11,9 +11,11 @@
   result checked before it enters the graph); optionally loop closures from visual place
   recognition (the `place_recognition` module shared with the keyframe method). GTSAM optimises
   it, with a robust kernel on registration and loop edges, whenever a submap is finished.
-- A frame's pose: its pose in its submap (from odometry) composed onto the submap's optimised
-  origin. `step` returns it with the estimate of the moment; `finish` recomputes every frame with
-  the final estimates.
+- A frame's online pose: its pose in its submap (from the front end) composed onto the submap's
+  optimised origin, with the estimate of the moment. The final trajectory: every frame from the
+  front end's smoother, with the graph's loop edges (and registration edges, see
+  `frontend_registrations`) between the submaps' first frames; each submap's origin follows its
+  first frame, so the map moves with the final trajectory.
 - The global map: the optimised submaps fused into one TSDF, its iso-surface points as the
   result's cloud (the run engine writes it as map.ply), a marching-cubes mesh (mesh.ply in the run
   folder), and a 2D grid sliced between 0.2 and 1.5 m above the floor.
@@ -33,8 +35,8 @@ from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import CameraMount, compose_xyyaw, invert, planar_pose, relative_xyyaw, xyyaw_of_transform
 from longslam.slam import stats
-from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
-from longslam.slam.frontend import FrontEnd, FrontEndConfig
+from longslam.slam.api import MethodContext, MethodSpec, Result
+from longslam.slam.frontend import FrontEnd
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
@@ -91,20 +93,16 @@ class SubmapMethod:
         self.graph = PoseGraph(c.robust_kernel, c.robust_k, max_iterations=50)
         self.submaps: list[Submap] = []
         self.counts = _Counts()
-        self._mount: CameraMount | None = None
-        # The fused front end gives each frame's motion; "wheel" reads the odometry directly.
-        self.frontend: FrontEnd | None = None
-        if c.frontend != "wheel":
-            self.frontend = FrontEnd(context.intrinsics, FrontEndConfig(mode=c.frontend, camera_height=c.camera_height or None))
-        # Every frame's depth goes into the TSDF; colour too for the fused front end's visual steps.
-        self.images_every_frame = ("depth",) if self.frontend is None else ("rgb", "depth")
+        self._mount: CameraMount | None = None  # the front end's, known at the first frame
+        self.frontend = FrontEnd(context.intrinsics, c.frontend)
+        # Every frame's depth goes into the TSDF; colour too when the front end reads it.
+        self.images_every_frame = ("rgb", "depth") if "rgb" in self.frontend.images_every_frame else ("depth",)
         self._submap_frame: list[int] = []  # index of each submap's first frame
         self._last_odometry: np.ndarray | None = None
         self._pose_in_active = np.eye(4)  # camera pose of the latest frame in the active submap
         self._max_depth = c.max_ray_length if context.max_depth is None else min(c.max_ray_length, context.max_depth)
-        # Per frame: stamp, submap index, camera pose in the submap (12 floats), online pose.
+        # Per frame: stamp, camera pose in the submap (12 floats), online pose.
         self._stamps: list[float] = []
-        self._frame_submap: list[int] = []
         self._in_submap: list[np.ndarray] = []
         self._online: list[np.ndarray] = []
         self._tried_pairs: set[tuple[int, int]] = set()
@@ -126,14 +124,8 @@ class SubmapMethod:
 
     # --- frames ------------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
-        if self.frontend is not None:
-            # The front end's online pose stands where the odometry stood.
-            odometry = self.frontend.camera_poses(self.frontend.step(frame)[None])[0]
-            self._mount = self.frontend.mount
-        else:
-            odometry = frame_odometry(frame, "submap")
-            if self._mount is None:
-                self._mount = CameraMount.from_first_pose(odometry, self.config.camera_height)
+        odometry = self.frontend.camera_poses(self.frontend.step(frame)[None])[0]
+        self._mount = self.frontend.mount
         active = self.submaps[-1] if self.submaps else None
         if active is None:
             base = self._mount.to_planar(odometry[None])[0]
@@ -164,7 +156,6 @@ class SubmapMethod:
         self._pose_in_active = in_submap
         pose = self._world_pose(active.index, in_submap)
         self._stamps.append(float(frame.timestamp))
-        self._frame_submap.append(active.index)
         self._in_submap.append(in_submap[:3].copy())
         self._online.append(pose)
         return pose
@@ -306,17 +297,11 @@ class SubmapMethod:
         self._finish_submap(self.submaps[-1])
         c = self.config
         stamps = np.array(self._stamps)
-        in_submap = np.tile(np.eye(4), (len(stamps), 1, 1))
-        in_submap[:, :3] = np.array(self._in_submap)
-        if self.frontend is not None:
-            final = self._frontend_final()
-            poses = self._mount.to_camera(final)
-            # Each submap's origin is the robot's pose at its first frame: the map moves with
-            # the final trajectory.
-            origins = np.array([self._origin_pose(final[self._submap_frame[s.index]]) for s in self.submaps])
-        else:
-            origins = np.array([self._origin_pose(self.graph.estimate(s.index)) for s in self.submaps])
-            poses = origins[np.array(self._frame_submap)] @ in_submap
+        final = self._frontend_final()
+        poses = self._mount.to_camera(final)
+        # Each submap's origin is the robot's pose at its first frame: the map moves with the
+        # final trajectory.
+        origins = np.array([self._origin_pose(final[self._submap_frame[s.index]]) for s in self.submaps])
         trajectory = Trajectory(stamps, poses, source="submap")
         online = Trajectory(stamps, np.array(self._online), source="submap online")
         map_bytes = self.map_bytes()
@@ -349,20 +334,22 @@ class SubmapMethod:
             "fused_blocks": fused.num_blocks,
             "mesh": mesh_path.name if mesh_path else None,  # in the run folder
         }
-        if self.frontend is not None:
-            run_stats["frontend"] = self.frontend.stats
+        run_stats["frontend"] = self.frontend.stats
         return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=run_stats)
 
 
     def _frontend_final(self) -> np.ndarray:
         """Every frame's pose from the front end's smoother, with the submap graph's loop edges
-        (and, with `frontend_registrations`, its registration edges) between the submaps' first
+        (and registration edges, see `frontend_registrations`) between the submaps' first
         frames. An edge the optimised graph explains poorly (the robust kernel down-weighted it)
-        is left out: the smoother has no kernel."""
+        is left out: the smoother takes each edge as a plain Gaussian."""
         c = self.config
+        registrations = c.frontend_registrations
+        if registrations is None:
+            registrations = c.frontend.mode == "wheel"
         edges = [
             e for e in self.graph.edges
-            if e.kind != ODOMETRY and (e.kind != REGISTRATION or c.frontend_registrations)
+            if e.kind != ODOMETRY and (e.kind != REGISTRATION or registrations)
             and self.graph.edge_error(e.edge_id) <= c.frontend_max_edge_error
         ]
         self.frontend.add_graph_edges(edges, self._submap_frame)

@@ -22,53 +22,16 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
-from longslam.geometry.cells import box_groups, box_is_dense
+from longslam.geometry.cells import group_cells_3d, pack_3d, unpack_3d
 
 BLOCK = 16  # voxels per block side
 BLOCK_VOXELS = BLOCK**3
-_BITS = 21  # per axis in a packed index
-_OFFSET = 1 << (_BITS - 1)
-_MASK = (1 << _BITS) - 1
 MAX_WEIGHT = 10000.0  # Voxblox's max_weight
-
-
-def pack(ijk: np.ndarray) -> np.ndarray:
-    """(N, 3) integer indices -> (N,) int64 keys (each axis within +-2^20)."""
-    ijk = np.asarray(ijk, dtype=np.int64) + _OFFSET
-    return (ijk[:, 0] << (2 * _BITS)) | (ijk[:, 1] << _BITS) | ijk[:, 2]
-
-
-def unpack(keys: np.ndarray) -> np.ndarray:
-    keys = np.asarray(keys, dtype=np.int64)
-    return np.column_stack([(keys >> (2 * _BITS)) & _MASK, (keys >> _BITS) & _MASK, keys & _MASK]) - _OFFSET
 
 
 def _local_index(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
     """A voxel's index within its block (x fastest), from its global indices per axis."""
     return (i & (BLOCK - 1)) + BLOCK * ((j & (BLOCK - 1)) + BLOCK * (k & (BLOCK - 1)))
-
-
-def group_cells(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
-    """Unique cells of integer indices given per axis ((N,) each): ((i, j, k) of the unique
-    cells, ordered as their packed keys; inverse (N,)). That is what
-    `np.unique(pack(ijk), return_inverse=True)` gives, in that order, so sums over groups come
-    out the same. One depth image spans a box of a few hundred thousand voxels, so a presence
-    array over the box replaces the sort (`geometry.cells.box_groups`)."""
-    if not len(i):
-        empty = np.zeros(0, np.int64)
-        return (empty, empty, empty), empty
-    low = (int(i.min()), int(j.min()), int(k.min()))
-    span = (int(i.max()) - low[0] + 1, int(j.max()) - low[1] + 1, int(k.max()) - low[2] + 1)
-    cells = span[0] * span[1] * span[2]
-    if not box_is_dense(cells, len(i)):
-        keys, inverse = np.unique(pack(np.column_stack([i, j, k])), return_inverse=True)
-        ijk = unpack(keys)
-        return (ijk[:, 0], ijk[:, 1], ijk[:, 2]), inverse.reshape(-1)
-    # Row-major over (i, j, k) is the packed keys' order.
-    occupied, inverse = box_groups(((i - low[0]) * span[1] + (j - low[1])) * span[2] + (k - low[2]), cells)
-    ui, rest = np.divmod(occupied, span[1] * span[2])
-    uj, uk = np.divmod(rest, span[2])
-    return (ui + low[0], uj + low[1], uk + low[2]), inverse
 
 
 def _dot(ax, ay, az, bx, by, bz):
@@ -105,7 +68,7 @@ class TSDF:
     @property
     def block_indices(self) -> np.ndarray:
         """(B, 3) integer indices of the allocated blocks."""
-        return unpack(self._keys[: len(self._slot)])
+        return unpack_3d(self._keys[: len(self._slot)])
 
     @property
     def nbytes(self) -> int:
@@ -166,7 +129,7 @@ class TSDF:
     def voxels(self, ijk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance and weight of voxels (N, 3) int; weight 0 where never observed."""
         ijk = np.asarray(ijk, dtype=np.int64).reshape(-1, 3)
-        slots = self._find(pack(ijk >> 4))
+        slots = self._find(pack_3d(ijk >> 4))
         ok = slots >= 0
         sdf = np.zeros(len(ijk), np.float32)
         weight = np.zeros(len(ijk), np.float32)
@@ -182,7 +145,7 @@ class TSDF:
         first, stop, _ = (blocks or slice(None)).indices(len(self._slot))
         slot, local = np.nonzero(self._weight[first:stop] > min_weight)
         slot += first
-        ijk = unpack(self._keys[slot]) * BLOCK + _LOCAL[local]
+        ijk = unpack_3d(self._keys[slot]) * BLOCK + _LOCAL[local]
         sdf = self._sdf[slot, local].astype(np.float32) * np.float32(self._sdf_scale)
         return ijk, sdf, self._weight[slot, local].astype(np.float32)
 
@@ -240,7 +203,7 @@ class TSDF:
         px, py, pz = points[:, 0], points[:, 1], points[:, 2]
         ox, oy, oz = (float(c) for c in origin)
         # Bundle the points per voxel: mean point, summed weight.
-        uniq, inverse = group_cells(*(np.floor(c / v).astype(np.int64) for c in (px, py, pz)))
+        uniq, inverse = group_cells_3d(*(np.floor(c / v).astype(np.int64) for c in (px, py, pz)))
         n = len(uniq[0])
         w_sum = np.bincount(inverse, weights=weights, minlength=n)
         mx, my, mz = (np.bincount(inverse, weights=weights * c, minlength=n) / w_sum for c in (px, py, pz))
@@ -290,7 +253,7 @@ class TSDF:
         behind = sdf < -v
         w = np.where(behind, w * (tau + sdf) / (tau - v), w)
         # Merge updates of the same voxel from different rays.
-        uv, inv = group_cells(i, j, k)
+        uv, inv = group_cells_3d(i, j, k)
         w_new = np.bincount(inv, weights=w, minlength=len(uv[0]))
         d_new = np.bincount(inv, weights=w * sdf, minlength=len(uv[0]))
         return self._accumulate(uv, w_new, d_new)
@@ -301,7 +264,7 @@ class TSDF:
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         if not len(points):
             return
-        uv, inv = group_cells(*(np.floor(points[:, a] / self.voxel).astype(np.int64) for a in range(3)))
+        uv, inv = group_cells_3d(*(np.floor(points[:, a] / self.voxel).astype(np.int64) for a in range(3)))
         w_new = np.bincount(inv, weights=weight, minlength=len(uv[0]))
         d_new = np.bincount(inv, weights=np.asarray(weight, np.float64) * sdf, minlength=len(uv[0]))
         self._accumulate(uv, w_new, d_new)
@@ -313,8 +276,8 @@ class TSDF:
         good = w_new > 0
         i, j, k = (c[good] for c in cells)
         w_new, wd_new = w_new[good], wd_new[good]
-        blocks, binv = group_cells(i >> 4, j >> 4, k >> 4)
-        slots = self._allocate(pack(np.column_stack(blocks)))[binv]
+        blocks, binv = group_cells_3d(i >> 4, j >> 4, k >> 4)
+        slots = self._allocate(pack_3d(np.column_stack(blocks)))[binv]
         local = _local_index(i, j, k)
         w_old = self._weight[slots, local].astype(np.float64)
         d_old = self._sdf[slots, local].astype(np.float64)

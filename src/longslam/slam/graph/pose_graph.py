@@ -1,6 +1,5 @@
-"""The one planar (x, y, yaw) pose graph of longslam, optimised with GTSAM.
+"""The methods' planar (x, y, yaw) pose graph: keyframe nodes, submap origins.
 
-Both methods (keyframe nodes, submap origins) and the front end's full-rate smoothing use it.
 An edge carries a full 3x3 information matrix in the tangent space of GTSAM's `Pose2` between
 factor, so a registration whose Hessian leaves a corridor's along-track direction soft stays soft;
 an edge given as diagonal sigmas keeps them (and GTSAM's diagonal noise model).
@@ -26,9 +25,11 @@ import gtsam
 import numpy as np
 
 from longslam.errors import InputError
+from longslam.slam.graph import noise
+from longslam.slam.graph.noise import ROBUST_KERNELS
+from longslam.slam.graph.solver import gtsam_levenberg_marquardt
 
 ODOMETRY, LOOP, REGISTRATION = "odometry", "loop", "registration"
-ROBUST_KERNELS = ("cauchy", "huber", "none")
 
 # Sigmas of the prior that pins the first node: the graph is only defined up to a rigid motion,
 # and pinning the first node keeps the optimised trajectory in the odometry's frame.
@@ -218,18 +219,9 @@ class PoseGraph:
 
     # --- optimising
 
-    def _noise(self, edge: Edge):
-        if edge.sigmas is not None:
-            base = gtsam.noiseModel.Diagonal.Sigmas(np.asarray(edge.sigmas))
-        else:
-            base = gtsam.noiseModel.Gaussian.Information(edge.information)
-        if not edge.robust or self.robust_kernel == "none":
-            return base
-        if self.robust_kernel == "cauchy":
-            kernel = gtsam.noiseModel.mEstimator.Cauchy.Create(self.robust_k)
-        else:
-            kernel = gtsam.noiseModel.mEstimator.Huber.Create(self.robust_k)
-        return gtsam.noiseModel.Robust.Create(kernel, base)
+    def _noise(self, edge: Edge) -> gtsam.noiseModel.Base:
+        base = noise.diagonal(edge.sigmas) if edge.sigmas is not None else noise.gaussian(edge.information)
+        return noise.robust(base, self.robust_kernel, self.robust_k) if edge.robust else base
 
     def _check_connected(self) -> None:
         # An island of nodes not linked to the anchored first node makes the system singular
@@ -267,21 +259,16 @@ class PoseGraph:
         self._check_connected()
         graph = gtsam.NonlinearFactorGraph()
         first = next(iter(self._initial))
-        graph.add(gtsam.PriorFactorPose2(
-            first, gtsam.Pose2(*self._initial[first]), gtsam.noiseModel.Diagonal.Sigmas(np.asarray(ANCHOR_SIGMAS))
-        ))
+        graph.add(gtsam.PriorFactorPose2(first, gtsam.Pose2(*self._initial[first]), noise.diagonal(ANCHOR_SIGMAS)))
         for e in self._edges.values():
             graph.add(gtsam.BetweenFactorPose2(e.a, e.b, gtsam.Pose2(*e.delta), self._noise(e)))
         values = gtsam.Values()
         for node, xyyaw in self._initial.items():
             start = self._optimized.get(node, xyyaw) if warm_start else xyyaw
             values.insert(node, gtsam.Pose2(*start))
-        params = gtsam.LevenbergMarquardtParams()
-        params.setMaxIterations(int(self.max_iterations if max_iterations is None else max_iterations))
-        optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
-        result = optimizer.optimize()
+        result, self.last_iterations = gtsam_levenberg_marquardt(
+            graph, values, self.max_iterations if max_iterations is None else max_iterations)
         self.last_error = float(graph.error(result))
-        self.last_iterations = int(optimizer.iterations())
         self.optimizations += 1
         out: dict[int, tuple[float, float, float]] = {}
         for node in self._initial:

@@ -1,0 +1,71 @@
+"""The solver loop of longslam's factor graphs: Levenberg-Marquardt driven from Python.
+
+Undamped (Gauss-Newton) steps while they lower the error, damping raised tenfold when a step
+fails or the system is singular, lowered after each good step; the same convergence test as
+GTSAM's (relative or absolute decrease of the error).
+
+Not GTSAM's own optimizers for graphs with Python factors (the wheel-bias factor): they pass
+their C++-owned Values to each Python CustomFactor, and pybind11 copies a C++-owned const
+reference, so every call of every wheel factor copied the whole trajectory and a pass cost
+O(frames^2): 4.6 s on paper-300m (46 s on paper-1km) against 0.65 s here, where the Values stay
+Python-owned and are passed by reference. A graph of GTSAM factors only (`PoseGraph`) is solved by
+GTSAM's own Levenberg-Marquardt in C++ (`gtsam_levenberg_marquardt`).
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+LAMBDA_MIN, LAMBDA_MAX, LAMBDA_FACTOR = 1e-5, 1e5, 10.0  # GTSAM's Levenberg-Marquardt defaults
+
+
+def _damped(linear: gtsam.GaussianFactorGraph, dims: dict[int, int], lam: float) -> gtsam.GaussianFactorGraph:
+    """The linear system plus lam * I on every variable (Levenberg-Marquardt's damping)."""
+    damped = linear.clone()
+    root = np.sqrt(lam)
+    for key, dim in dims.items():
+        damped.push_back(gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)))
+    return damped
+
+
+def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, dims: dict[int, int], *,
+                        iterations: int, relative_tolerance: float,
+                        damping: bool = True) -> tuple[gtsam.Values, int]:
+    """The optimised values and the iterations taken. `dims` holds each variable's dimension;
+    without `damping` the loop stops where a Gauss-Newton step fails to lower the error."""
+    error = graph.error(values)
+    lam = 0.0
+    iteration = 0
+    while iteration < iterations:
+        linear = graph.linearize(values)
+        while True:
+            try:
+                system = linear if lam == 0.0 else _damped(linear, dims, lam)
+                candidate = values.retract(system.optimize())
+                new_error = graph.error(candidate)
+            except RuntimeError:  # an indeterminate (or nearly so) system: damp it
+                new_error = np.inf
+            if new_error <= error:
+                break
+            if not damping or lam >= LAMBDA_MAX:
+                return values, iteration  # no step lowers the error any more
+            lam = max(lam * LAMBDA_FACTOR, LAMBDA_MIN)
+        iteration += 1
+        decrease = error - new_error
+        values, error = candidate, new_error
+        lam = 0.0 if lam <= LAMBDA_MIN else lam / LAMBDA_FACTOR
+        if decrease <= relative_tolerance * (error + decrease) or decrease <= 1e-5:
+            break
+    return values, iteration
+
+
+def gtsam_levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
+                              max_iterations: int) -> tuple[gtsam.Values, int]:
+    """GTSAM's own Levenberg-Marquardt (its default tolerances): the optimised values and the
+    iterations taken."""
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(int(max_iterations))
+    optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
+    result = optimizer.optimize()
+    return result, int(optimizer.iterations())
