@@ -81,6 +81,19 @@ def _describe_world(name: str, mesh_floor_z: float | None) -> str:
     return f"world {name} (floor at z = {mesh_floor_z:.3f} m in the mesh file)"
 
 
+def _given_files(paths: list[str | None]) -> dict[str, str]:
+    """The command's inputs that are files or folders on disk (a route or world may be a name)."""
+    return {f"input {p}": p for p in paths if p is not None and os.path.exists(p)}
+
+
+def _check_out_file(args: argparse.Namespace, out: str, what: str, inputs: list[str | None]) -> None:
+    """An output file replaces an existing one only with --overwrite, and never an input."""
+    from longslam.io.outputs import check_not_an_input, check_output_file_free
+
+    check_not_an_input(out, _given_files(inputs), what, inside=False)
+    check_output_file_free(out, args.overwrite, what)
+
+
 def cmd_world(args: argparse.Namespace) -> None:
     from longslam.sim.drive import drive_route
     from longslam.sim.routes import get_route
@@ -89,6 +102,7 @@ def cmd_world(args: argparse.Namespace) -> None:
     from longslam.world import load_world
 
     check_output_file(args.out, PLOT_SUFFIXES, "--out")
+    _check_out_file(args, args.out, "--out", [args.route, args.mesh or args.world, args.places])
     if args.mesh and args.world:
         raise LongslamError("give the world once: --world NAME_OR_FILE (--mesh FILE is the same)")
     ref = _world(args, args.mesh or args.world)
@@ -111,6 +125,9 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.recording import simulate
     from longslam.world import world_label
 
+    from longslam.io.outputs import check_not_an_input
+
+    check_not_an_input(args.out, _given_files([args.route, args.world, args.places]), "sequence folder")
     route = get_route(args.route, _world(args, args.world))
     noise = get_noise(args.noise)
     out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite)
@@ -125,7 +142,7 @@ def cmd_run(args: argparse.Namespace) -> None:
     if args.viz is not None:
         from longslam.viz.live import check_target
 
-        check_target(args.viz)
+        check_target(args.viz, args.overwrite)
     measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
                                 intrinsics=args.intrinsics, viz=args.viz)
     print(
@@ -133,12 +150,18 @@ def cmd_run(args: argparse.Namespace) -> None:
         f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
         + (f", live view {measurements['observer_time_s']:.1f} s" if "observer_time_s" in measurements else "")
     )
+    for note in measurements.get("sequence_notes", []):
+        print(f"note: {args.sequence}: {note}", file=sys.stderr)
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from longslam.run.score import score_files
 
-    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff, min_step=args.min_step)
+    warnings: list[str] = []
+    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff, min_step=args.min_step,
+                         warnings=warnings)
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(scores, allow_nan=False))
         return
@@ -149,17 +172,34 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
 
 
+class _LazyBar:
+    """A tqdm bar that appears at the first progress report, so an error found before any work
+    is the only line on stderr."""
+
+    def __init__(self, desc: str):
+        self.desc = desc
+        self.bar = None
+
+    def update(self, done: int, total: int) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(desc=self.desc, unit="frame", leave=False)
+        self.bar.total = total
+        self.bar.update(done - self.bar.n)
+
+    def __enter__(self) -> "_LazyBar":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
 def _progress_bar(desc: str):
-    """A tqdm bar and the (done, total) callback that moves it."""
-    from tqdm import tqdm
-
-    bar = tqdm(desc=desc, unit="frame", leave=False)
-
-    def update(done: int, total: int) -> None:
-        bar.total = total
-        bar.update(done - bar.n)
-
-    return bar, update
+    """A progress bar and the (done, total) callback that moves it."""
+    bar = _LazyBar(desc)
+    return bar, bar.update
 
 
 def cmd_export(args: argparse.Namespace) -> None:
@@ -202,8 +242,9 @@ def cmd_demo(args: argparse.Namespace) -> None:
     if args.viz is not None:
         from longslam.viz.live import check_target
 
-        check_target(args.viz)
-    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz)
+        check_target(args.viz, args.overwrite)
+    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz,
+                          overwrite=args.overwrite)
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")
@@ -230,7 +271,7 @@ def cmd_study(args: argparse.Namespace) -> None:
     config = load_study(args.file)
     summary = run_study(
         config, args.out, executor=args.executor, address=args.address, jobs=args.jobs,
-        retry_failed=args.retry_failed, report=not args.no_report,
+        retry_failed=args.retry_failed, report=not args.no_report, extend=args.extend,
     )
     print(
         f"study {config.name}: {summary.planned} runs, {summary.skipped} done before, {summary.ran} run now "
@@ -243,7 +284,10 @@ def cmd_study(args: argparse.Namespace) -> None:
 def cmd_report(args: argparse.Namespace) -> None:
     from longslam.study.report import write_report
 
-    page = write_report(args.dir)
+    left_out: list[str] = []
+    page = write_report(args.dir, overwrite=args.overwrite, left_out=left_out)
+    for what in left_out:
+        print(f"note: {what}", file=sys.stderr)
     print(f"wrote {page} and {page.with_suffix('.md')}")
 
 
@@ -252,6 +296,12 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
     from longslam.vocabulary.build import build_vocabulary_file, check_output, rendered_route
 
     check_output(args.out, args.overwrite)  # before a route is rendered
+    from longslam.io.outputs import check_not_an_input
+
+    check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")
+    from longslam.recording import check_seed
+
+    check_seed(args.seed, "--seed")  # the same range wherever a seed enters
     world = _world(args, args.world)
     if args.sequence is not None:
         camera = [f"--{k[len('camera_'):].replace('_', '-')}" for k, v in vars(args).items() if k.startswith("camera_") and v is not None]
@@ -280,6 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mesh", help="a mesh file: the same as --world FILE")
     p.add_argument("--route", help="a route name or a waypoint file to draw")
     p.add_argument("--out", required=True, help="image file to write (e.g. plan.png)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing image file")
     p.set_defaults(func=cmd_world)
 
     p = sub.add_parser("simulate", help="render a route with noisy odometry into a TUM RGB-D sequence")
@@ -297,7 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")
     p.add_argument("--out", required=True, help="run folder to write")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="method parameter (repeatable)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing run folder (and --viz file)")
     p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                    help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)")
     p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
@@ -349,6 +400,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
                    help="show each method's run live in a rerun viewer, or record FILE-<method>.rrd (needs longslam[viz])")
+    p.add_argument("--overwrite", action="store_true", help="replace existing FILE-<method>.rrd recordings")
     _camera_args(p)
     p.set_defaults(func=cmd_demo)
 
@@ -360,10 +412,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, help="runs at once (default: one per core, or the Ray cluster's CPUs)")
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded with an error")
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
+    p.add_argument("--extend", action="store_true",
+                   help="add this study's runs to a folder that holds another study (another name, routes, noise "
+                        "levels, methods or seeds); without it such a folder is refused")
     p.set_defaults(func=cmd_study)
 
     p = sub.add_parser("report", help="write report.md and report.html of a study folder")
     p.add_argument("dir", help="study folder (holds results.sqlite)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a report.md or report.html that longslam did not write (its own are always rewritten)")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("vocabulary", help="ORB vocabularies (DBoW2 text format) for ORB-SLAM3")
@@ -393,8 +450,53 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _tolerant_output() -> None:
+    """Under a C locale without UTF-8 mode stdout is ASCII, and a path that is not valid UTF-8 is
+    not text anywhere: print such characters escaped rather than fail with UnicodeEncodeError."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None:
+            try:
+                reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):
+                pass
+
+
+def _value_options(parser: argparse.ArgumentParser) -> set[str]:
+    """Every option string (of the commands too) that takes one value."""
+    found: set[str] = set()
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                found |= _value_options(sub)
+        elif action.option_strings and action.nargs is None and not isinstance(
+                action, (argparse._StoreTrueAction, argparse._StoreFalseAction, argparse._StoreConstAction)):
+            found.update(action.option_strings)
+    return found
+
+
+def _glue_negative_values(argv: list[str], options: set[str]) -> list[str]:
+    """`--intrinsics -40,40,8,6` as `--intrinsics=-40,40,8,6`: argparse takes a value that starts
+    with '-' (and is not a plain negative number) for an option and says 'expected one argument'."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if token in options and i + 1 < len(argv) and len(argv[i + 1]) > 1 and argv[i + 1][0] == "-" \
+                and (argv[i + 1][1].isdigit() or argv[i + 1][1] == "."):
+            out.append(f"{token}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(token)
+        i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    _tolerant_output()
+    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(_glue_negative_values(argv, _value_options(parser)))
     try:
         args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers below

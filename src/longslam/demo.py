@@ -12,7 +12,7 @@ from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
-from longslam.recording import simulate
+from longslam.recording import check_seed, simulate
 from longslam.slam.catalog import method_names
 from longslam.viz.plots import plot_plan
 from longslam.world import load_world
@@ -54,15 +54,22 @@ def run_demo(
     camera: CameraSettings = CameraSettings(),
     progress: bool = True,
     viz: str | None = None,
+    overwrite: bool = False,
 ) -> tuple[list[dict], Path]:
     """Simulate, run each method in its own process, evaluate. Returns the table rows and the plot path.
 
     `viz`: "viewer" shows each run live in a rerun viewer; a path FILE.rrd records each method's
-    run to FILE-<method>.rrd beside it."""
+    run to FILE-<method>.rrd beside it, replacing an existing one only with `overwrite`."""
     out = check_output_folder(out, "demo folder")
-    out.mkdir(parents=True, exist_ok=True)
+    check_seed(seed, "--seed")
     route, noise = get_route(route_name), get_noise(noise_name)
     methods = methods or method_names()
+    if viz is not None and viz != "viewer":
+        from longslam.viz.live import check_target
+
+        for name in methods:
+            check_target(_viz_target(viz, name), overwrite)
+    out.mkdir(parents=True, exist_ok=True)
     sequence = out / f"sequence-{route.name}-{noise.name}-{seed}"
     if not sequence.exists():
         simulate(route, noise, seed, sequence, camera=camera, progress=progress)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import zipfile
+
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,7 +74,7 @@ class GridMap:
                 return cls(npz["data"].astype(np.int8), float(npz["resolution"]), tuple(map(float, npz["origin"])))
         except FileNotFoundError:
             raise InputError(f"grid map file {path} does not exist") from None
-        except (KeyError, ValueError, OSError) as err:
+        except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile) as err:  # a truncated or foreign file
             raise InputError(f"grid map file {path} is not a longslam grid (.npz with data, resolution, origin): {err}") from None
 
     def describe(self) -> str:

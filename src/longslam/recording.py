@@ -22,6 +22,7 @@ import longslam
 from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import camera_poses_from_planar, planar_from_camera_poses
+from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
 from longslam.sim.camera import CameraSettings, RGBDCamera
@@ -31,14 +32,34 @@ from longslam.sim.noise import BiasNoise
 from longslam.sim.routes import Route
 from longslam.trajectory import Trajectory
 from longslam.world import load_world, world_key
-from longslam.world.source import is_mesh_ref, world_identity
+from longslam.world.source import MeshSpec, is_mesh_ref, world_identity
 
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1
 
 
 def cache_root() -> Path:
-    return Path(os.environ.get("LONGSLAM_CACHE", Path.home() / ".cache" / "longslam"))
+    """The render cache: LONGSLAM_CACHE, or ~/.cache/longslam if it is unset or empty (an empty
+    value would otherwise put the cache in the current folder)."""
+    given = os.environ.get("LONGSLAM_CACHE", "")
+    root = Path(given) if given.strip() else Path.home() / ".cache" / "longslam"
+    if root.exists() and not root.is_dir():
+        raise InputError(f"LONGSLAM_CACHE={given}: {root} is a file; expected a folder for the render cache "
+                         "(or leave LONGSLAM_CACHE unset for ~/.cache/longslam)")
+    for parent in root.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(f"render cache {root}: {parent} is a file, so the cache cannot be made under it")
+            break
+    return root
+
+
+def check_camera_in_world(world, camera: CameraSettings) -> None:
+    """Refuse a camera mounted above the top of the building: it would render the roof."""
+    top = float(np.max(world.mesh.vertices[:, 2])) - world.floor_z if len(world.mesh.vertices) else 0.0
+    if camera.camera_height >= top:
+        raise InputError(f"camera height {camera.camera_height:g} m is at or above the top of world {world.name!r} "
+                         f"({top:.2f} m above its floor): the camera would be over the ceiling")
 
 
 def cache_key(route: Route, camera: CameraSettings, follower: FollowerSettings) -> str:
@@ -73,9 +94,10 @@ def rendered_sequence(
     path = root / cache_key(route, camera, follower)
     if path.is_dir():
         return path
-    root.mkdir(parents=True, exist_ok=True)
     world = load_world(route.world)
+    check_camera_in_world(world, camera)
     driven = drive_route(world, route, follower)
+    root.mkdir(parents=True, exist_ok=True)  # once the route and camera are known to be good
     truth = camera_trajectory(driven.timestamps, driven.xyyaw, camera.camera_height, world.floor_z)
     renderer = RGBDCamera(world.mesh, camera)
     meta = {
@@ -99,10 +121,26 @@ def rendered_sequence(
     return path
 
 
-def check_seed(seed: int) -> int:
-    """numpy's generators take whole numbers from 0 up; say so before any rendering."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed {seed!r}: expected a whole number >= 0")
+# numpy's generators take any whole number from 0 up, but a study's database keeps the seed in an
+# SQLite INTEGER (signed 64 bits): a larger seed would run, then fail to be recorded on every resume.
+MAX_SEED = 2**63 - 1
+SEED_RANGE = f"a whole number >= 0 and <= 2**63 - 1 = {MAX_SEED}"
+
+
+def seed_problem(seed: object) -> str | None:
+    """None for a seed every part of longslam can hold; else what is wrong with it."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        return f"expected {SEED_RANGE}, got {seed!r}"
+    if not 0 <= int(seed) <= MAX_SEED:
+        return f"{int(seed)} is out of range; expected {SEED_RANGE}"
+    return None
+
+
+def check_seed(seed: int, what: str = "seed") -> int:
+    """The seed as an int, or InputError naming it; say so before any rendering."""
+    problem = seed_problem(seed)
+    if problem is not None:
+        raise InputError(f"{what} {seed!r}: {problem}")
     return int(seed)
 
 
@@ -127,8 +165,9 @@ def simulate(
 ) -> Path:
     """Write a sequence for (route, noise, seed) to `out`, rendering the route only if not cached."""
     out = check_output_folder(out, "sequence folder")
-    if out.exists() and not overwrite:
-        raise InputError(f"output {out} exists already; choose another path or pass --overwrite")
+    mesh = MeshSpec.from_ref(route.world).path if is_mesh_ref(route.world) else None
+    check_not_an_input(out, {"mesh file": mesh, "render cache": cache_root()}, "sequence folder")
+    check_replaceable(out, SEQUENCE, overwrite)
     check_seed(seed)
     rendered = rendered_sequence(route, camera, follower, progress=progress)
     reader = SequenceReader(rendered)

@@ -89,13 +89,15 @@ def field_names(cls: type) -> list[str]:
     return [f.name for f in dataclasses.fields(cls)]
 
 
-def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | None = None) -> C:
+def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | None = None, typed: bool = False) -> C:
     """An instance of the dataclass `cls` with `values` over its defaults (or over `base`).
 
     `what` names the owner in errors, e.g. "method 'keyframe'" or "camera". A field that is itself
     a dataclass takes a table (`registration = {sigma = 0.05}`) or dotted keys
     (`registration.sigma=0.05`). Unknown keys and unconvertible values raise InputError naming the
     key, the value and what is valid; the dataclass's own `__post_init__` then checks ranges.
+    `typed`: the values come from a typed file (TOML), so a string for a number or a boolean is
+    refused (`width = "320"` is a mistake there), where from the command line it is converted.
     """
     if not isinstance(values, Mapping):
         raise InputError(f"{what}: expected a table of key = value, got {values!r}")
@@ -115,6 +117,9 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
     converted = {}
     for key, raw in flat.items():
         kind, optional = _field_type(cls, key)
+        if typed and isinstance(raw, str) and kind in (int, float, bool):
+            expected = {bool: "true or false", int: "a whole number"}.get(kind, "a finite number")
+            raise InputError(f"{what}: parameter {key}={raw!r}: expected {expected}, got a string (write it without quotes)")
         try:
             converted[key] = convert(raw, kind, optional)
         except ValueError as err:
@@ -122,7 +127,7 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
     if nested:
         start = base if base is not None else cls()
         for head, sub in nested.items():
-            converted[head] = from_mapping(type(getattr(start, head)), sub, f"{what}: {head}", getattr(start, head))
+            converted[head] = from_mapping(type(getattr(start, head)), sub, f"{what}: {head}", getattr(start, head), typed)
     if base is not None:
         return dataclasses.replace(base, **converted)
     return cls(**converted)

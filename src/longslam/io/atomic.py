@@ -7,28 +7,37 @@ import errno
 import os
 import shutil
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from longslam.errors import InputError
+from longslam.io.partials import partial_path
 
 _AT_FDCWD, _RENAME_NOREPLACE = -100, 1
+# Text files are UTF-8 whatever the locale (under LANG=C without UTF-8 mode Python would write
+# ASCII and fail on a path like `séquence`); a path that is not valid UTF-8 keeps its bytes.
+PATH_BYTES = "surrogateescape"
 
 
 @contextmanager
-def atomic_path(path: str | Path, overwrite: bool = True) -> Iterator[Path]:
+def atomic_path(path: str | Path, overwrite: bool = True,
+                may_replace: Callable[[Path], None] | None = None) -> Iterator[Path]:
     """Yield a temporary sibling path; on success rename it to `path`, on failure remove it.
 
     With `overwrite=False` an existing `path` is never replaced, even one that another process
     wrote while this one worked: the rename fails, this output is discarded, InputError is raised.
+    With `overwrite=True`, `may_replace(path)` (if given) is called on an existing `path` just
+    before it is replaced, and may raise to keep it (see `longslam.io.outputs`).
     """
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
+    tmp = partial_path(path)
     try:
         yield tmp
         if overwrite:
+            if may_replace is not None and (path.exists() or path.is_symlink()):
+                may_replace(path)
             _replace(tmp, path)
         else:
             try:
@@ -82,7 +91,7 @@ def _replace(tmp: Path, path: Path) -> None:
 
 def write_text_atomic(path: str | Path, text: str) -> None:
     with atomic_path(path) as tmp, naming_the_file(path):  # the file the user asked for, not its partial
-        Path(tmp).write_text(text)
+        Path(tmp).write_text(text, encoding="utf-8", errors=PATH_BYTES)
 
 
 @contextmanager
@@ -99,7 +108,7 @@ def naming_the_file(path: str | Path) -> Iterator[None]:
 
 def write_text(path: str | Path, text: str) -> None:
     with naming_the_file(path):
-        Path(path).write_text(text)
+        Path(path).write_text(text, encoding="utf-8", errors=PATH_BYTES)
 
 
 def write_bytes(path: str | Path, data: bytes) -> None:

@@ -22,6 +22,7 @@ from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
 from longslam.frame import Frame
 from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.partials import clean_stale_partials
+from longslam.io.outputs import RUN, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
 from longslam.run.console import CONSOLE_LOG, native_output_to
@@ -171,13 +172,17 @@ def run_sequence(
     `viz`: "viewer" streams the run to a rerun viewer, a path ending in .rrd records it there
     (`longslam.viz.live`, the optional extra `longslam[viz]`)."""
     out = check_output_folder(out, "run folder")
-    if (out.exists() or out.is_symlink()) and not overwrite:
-        raise InputError(f"run folder {out} exists already; choose another path or pass --overwrite")
+    # --overwrite replaces a run folder, never the sequence or a folder holding it (or the user's files).
+    check_not_an_input(out, {"input sequence": sequence}, "run folder")
+    check_replaceable(out, RUN, overwrite)
+    if viz is not None and viz != "viewer":
+        check_not_an_input(viz, {"input sequence": sequence, "run folder": out}, "--viz")
     reader = SequenceReader(sequence, intrinsics=intrinsics)
     if viz is not None:
         from longslam.viz.live import LiveView  # rerun is imported only when a view is asked for
 
-        with LiveView(viz, f"{method_name} on {Path(sequence).name}", truth=reader.ground_truth) as view:
+        with LiveView(viz, f"{method_name} on {Path(sequence).name}", truth=reader.ground_truth,
+                      overwrite=overwrite) as view:
             return _run_into(method_name, sequence, reader, out, params, overwrite, progress, view)
     return _run_into(method_name, sequence, reader, out, params, overwrite, progress, None)
 
@@ -186,13 +191,15 @@ def _run_into(method_name: str, sequence: str | Path, reader: SequenceReader, ou
               overwrite: bool, progress: bool, observer: RunObserver | None) -> dict[str, Any]:
     clean_stale_partials(out.parent)  # run folders of runs that were killed
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
-    with atomic_path(out, overwrite=overwrite) as tmp:
+    with atomic_path(out, overwrite=overwrite, may_replace=replace_guard(RUN)) as tmp:
         tmp.mkdir(parents=True)
         context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
         result, measurements = run_frames(method_name, reader, context, params, total=len(reader), progress=progress,
                                           observer=observer)
         measurements["sequence"] = str(Path(sequence).resolve())
         measurements["intrinsics"] = {**reader.intrinsics.to_dict(), "source": reader.intrinsics_source}
+        if reader.notes:
+            measurements["sequence_notes"] = list(reader.notes)
         measurements = name_final_folder(measurements, tmp, out)
         write_result(tmp, result, measurements)
     return measurements

@@ -58,14 +58,68 @@ def trajectory_file(path: str | Path, names: tuple[str, ...]) -> Path:
     return path
 
 
+# Below this share of matched poses (or of the ground truth's time span) `evaluate` warns: the
+# figures then describe part of the route only.
+COVERAGE_WARNING = 0.9
+
+
+def _span(stamps: np.ndarray) -> float:
+    return float(stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
+
+
+def coverage(truth: Trajectory, estimate: Trajectory, max_diff: float, by_index: bool) -> dict[str, Any]:
+    """How much of each trajectory the scores rest on: poses matched, their share of the
+    estimate's poses, and the share of the ground truth's time span they cover."""
+    ref, est = associate_by_index(truth, estimate) if by_index else associate(truth, estimate, max_diff=max_diff)
+    truth_span = _span(truth.timestamps)
+    return {
+        "matched_poses": len(est),
+        "matched_share_estimate": len(est) / len(estimate) if len(estimate) else 0.0,
+        "matched_share_groundtruth_span": _span(ref.timestamps) / truth_span if truth_span > 0 else 1.0,
+    }
+
+
+def _run_sequence_of(estimate: Path) -> str | None:
+    """The sequence a run folder's stats.json says it ran on, if it says."""
+    import json
+
+    stats = estimate / "stats.json"
+    if not estimate.is_dir() or not stats.is_file():
+        return None
+    try:
+        value = json.loads(stats.read_text(encoding="utf-8")).get("sequence")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return value if isinstance(value, str) else None
+
+
 def score_files(estimate: str | Path, truth: str | Path, align: str = "none", max_diff: float = MAX_DIFF,
-                min_step: float = MIN_STEP) -> dict[str, Any]:
+                min_step: float = MIN_STEP, warnings: list[str] | None = None) -> dict[str, Any]:
     """Score trajectory files (TUM or KITTI) or run / sequence folders. KITTI files have no stamps,
-    so they are matched by index."""
-    est, est_format = read_trajectory(trajectory_file(estimate, (TRAJECTORY,)))
-    ref, ref_format = read_trajectory(trajectory_file(truth, ("groundtruth.txt",)))
-    return score(ref, est, align, max_diff, by_index=KITTI in (est_format, ref_format), what=f"{estimate} against {truth}",
-                 min_step=min_step)
+    so they are matched by index. The scores include how much was matched (`coverage`); what
+    makes them doubtful (part of a route matched, a run scored against another sequence than its
+    own) is appended to `warnings`."""
+    est_file, ref_file = trajectory_file(estimate, (TRAJECTORY,)), trajectory_file(truth, ("groundtruth.txt",))
+    est, est_format = read_trajectory(est_file)
+    ref, ref_format = read_trajectory(ref_file)
+    by_index = KITTI in (est_format, ref_format)
+    scores = score(ref, est, align, max_diff, by_index=by_index, what=f"{estimate} against {truth}", min_step=min_step)
+    shares = coverage(ref, est, max_diff, by_index)
+    scores.update(shares)
+    if warnings is not None:
+        if shares["matched_share_estimate"] < COVERAGE_WARNING:
+            warnings.append(f"only {shares['matched_poses']} of {len(est)} poses of {est_file} "
+                            f"({shares['matched_share_estimate']:.0%}) have a ground-truth pose within {max_diff} s; "
+                            "the scores cover that part only")
+        if shares["matched_share_groundtruth_span"] < COVERAGE_WARNING:
+            warnings.append(f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
+                            f"of {ref_file}; the scores cover that part of the route only")
+        own = _run_sequence_of(Path(estimate))
+        if own is not None:
+            given = Path(truth) if Path(truth).is_dir() else Path(ref_file).parent
+            if Path(own).resolve() != given.resolve():
+                warnings.append(f"{estimate} ran on the sequence {own} (its stats.json), not on {given}")
+    return scores
 
 
 def _thin(points: list[tuple[float, float]]) -> list[list[float]]:

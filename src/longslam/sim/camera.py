@@ -30,6 +30,12 @@ _AMBIENT, _DIFFUSE, _HEADLIGHT = 0.4, 0.3, 0.3  # sum 1: the brightest surface s
 CAMERA_KEYS = {"width": "width", "height": "height", "fov": "hfov_deg", "max_depth": "max_depth", "camera_height": "camera_height"}
 
 
+# The renderer holds about 60 bytes a pixel (rays, directions, hits, images) and every frame is
+# written as two PNGs: beyond 4K UHD a typo (100000 x 100000) would be a MemoryError, not a camera.
+MAX_SIDE = 7680
+MAX_PIXELS = 3840 * 2160
+
+
 @dataclass(frozen=True)
 class CameraSettings:
     width: int = 320  # pixels
@@ -43,6 +49,12 @@ class CameraSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value <= 0:
                 raise InputError(f"camera setting {name} must be a positive integer, got {value!r}")
+            if value > MAX_SIDE:
+                raise InputError(f"camera setting {name} must be at most {MAX_SIDE} pixels, got {value!r}")
+        if self.width * self.height > MAX_PIXELS:
+            raise InputError(f"camera {self.width} x {self.height} = {self.width * self.height} pixels is more than "
+                             f"{MAX_PIXELS} (3840 x 2160) a frame; the renderer would need about "
+                             f"{self.width * self.height * 60 / 1e9:.1f} GB")
         checks = {
             "hfov_deg": (lambda v: 0.0 < v < 180.0, "a number in (0, 180) degrees"),
             "max_depth": (lambda v: v > 0.0, "a positive number of metres"),

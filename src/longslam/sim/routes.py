@@ -7,6 +7,8 @@ corridor and the hall several times, which gives the loop closures the paper dep
 
 from __future__ import annotations
 
+import math
+
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,9 +52,16 @@ class Route:
                     )
                 out.append(tuple(map(float, places[wp])))
             else:
-                out.append((float(wp[0]), float(wp[1])))
+                x, y = float(wp[0]), float(wp[1])
+                if not (math.isfinite(x) and math.isfinite(y)):
+                    raise InputError(f"route {self.name!r}: waypoint {i} ({x}, {y}) is not a point: expected finite "
+                                     "x and y in metres")
+                out.append((x, y))
         if len(out) < 2:
             raise InputError(f"route {self.name!r} needs at least two waypoints, has {len(out)}")
+        if all(p == out[0] for p in out):  # would drive nowhere: a sequence of one frame
+            raise InputError(f"route {self.name!r}: its {len(out)} waypoints are all the same point {out[0]}; "
+                             "a route needs at least two different points")
         return out
 
 

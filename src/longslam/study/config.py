@@ -58,6 +58,9 @@ TOP_KEYS = (
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
 VARIANT_KEYS = ("method", "params")
+# A study planning more runs than this is a typo (seeds = 1000000000), not an experiment: at a few
+# seconds a run on the smallest route it would take days, and its plan alone fills the memory.
+MAX_RUNS = 100_000
 # A camera's name is a folder of the study (runs/<route>/<camera>/...) and a column of the report.
 CAMERA_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 
@@ -105,6 +108,18 @@ class StudyConfig:
         if self.cameras:
             return [(c.name, c.settings) for c in self.cameras]
         return [("", self.camera)]
+
+    @property
+    def run_count(self) -> int:
+        """How many runs the study plans: one per route, camera, noise level, method and seed."""
+        return len(self.routes) * len(self.camera_axis()) * len(self.noise) * len(self.methods) * len(self.seeds)
+
+    def grid_text(self) -> str:
+        """The grid and its run count, counted without planning a run: '2 routes x 4 noise levels x
+        3 methods x 5 seeds = 120 runs' (a camera axis shown when the study names cameras)."""
+        parts = [(len(self.routes), "route")] + ([(len(self.cameras), "camera")] if self.cameras else [])
+        parts += [(len(self.noise), "noise level"), (len(self.methods), "method"), (len(self.seeds), "seed")]
+        return " x ".join(f"{n} {w}{'' if n == 1 else 's'}" for n, w in parts) + f" = {self.run_count} runs"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (stored in the results database)."""
@@ -177,7 +192,7 @@ def load_study(path: str | Path, methods_available: list[str] | None = None) -> 
     """Read and check a study file. `methods_available` defaults to the registered methods."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise StudyConfigError(f"study file {path} does not exist") from None
     except (OSError, UnicodeDecodeError) as err:
@@ -232,20 +247,24 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     camera = cameras[0].settings if cameras else _camera(r, r.table(data, "camera", CAMERA_KEYS), "camera")
     follower_table = r.table(data, "follower", FOLLOWER_KEYS)
     try:
-        follower = from_mapping(FollowerSettings, follower_table, "follower")
+        follower = from_mapping(FollowerSettings, follower_table, "follower", typed=True)
     except InputError as err:
         raise r.error("follower", str(err)) from None
 
-    return StudyConfig(
+    config = StudyConfig(
         name=name, world=world, routes=tuple(routes), noise=tuple(noise), methods=tuple(methods),
         seeds=tuple(seeds), camera=camera, follower=follower, align=align,
         map_tolerance_cells=float(tolerance), source=str(path), cameras=tuple(cameras),
     )
+    if config.run_count > MAX_RUNS:
+        raise StudyConfigError(f"study file {path}: {config.grid_text()}, more than a study may plan ({MAX_RUNS}); "
+                               "fewer seeds, routes, noise levels or methods")
+    return config
 
 
 def _camera(r: _Reader, table: dict, key: str) -> CameraSettings:
     try:
-        return from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in table.items()}, "camera setting")
+        return from_mapping(CameraSettings, {CAMERA_KEYS[k]: v for k, v in table.items()}, "camera setting", typed=True)
     except InputError as err:
         # The settings layer names the field (hfov_deg); the file has the user's key (fov).
         bad = re.match(r"camera setting: parameter (\w+)=", str(err))
@@ -316,12 +335,19 @@ def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
 
 
 def _seeds(r: _Reader, value: Any) -> list[int]:
+    from longslam.recording import MAX_SEED, seed_problem
+
     if _is_int(value):
         if value < 1:
             raise r.error("seeds", f"a count of seeds must be at least 1, got {value}")
+        if value > MAX_RUNS:  # before range(): a huge count is refused, not allocated
+            raise r.error("seeds", f"a count of {value} seeds is more runs than a study may plan ({MAX_RUNS})")
         return list(range(value))
     if not isinstance(value, list) or not value or not all(_is_int(s) and s >= 0 for s in value):
         raise r.error("seeds", f"expected a count (e.g. 5) or a non-empty list of integers >= 0 (e.g. [0, 1]), got {value!r}")
+    for i, seed in enumerate(value):
+        if seed > MAX_SEED:
+            raise r.error(f"seeds[{i}]", f"seed {seed}: {seed_problem(seed)}")
     if len(set(value)) != len(value):
         raise r.error("seeds", f"a seed is listed twice in {value!r}")
     return list(value)
@@ -337,6 +363,11 @@ def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
         if not isinstance(value, list):
             raise r.error("methods", f'expected "all" or a list of method names; valid values: {_valid(available)}')
         data = dict(data, methods=value)
+        variant_labels = data.get("variants", {}) if isinstance(data.get("variants"), dict) else {}
+        for i, item in enumerate(value):
+            if isinstance(item, str) and item not in available and item in variant_labels:
+                raise r.error(f"methods[{i}]", f"{item!r} is a variant ([variants.{item}]); a variant runs beside the "
+                                               "methods listed without being listed itself: remove it from methods")
         names = r.string_list(data, "methods", available, "method") if value else []
     params = r.table(data, "params", names)
     entries = []

@@ -99,7 +99,15 @@ class ResultsDB:
 
     def study(self) -> dict[str, Any] | None:
         row = self._conn.execute("SELECT value FROM study WHERE key = 'config'").fetchone()
-        return json.loads(row[0]) if row else None
+        if not row:
+            return None
+        try:
+            config = json.loads(row[0])
+        except (TypeError, ValueError) as err:
+            raise InputError(f"results database {self.path}: table study, key config: not valid JSON ({err})") from None
+        if not isinstance(config, dict):
+            raise InputError(f"results database {self.path}: table study, key config: expected a JSON object")
+        return config
 
     # ------------------------------------------------------------------ runs
 
@@ -140,12 +148,43 @@ class ResultsDB:
                 item["camera_name"] = DEFAULT_CAMERA
             for column in JSON_COLUMNS:
                 if item.get(column) is not None:
-                    item[column] = json.loads(item[column])
+                    try:
+                        item[column] = json.loads(item[column])
+                    except (TypeError, ValueError) as err:
+                        raise InputError(f"results database {self.path}: run {item.get('key')!r}, column {column}: "
+                                         f"not valid JSON ({err})") from None
             out.append(item)
         return out
 
     def count(self) -> int:
         return int(self._conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0])
+
+
+def connect_read_only(path: str | Path) -> sqlite3.Connection:
+    """A connection that writes nothing beside the database: without a write-ahead log left by a
+    process that died, the file is opened immutable (no -shm file); with one, read-only."""
+    path = Path(path)
+    wal = path.with_name(path.name + "-wal")
+    mode = "mode=ro" if wal.exists() else "immutable=1"
+    return sqlite3.connect(f"{path.absolute().as_uri()}?{mode}", uri=True)  # as_uri: a '?' or '#' in the path is escaped
+
+
+def check_results_tables(path: str | Path) -> None:
+    """Refuse a results database without its tables, read-only, before anything would create them:
+    a report of such a file would be an empty report over the study's last one."""
+    path = Path(path)
+    try:
+        conn = connect_read_only(path)
+        try:
+            tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        finally:
+            conn.close()
+    except sqlite3.DatabaseError as err:
+        raise InputError(f"results database {path} cannot be read: {err}") from None
+    missing = [t for t in ("runs", "study") if t not in tables]
+    if missing:
+        raise InputError(f"results database {path} has no table {' and no table '.join(missing)}; it is not a "
+                         "longslam study's database (or was damaged); nothing was written")
 
 
 def _in(run_dir: str | None, name: str | None) -> str | None:

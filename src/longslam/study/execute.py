@@ -86,5 +86,5 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
             host=socket.gethostname(),
             files={kind: name for kind, name in RUN_FILES.items() if (tmp / name).is_file()},
         )
-        (tmp / RECORD).write_text(to_json(record) + "\n")
+        (tmp / RECORD).write_text(to_json(record) + "\n", encoding="utf-8", errors="surrogateescape")
     return record

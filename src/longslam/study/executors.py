@@ -133,7 +133,9 @@ class LocalExecutor:
             except (OSError, ValueError):
                 record = RunRecord.failed(f"{_death_message(process.exitcode)}; see {task.log_path}")
                 # The unfinished run folder of the dead process (see longslam.io.atomic).
-                partial = task.run_dir.with_name(f".{task.run_dir.name}.partial-{process.pid}")
+                from longslam.io.partials import partial_path
+
+                partial = partial_path(task.run_dir, process.pid)
                 if partial.exists():
                     shutil.rmtree(partial, ignore_errors=True)
             record.log = record.log or str(task.log_path)
@@ -176,6 +178,71 @@ def _ray_run(spec: Any, truth_refs: list) -> tuple[dict, dict[str, bytes]]:
     return json.loads(to_json(record)), files
 
 
+# An address that never answers made ray.init retry for minutes: how long it may take instead.
+RAY_CONNECT_TIMEOUT_S = 20.0
+
+
+def check_executor_options(kind: str, address: str | None) -> None:
+    """Refuse executor options that cannot work, before anything is created."""
+    if kind not in EXECUTORS:
+        from longslam.errors import UnknownNameError
+
+        raise UnknownNameError("executor", kind, EXECUTORS)
+    if address is not None and kind != "ray":
+        raise LongslamError(f"--address {address} is for --executor ray; the {kind} executor runs on this machine")
+    if address is not None and not address.strip():
+        raise LongslamError("--address is empty; give the Ray cluster's address (e.g. head:6379), or leave it out")
+    if kind == "ray" and address and address.startswith("ray://"):
+        import importlib.util
+
+        if importlib.util.find_spec("grpc") is None:
+            raise LongslamError(
+                f"--address {address}: a ray:// address goes through Ray Client, which needs pip install 'ray[client]'; "
+                "or give the cluster's own address (head:6379) from a machine in the cluster")
+
+
+def _probe(address: str, timeout: float) -> None:
+    """A TCP connection to a host:port address, so a cluster that is down is an error at once."""
+    import socket
+
+    host, sep, port = address.rpartition(":")
+    if not sep or not port.isdigit():
+        return  # "auto", or a form Ray resolves itself
+    try:
+        with socket.create_connection((host.strip("[]") or "127.0.0.1", int(port)), timeout=timeout):
+            pass
+    except OSError as err:
+        reason = "no answer" if isinstance(err, TimeoutError) else (err.strerror or str(err))
+        raise LongslamError(f"--address {address}: no Ray cluster answered within {timeout:.0f} s ({reason}); "
+                            "check the address and that the cluster is up (`ray status` on its head node)") from None
+
+
+def _ray_init(ray: Any, address: str | None, timeout: float) -> None:
+    """ray.init, given up after `timeout` seconds (it retries an unanswering address for minutes)."""
+    import threading
+
+    outcome: list[BaseException | None] = []
+
+    def connect() -> None:
+        try:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            outcome.append(None)
+        except BaseException as err:  # handed to the caller
+            outcome.append(err)
+
+    thread = threading.Thread(target=connect, daemon=True, name="ray-init")
+    thread.start()
+    thread.join(timeout)
+    if not outcome:
+        raise LongslamError(f"Ray at {address or 'a local cluster'} did not start or answer within {timeout:.0f} s; "
+                            "check the address and that the cluster is up (`ray status` on its head node)")
+    err = outcome[0]
+    if err is not None:
+        if isinstance(err, (ConnectionError, ValueError, RuntimeError, TimeoutError)):
+            raise LongslamError(f"Ray at {address or 'a local cluster'} could not be joined: {err}") from None
+        raise err
+
+
 class RayExecutor:
     """Runs as Ray tasks on an existing cluster (`address`), or on Ray already started in this
     process (`ray.init()`), or on a local Ray that it starts. Each task runs in a new worker
@@ -189,7 +256,9 @@ class RayExecutor:
         self._ray = ray
         self._started = False
         if not ray.is_initialized():
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            if address is not None:
+                _probe(address, RAY_CONNECT_TIMEOUT_S)
+            _ray_init(ray, address, RAY_CONNECT_TIMEOUT_S * 3 if address is None else RAY_CONNECT_TIMEOUT_S)
             self._started = address is None
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.capacity = max(1, int(jobs or cpus))
@@ -244,6 +313,7 @@ class RayExecutor:
         self._running.clear()
         if self._started:
             self._ray.shutdown()
+            self._started = False  # closed twice (the loop's and the study's finally): shut down once
 
 
 def _write_files(run_dir: Path, files: dict[str, bytes]) -> None:
@@ -261,9 +331,8 @@ def _write_files(run_dir: Path, files: dict[str, bytes]) -> None:
 
 
 def make_executor(kind: str, address: str | None = None, jobs: int | None = None) -> Executor:
+    check_executor_options(kind, address)
     if kind == "local":
-        if address:
-            raise LongslamError("--address is for the ray executor; the local executor runs on this machine")
         return LocalExecutor(jobs)
     if kind == "ray":
         return RayExecutor(address, jobs)

@@ -32,7 +32,7 @@ class PaperValue:
 
 
 def _rows(name: str) -> list[dict[str, str]]:
-    text = resources.files("longslam.study").joinpath("reference", name).read_text()
+    text = resources.files("longslam.study").joinpath("reference", name).read_text(encoding="utf-8")
     lines = [line for line in text.splitlines() if line.strip() and not line.startswith("#")]
     return list(csv.DictReader(io.StringIO("\n".join(lines))))
 

@@ -100,7 +100,7 @@ def prepare_route(
     info_path = folder / "route.json"
     settings = {"camera": asdict(camera), "follower": asdict(follower)}
     if info_path.is_file() and grid_path.is_file():
-        info = json.loads(info_path.read_text())
+        info = json.loads(info_path.read_text(encoding="utf-8"))
         if info.get("settings") == json.loads(json.dumps(settings)) and info.get("waypoints_given") == _waypoints_json(route):
             return
     world = load_world(route.world)
@@ -133,7 +133,7 @@ def _waypoints_json(route: Route) -> list:
 
 def load_route_data(out: Path, route: str, camera_name: str = "") -> RouteData:
     folder = route_dir(out, route, camera_name)
-    info = json.loads((folder / "route.json").read_text())
+    info = json.loads((folder / "route.json").read_text(encoding="utf-8"))
     return RouteData(
         name=route,
         truth=read_tum(folder / "groundtruth.txt"),
@@ -168,8 +168,13 @@ def check_routes(config) -> None:
     a wall or to an unknown place is refused before anything is written."""
     from longslam.world import load_world
 
+    from longslam.recording import check_camera_in_world
+
     for route in config.routes:
-        drive_route(load_world(route.world), route, config.follower)
+        world = load_world(route.world)
+        for _, camera in config.camera_axis():
+            check_camera_in_world(world, camera)
+        drive_route(world, route, config.follower)
 
 
 def check_out_folder(out: Path) -> None:

@@ -21,7 +21,8 @@ from tqdm import tqdm
 
 from longslam.study.config import StudyConfig, check_method_params
 from longslam.study.database import DB_NAME, ResultsDB
-from longslam.study.executors import Task, make_executor
+from longslam.study.executors import Executor, Task, check_executor_options, make_executor
+from longslam.study.identity import check_same_study
 from longslam.study.lock import study_lock
 from longslam.study.prepare import (
     check_out_folder, check_routes, clean_partials, prepare_route, render_once, route_dir, world_grid_path,
@@ -52,14 +53,7 @@ def _task(out: Path, spec: RunSpec) -> Task:
 
 def plan_text(config: StudyConfig) -> str:
     """The study's grid, axis by axis: '2 routes x 2 cameras x 4 noise levels x 3 methods x 3 seeds'."""
-    def count(n: int, what: str) -> str:
-        return f"{n} {what}{'' if n == 1 else 's'}"
-
-    axes = [count(len(config.routes), "route")]
-    if config.cameras:
-        axes.append(count(len(config.cameras), "camera"))
-    axes += [count(len(config.noise), "noise level"), count(len(config.methods), "method"), count(len(config.seeds), "seed")]
-    return " x ".join(axes)
+    return config.grid_text().rsplit(" = ", 1)[0]
 
 
 def runs_to_do(specs: list[RunSpec], finished: dict[str, tuple[str, str]], retry_failed: bool = False) -> list[RunSpec]:
@@ -81,31 +75,48 @@ def run_study(
     retry_failed: bool = False,
     report: bool = True,
     progress: bool = True,
+    extend: bool = False,
 ) -> StudySummary:
-    """Run every run of `config` not yet in `out`'s database, then write the report."""
+    """Run every run of `config` not yet in `out`'s database, then write the report.
+
+    A folder holding another study (another name or grid) is refused unless `extend`: then the
+    folder's study is widened by this one's routes, noise levels, methods and seeds."""
     start = time.perf_counter()
     out = Path(out)
+    # The grid and its run count first, before anything is planned or allocated.
+    if progress:
+        tqdm.write(f"study {config.name}: {config.grid_text()}")
     # Everything that can be wrong with the study is found before its folder is touched.
+    check_executor_options(executor, address)
     check_method_params(config)
     specs = plan_runs(config)
     check_routes(config)
     check_out_folder(out)
-    out.mkdir(parents=True, exist_ok=True)
-    with study_lock(out):
-        return _run_locked(config, out, specs, start, executor, address, jobs, retry_failed, report, progress)
+    recorded = check_same_study(out, config.to_dict(), extend)
+    if report:
+        from longslam.study.report.render import check_report_files
+
+        check_report_files(out)
+    # The executor comes up first: a cluster that does not answer leaves no folder, lock or database.
+    pool = make_executor(executor, address, jobs)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with study_lock(out):
+            return _run_locked(config, out, specs, start, executor, pool, retry_failed, report, progress, recorded)
+    finally:
+        pool.close()
 
 
 def _run_locked(
-    config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, address: str | None,
-    jobs: int | None, retry_failed: bool, report: bool, progress: bool,
+    config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, pool: Executor,
+    retry_failed: bool, report: bool, progress: bool, recorded: dict | None = None,
 ) -> StudySummary:
     say = tqdm.write if progress else (lambda *a, **k: None)
 
     with ResultsDB(out / DB_NAME) as db:
-        db.set_study(config.to_dict())
+        db.set_study(recorded or config.to_dict())
         todo = runs_to_do(specs, db.finished(), retry_failed)
         skipped = len(specs) - len(todo)
-        say(f"study {config.name}: {plan_text(config)} = {len(specs)} runs")
         if skipped:
             say(f"{skipped} of {len(specs)} runs are in {out / DB_NAME} already; {len(todo)} to do")
 
@@ -122,7 +133,6 @@ def _run_locked(
 
         failed = ran = 0
         if todo:
-            pool = make_executor(executor, address, jobs)
             pending = deque(todo)
             started: dict[str, float] = {}
             bar = tqdm(total=len(specs), initial=skipped, unit="run", desc=f"study {config.name}",
@@ -144,7 +154,7 @@ def _run_locked(
                         bar.update(1)
                     bar.set_postfix_str(f"running {pool.running}, left {len(pending)}, failed {failed}", refresh=True)
             finally:
-                pool.close()
+                pool.close()  # runs still going when the loop stopped (an interrupt) are ended here
                 bar.close()
 
     report_path = None

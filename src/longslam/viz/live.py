@@ -22,6 +22,7 @@ Entities (timelines `frame` and `time`, world z up):
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,8 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
+from longslam.io.atomic import rename_no_replace
+from longslam.io.partials import partial_path
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.api import pose_graph
 from longslam.slam.graph import ODOMETRY
@@ -49,17 +52,62 @@ def require_rerun() -> Any:
     return rerun
 
 
-def check_target(target: str) -> None:
-    """Refuse a --viz value that is neither the viewer nor a writable .rrd path, before any work."""
+def find_viewer() -> str:
+    """The rerun viewer's executable: on PATH, or beside this Python (a virtual environment that is
+    not activated has it in its bin/ only). InputError if there is none, before any work."""
+    import shutil
+
+    found = shutil.which("rerun") or shutil.which("rerun", path=str(Path(sys.executable).parent))
+    if found is None:
+        raise InputError("--viz: the rerun viewer (the `rerun` command of rerun-sdk) is not on PATH nor beside "
+                         f"{sys.executable}; install it (pip install 'longslam[viz]'), or record to a file: --viz run.rrd")
+    return found
+
+
+VIEWER_PORT = 9876  # rerun's default: spawn() joins a viewer already listening there
+
+
+def _viewer_listening(port: int = VIEWER_PORT) -> bool:
+    import socket
+
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=0.5):
+            return True
+    except OSError:
+        return False
+
+
+def check_viewer() -> str | None:
+    """The viewer to start, or None to join one already running; InputError if neither can be:
+    without a display a spawned viewer dies at once and the run would stream to nobody, forever."""
+    if _viewer_listening():
+        return None
+    viewer = find_viewer()
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise InputError("--viz: there is no display to show the rerun viewer on (DISPLAY and WAYLAND_DISPLAY are "
+                         "unset) and no viewer is running; record to a file instead (--viz run.rrd) and open it "
+                         "with `rerun run.rrd` where there is a screen")
+    return viewer
+
+
+def check_target(target: str, overwrite: bool = False) -> None:
+    """Refuse a --viz value that is neither the viewer nor a writable .rrd path, before any work;
+    an existing .rrd file is replaced only with `overwrite`, as run folders are."""
     if target == VIEWER:
+        check_viewer()
         return
     path = Path(target)
     if path.suffix != ".rrd":
         raise InputError(f"--viz {target}: expected no value (a live viewer) or a file ending in .rrd")
     if path.is_dir():
         raise InputError(f"--viz {target} is a folder; expected a .rrd file")
-    if not path.absolute().parent.is_dir():
-        raise InputError(f"--viz {target}: the folder {path.absolute().parent} does not exist")
+    parent = path.absolute().parent
+    if not parent.is_dir():
+        raise InputError(f"--viz {target}: the folder {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"--viz {target}: the folder {parent} is not writable")
+    if (path.exists() or path.is_symlink()) and not overwrite:
+        raise InputError(f"--viz {target} exists already; choose another file or pass --overwrite")
 
 
 class LiveView:
@@ -67,10 +115,12 @@ class LiveView:
 
     images_every_frame = ("rgb", "depth")  # shown every frame: the engine decodes them ahead
 
-    def __init__(self, target: str, name: str, truth: Trajectory | None = None, every: int = 10, map_stride: int = 8):
-        check_target(target)
+    def __init__(self, target: str, name: str, truth: Trajectory | None = None, every: int = 10, map_stride: int = 8,
+                 overwrite: bool = False):
+        check_target(target, overwrite)
         self.rr = require_rerun()
         self.target = target
+        self.overwrite = overwrite
         self.name = name
         self.truth = truth
         self.every = max(int(every), 1)
@@ -78,10 +128,19 @@ class LiveView:
         self._tmp: Path | None = None
         self.rec = self.rr.RecordingStream("longslam", recording_id=name)
         if target == VIEWER:
-            self.rec.spawn()
+            try:
+                viewer = check_viewer()
+                if viewer is None:
+                    self.rec.connect_grpc()
+                else:
+                    self.rr.spawn(executable_path=viewer, recording=self.rec)
+            except RuntimeError as err:
+                first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+                raise InputError(f"--viz: the rerun viewer could not be started ({first}); "
+                                 "record to a file instead: --viz run.rrd") from None
         else:
             path = Path(target)
-            self._tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
+            self._tmp = partial_path(path)
             self.rec.save(self._tmp)
         self._estimate: list[np.ndarray] = []
         self._odometry: list[np.ndarray] = []
@@ -95,7 +154,15 @@ class LiveView:
         self.rec.disconnect()
         if self._tmp is not None:
             if exc_type is None:
-                os.replace(self._tmp, self.target)
+                if self.overwrite:
+                    os.replace(self._tmp, self.target)
+                else:  # a file another process wrote meanwhile is kept
+                    try:
+                        rename_no_replace(self._tmp, self.target)
+                    except FileExistsError:
+                        self._tmp.unlink()
+                        raise InputError(f"--viz {self.target} was written by another process while this run "
+                                         "went on; it was left as it is (pass --overwrite to replace it)") from None
             elif self._tmp.exists():
                 self._tmp.unlink()
         return False

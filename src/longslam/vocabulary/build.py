@@ -161,6 +161,10 @@ def build_vocabulary_file(
     """Build a vocabulary from a sequence folder's frames and write it to `out` atomically."""
     check_tree_size(k, levels)
     out = check_output(out, overwrite)
+    from longslam.io.outputs import check_not_an_input
+
+    # --overwrite replaces a vocabulary file, never a file of the input sequence (its rgb.txt, say).
+    check_not_an_input(out, {"input sequence": sequence}, "--out")
     start = time.perf_counter()
     images = sequence_descriptors(sequence, features, every, max_frames, progress)
     vocabulary = vocabulary_from_descriptors(images, k, levels, seed, progress)

@@ -63,7 +63,7 @@ def load_mesh_world(
     mesh = read_mesh_file(path)
     vertices = mesh.vertices @ _Y_TO_Z_UP.T if up == "y" else mesh.vertices
     mesh.vertices = np.ascontiguousarray(vertices * UNITS[units])
-    check_metres(mesh, source)
+    check_metres(mesh, source, units)
     zmin, zmax = float(mesh.vertices[:, 2].min()), float(mesh.vertices[:, 2].max())
     if floor_z is None:
         floor_z = find_floor(mesh, source)
@@ -74,11 +74,25 @@ def load_mesh_world(
     mesh.vertices[:, 2] -= floor_z
     occupancy = occupancy_from_mesh(mesh, 0.0, resolution)
     if not np.any(occupancy.data == FREE):
+        if not _has_horizontal_surface(mesh):
+            raise InputError(
+                f"{source}: the mesh has no floor surface at height {floor_z:.3f} m, nor any horizontal surface (walls "
+                "only?); free space is where the floor is seen from above, so the mesh needs its floor"
+            )
         raise InputError(
             f"{source}: no free floor at height {floor_z:.3f} m (nothing seen from above lies on it "
             "with the obstacle band clear); give the right floor height (--floor Z)"
         )
     return World(name or path.stem, mesh, occupancy, 0.0, dict(places or {}), None, source_floor_z=float(floor_z))
+
+
+def _has_horizontal_surface(mesh: WorldMesh) -> bool:
+    """Whether any triangle of the mesh faces up or down."""
+    tri = mesh.vertices[mesh.triangles]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(cross, axis=1)
+    flat = (norm > 1e-12) & (np.abs(cross[:, 2]) > 0.98 * np.maximum(norm, 1e-12))
+    return bool(np.any(flat))
 
 
 def _sample_band(mesh: WorldMesh, z0: float, z1: float, spacing: float, max_points: int = 2_000_000):

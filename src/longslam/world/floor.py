@@ -23,10 +23,22 @@ MAX_SAMPLES = 200_000
 MAX_HEIGHT_M, MAX_WIDTH_M = 100.0, 3000.0
 
 
-def check_metres(mesh: WorldMesh, source: str) -> None:
-    """Refuse a mesh whose size says it is not in metres, naming the units it probably is in."""
+MIN_WIDTH_M = 1.0  # a building the robot can drive in is wider than this
+
+
+def check_metres(mesh: WorldMesh, source: str, units: str = "m") -> None:
+    """Refuse a mesh whose size (after `units`) says it is not in metres, naming the units it
+    probably is in."""
     lo, hi = mesh.bounds
     size = hi - lo
+    if max(size[0], size[1]) < MIN_WIDTH_M or size[2] < HEADROOM:
+        factor = {"mm": 1e-3, "cm": 1e-2}.get(units)
+        hint = (f"; it was read in {units} (--units {units}): if the file is in metres, leave out --units"
+                if factor is not None and max(size[:2]) / factor >= MIN_WIDTH_M else "")
+        raise InputError(
+            f"{source} is {size[0]:.3g} x {size[1]:.3g} x {size[2]:.3g} m (x, y, z): too small to be a building "
+            f"(at least {MIN_WIDTH_M:g} m wide and {HEADROOM:g} m tall for the robot's headroom){hint}"
+        )
     if size[2] <= MAX_HEIGHT_M and max(size[0], size[1]) <= MAX_WIDTH_M:
         return
     guess = next((u for u, f in (("mm", 1e-3), ("cm", 1e-2)) if size[2] * f <= MAX_HEIGHT_M and max(size[:2]) * f <= MAX_WIDTH_M), None)

@@ -172,7 +172,7 @@ def _companions(path: Path) -> list[Path]:
                         if fields and fields[0].lower().startswith(("map_", "bump", "disp", "norm")):
                             names.append(fields[-1])
         elif suffix == ".gltf":
-            data = json.loads(path.read_text())
+            data = json.loads(path.read_text(encoding="utf-8"))
             names += [item["uri"] for key in ("buffers", "images") for item in data.get(key, [])
                       if isinstance(item.get("uri"), str) and not item["uri"].startswith("data:")]
         elif suffix == ".ply":

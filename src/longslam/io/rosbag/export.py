@@ -25,6 +25,7 @@ from longslam.geometry import base_to_camera, invert
 from longslam.geometry.planar import xyyaw_of_transform
 from longslam.io.atomic import atomic_path
 from longslam.io.partials import clean_stale_partials
+from longslam.io.outputs import BAG, ROS1_BAG, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
 from longslam.io.rosbag.conventions import (
@@ -141,7 +142,7 @@ def _latched_qos() -> Any:
                QosLiveliness.AUTOMATIC, never, False)
 
 
-def _check_out(out: Path, fmt: str, overwrite: bool) -> None:
+def _check_out(out: Path, fmt: str, overwrite: bool, sequence: str | Path) -> None:
     if fmt == "ros1":
         if out.suffix != ".bag":
             raise InputError(f"--out {out}: a ROS 1 bag is one file ending in .bag")
@@ -153,8 +154,9 @@ def _check_out(out: Path, fmt: str, overwrite: bool) -> None:
             raise InputError(f"--out {out}: a ROS 2 bag is a folder; a name ending in .bag is read back as ROS 1")
     if not out.absolute().parent.is_dir():
         raise InputError(f"--out {out}: the folder {out.absolute().parent} does not exist")
-    if (out.exists() or out.is_symlink()) and not overwrite:
-        raise InputError(f"{out} exists already; choose another path or pass --overwrite")
+    # --overwrite replaces a bag, never the sequence or a folder holding it (or the user's files).
+    check_not_an_input(out, {"input sequence": sequence}, "--out")
+    check_replaceable(out, ROS1_BAG if fmt == "ros1" else BAG, overwrite, "--out")
 
 
 def _size(path: Path) -> int:
@@ -186,7 +188,7 @@ def export_sequence(
     if fmt == "ros1" and storage != "sqlite3":
         raise InputError("--storage applies to ROS 2 bags only")
     out = Path(out)
-    _check_out(out, fmt, overwrite)
+    _check_out(out, fmt, overwrite, sequence)
     reader = SequenceReader(sequence)
     noise = get_noise(odom_noise) if odom_noise is not None else (
         _noise_of(reader.meta, reader.path) if reader.odometry is not None else None)
@@ -195,7 +197,8 @@ def export_sequence(
     base_in_camera = invert(camera_in_base)
 
     clean_stale_partials(out.absolute().parent)
-    with atomic_path(out, overwrite=overwrite) as tmp:
+    with atomic_path(out, overwrite=overwrite,
+                     may_replace=replace_guard(ROS1_BAG if fmt == "ros1" else BAG, "--out")) as tmp:
         # rosbags names a ROS 2 bag's database after its folder: write it under its final name
         # inside a staging folder, then move it to the temporary name that is renamed at the end.
         staging = tmp.with_name(tmp.name + "-staging")

@@ -21,6 +21,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
+from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
 from longslam.io.rosbag.conventions import (
@@ -63,6 +64,10 @@ def _open(bag: Path) -> Any:
 
     if not bag.exists():
         raise InputError(f"bag {bag} does not exist")
+    if bag.is_dir() and not (bag / "metadata.yaml").is_file():
+        raise InputError(f"bag folder {bag} has no metadata.yaml: a ROS 2 bag is a folder holding metadata.yaml "
+                         f"beside its .db3 or .mcap files (`ros2 bag reindex {bag}` rebuilds a lost one); "
+                         "a ROS 1 bag is one .bag file")
     try:
         reader = AnyReader([bag], default_typestore=typestore_for(ROS2))
         reader.open()
@@ -195,8 +200,9 @@ def import_bag(
     """Write the bag's frames as a sequence folder at `out`. Returns what was imported."""
     require_rosbags()
     bag, out = Path(bag), check_output_folder(out, "sequence folder")
-    if (out.exists() or out.is_symlink()) and not overwrite:
-        raise InputError(f"{out} exists already; choose another path or pass --overwrite")
+    # --overwrite replaces a sequence, never the bag or a folder holding it (or the user's files).
+    check_not_an_input(out, {"input bag": bag}, "sequence folder")
+    check_replaceable(out, SEQUENCE, overwrite)
     if not (isinstance(max_diff, (int, float)) and math.isfinite(max_diff) and max_diff > 0):
         raise InputError(f"--max-diff must be a positive number of seconds, got {max_diff!r}")
     reader = _Bag(bag)
@@ -210,6 +216,7 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
             groundtruth_frame: str | None, overwrite: bool, progress: Callable[[int, int], None] | None) -> ImportSummary:
     meta = _longslam_meta(bag)
     chosen = _choose_topics(bag, given, meta)
+    _check_one_role_each(chosen)
     offset_ns = int(meta.get("clock_offset_s", 0)) * 1_000_000_000
     gap_ns = int(MAX_GAP_S * 1e9)
     notes: list[str] = []
@@ -340,6 +347,20 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         notes.append(f"{beyond} depth pixels beyond {limit:.3f} m were stored as 'no return'")
     return ImportSummary(out, len(kept), chosen, len(rgb_stamps), len(depth_stamps), odometry is not None,
                          ground_truth is not None, beyond, notes)
+
+
+def _check_one_role_each(chosen: Topics) -> None:
+    """One topic in two roles would give its messages to the first role only, and the second
+    would be said to hold none."""
+    roles: dict[str, str] = {}
+    for role in ("rgb", "depth", "camera_info", "odom", "groundtruth"):
+        topic = getattr(chosen, role)
+        if topic is None:
+            continue
+        option = "--" + role.replace("_", "-")
+        if topic in roles:
+            raise InputError(f"{option} {topic} is also the {roles[topic]} topic; each role needs a topic of its own")
+        roles[topic] = option
 
 
 def _frame_pair(topic: str, messages: list, frames: set, bag_path: Path) -> tuple[str, str]:

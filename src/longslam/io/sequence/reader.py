@@ -48,9 +48,45 @@ def _read_list(path: Path) -> list[tuple[float, str]]:
     return rows
 
 
+def _duplicates(stamps: list[float]) -> int:
+    return len(stamps) - len(set(stamps))
+
+
+def _pairing_notes(rgb_rows: list, depth_rows: list, paired: int, max_diff: float) -> list[str]:
+    notes = []
+    for name, rows in ((RGB_LIST, rgb_rows), (DEPTH_LIST, depth_rows)):
+        repeated = _duplicates([t for t, _ in rows])
+        if repeated:
+            notes.append(f"{name} lists {repeated} timestamp{'s' if repeated > 1 else ''} more than once")
+    if paired < len(rgb_rows):
+        notes.append(f"{len(rgb_rows) - paired} of {len(rgb_rows)} colour images in {RGB_LIST} have no depth image "
+                     f"in {DEPTH_LIST} within {max_diff} s and are left out ({paired} frames)")
+    if paired < len(depth_rows):
+        notes.append(f"{len(depth_rows) - paired} of {len(depth_rows)} depth images in {DEPTH_LIST} are paired "
+                     f"with no colour image and are not used")
+    return notes
+
+
+def _coverage_notes(frames: np.ndarray, stamps: np.ndarray, max_diff: float, what: str) -> list[str]:
+    """How many frames a trajectory file has no pose for (within `max_diff`), if any."""
+    if len(stamps) == 0:
+        return [f"{what} holds no poses"]
+    order = np.sort(stamps)
+    k = np.clip(np.searchsorted(order, frames), 1, len(order) - 1) if len(order) > 1 else np.zeros(len(frames), int)
+    nearest = np.minimum(np.abs(order[k] - frames), np.abs(order[np.maximum(k - 1, 0)] - frames))
+    missing = int(np.count_nonzero(nearest > max_diff))
+    notes = []
+    if missing:
+        notes.append(f"{what} has no pose within {max_diff} s for {missing} of {len(frames)} frames")
+    repeated = _duplicates(stamps.tolist())
+    if repeated:
+        notes.append(f"{what} lists {repeated} timestamp{'s' if repeated > 1 else ''} more than once")
+    return notes
+
+
 def _read_json_object(file: Path) -> dict:
     try:
-        data = json.loads(file.read_text())
+        data = json.loads(file.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise InputError(f"{file} cannot be read as JSON: {err}") from None
     if not isinstance(data, dict):
@@ -97,6 +133,8 @@ class SequenceReader:
                 f"{self.path}: no rgb image in {RGB_LIST} has a depth image in {DEPTH_LIST} "
                 f"within {self.max_diff} s"
             )
+        # What the index files leave out, said rather than dropped without a word (as import does).
+        self.notes: list[str] = _pairing_notes(rgb_rows, depth_rows, len(pairs), self.max_diff)
         self.timestamps = np.array([rgb_rows[i][0] for i, _ in pairs], dtype=np.float64)
         self._rgb_files = [rgb_rows[i][1] for i, _ in pairs]
         self._depth_files = [depth_rows[j][1] for _, j in pairs]
@@ -104,10 +142,17 @@ class SequenceReader:
 
         self.meta = self._read_meta()
         self.intrinsics, self.depth_scale, self.max_depth = self._read_camera()
+        k = self.intrinsics
+        if not (0 <= k.cx <= k.width and 0 <= k.cy <= k.height):
+            where = "--intrinsics" if self.intrinsics_source.startswith("given") else self.intrinsics_source
+            raise InputError(f"{where}: principal point (cx, cy) = ({k.cx:g}, {k.cy:g}) lies outside "
+                             f"the {k.width} x {k.height} image; expected 0 <= cx <= width and 0 <= cy <= height")
 
         self.ground_truth: Trajectory | None = None
         if (self.path / GROUND_TRUTH).exists():
             self.ground_truth = read_tum(self.path / GROUND_TRUTH)
+            self.notes += _coverage_notes(self.timestamps, self.ground_truth.timestamps, self.max_diff,
+                                          str(self.path / GROUND_TRUTH))
         self.odometry: Trajectory | None = None
         self._odometry_index: np.ndarray | None = None
         if (self.path / ODOMETRY).exists():

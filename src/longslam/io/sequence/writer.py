@@ -19,6 +19,7 @@ from longslam.errors import InputError
 from longslam.frame import Intrinsics
 from longslam.io.atomic import atomic_path, write_bytes, write_text
 from longslam.io.partials import clean_stale_partials
+from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.sequence.layout import (
     CAMERA, DEFAULT_MAX_DIFF, DEPTH_DIR, DEPTH_LIST, DEPTH_SCALE, GROUND_TRUTH, META, ODOMETRY, RGB_DIR, RGB_LIST,
     STAMP_DECIMALS,
@@ -69,6 +70,7 @@ def _check_max_depth(max_depth) -> float:
 def _refuse_existing(path: Path, overwrite: bool) -> None:
     if not overwrite and (path.exists() or path.is_symlink()):
         raise InputError(f"{path} exists already; pass overwrite=True to replace it")
+    check_replaceable(path, SEQUENCE, overwrite)  # overwrite replaces a sequence, nothing else
 
 
 @contextmanager
@@ -76,7 +78,7 @@ def _sequence_folder(path: Path, overwrite: bool) -> Iterator[Path]:
     """A temporary folder beside `path`, renamed to it when the block ends (see `atomic_path`)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     clean_stale_partials(path.parent)  # left by writers that were killed
-    with atomic_path(path, overwrite=overwrite) as tmp:
+    with atomic_path(path, overwrite=overwrite, may_replace=replace_guard(SEQUENCE)) as tmp:
         tmp.mkdir()
         yield tmp
 
@@ -281,8 +283,7 @@ def derive_sequence(
     if not isinstance(odometry, Trajectory):
         raise InputError(f"odometry must be a Trajectory, got {type(odometry).__name__}")
     reader = SequenceReader(source, max_diff=max_diff)
-    if path.resolve() == source.resolve():
-        raise InputError(f"derive_sequence: the new sequence {path} is the source itself")
+    check_not_an_input(path, {"source sequence": source}, "new sequence")
     meta_text = _meta_json(meta)
     _refuse_existing(path, overwrite)
     match_every(reader.timestamps, odometry.timestamps, max_diff, f"odometry for {path}")

@@ -9,6 +9,21 @@ from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.place_recognition import WORD_INDEXES
 
 
+# Size-like parameters held to ranges that keep a run within a machine's memory: a grid's cells
+# grow as 1/cell^2 (grid_cell 1e-6 was OOM-killed at 23.5 GB at its first node), and feature and
+# word counts size per-node arrays. (least, most, unit and why), both ends inclusive.
+SIZE_LIMITS = {
+    "grid_cell": (0.01, 10.0, "m", "a finer grid needs (range / cell)^2 cells per node"),
+    "cloud_voxel": (0.01, 10.0, "m", "a finer cloud keeps every depth point of every node"),
+    "grid_range": (0.1, 100.0, "m", "a node's local grid spans twice this"),
+    "max_features": (1, 100_000, "", "features are held per node"),
+    "max_words": (1, 100_000, "", "words are held per node"),
+    "stm_size": (0, 100_000, "", "short-term memory is held in RAM"),
+    "loop_candidates": (1, 1000, "", "each is verified by PnP every node"),
+    "proximity_candidates": (0, 1000, "", "each is verified by PnP every node"),
+}
+
+
 @dataclass(frozen=True)
 class KeyframeConfig:
     # Node creation (Rtabmap/DetectionRate, RGBD/LinearUpdate, RGBD/AngularUpdate).
@@ -89,6 +104,11 @@ class KeyframeConfig:
             value = getattr(self, name)
             if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
                 raise InputError(f"method 'keyframe': parameter {name} must not be negative, got {value}")
+        for name, (least, most, unit, why) in SIZE_LIMITS.items():
+            value = getattr(self, name)
+            if not least <= value <= most:
+                raise InputError(f"method 'keyframe': parameter {name} must be from {least:g} to {most:g}"
+                                 f"{' ' + unit if unit else ''} ({why}), got {value:g}")
         if self.vocabulary_index not in WORD_INDEXES:
             raise InputError(f"method 'keyframe': parameter vocabulary_index must be one of {', '.join(WORD_INDEXES)}, "
                              f"got {self.vocabulary_index!r}")

@@ -13,6 +13,19 @@ from longslam.errors import InputError
 from longslam.slam.frontend import FrontEndConfig
 
 
+# Size-like parameters held to ranges that keep a run within a machine's memory: a TSDF's voxels
+# near the surface grow as truncation / voxel_size^3, a grid's cells as 1/resolution^2.
+# (least, most, unit and why), both ends inclusive.
+SIZE_LIMITS = {
+    "voxel_size": (0.02, 5.0, "m", "a TSDF holds (truncation / voxel_size) voxels across each surface"),
+    "grid_resolution": (0.01, 10.0, "m", "the grid holds (extent / resolution)^2 cells"),
+    "max_ray_length": (0.1, 100.0, "m", "every ray is integrated up to this range"),
+    "registration_max_points": (1, 1_000_000, "", "points are matched between every pair of submaps"),
+    "loop_max_features": (1, 100_000, "", "features are held per keyframe"),
+}
+MAX_TRUNCATION_VOXELS = 40  # truncation / voxel_size: voxels on each side of a surface
+
+
 @dataclass(frozen=True)
 class SubmapConfig:
     # TSDF (the paper: voxel 0.2 m, truncation 0.8 m; Voxgraph: max_ray_length_m 16)
@@ -83,6 +96,14 @@ class SubmapConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:
                 raise InputError(f"submap parameter {name} must be >= 0, got {value!r}")
+        for name, (least, most, unit, why) in SIZE_LIMITS.items():
+            value = getattr(self, name)
+            if not least <= value <= most:
+                raise InputError(f"submap parameter {name} must be from {least:g} to {most:g}"
+                                 f"{' ' + unit if unit else ''} ({why}), got {value:g}")
+        if self.truncation > MAX_TRUNCATION_VOXELS * self.voxel_size:
+            raise InputError(f"truncation ({self.truncation:g}) may be at most {MAX_TRUNCATION_VOXELS} x voxel_size "
+                             f"({MAX_TRUNCATION_VOXELS * self.voxel_size:g} m): each surface holds that many voxels across")
         if self.truncation <= self.voxel_size:
             raise InputError(f"truncation ({self.truncation}) must exceed voxel_size ({self.voxel_size})")
         if self.registration_sampling_ratio > 1:

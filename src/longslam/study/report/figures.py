@@ -35,9 +35,12 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
-def make_figures(results: StudyResults) -> list[Figure]:
+def make_figures(results: StudyResults, left_out: list[str] | None = None) -> list[Figure]:
+    """The figures the study folder has the files for; each figure or part of one left out, and
+    why, is appended to `left_out` (the report says so rather than dropping it silently)."""
     from longslam.study.prepare import load_world_grid
 
+    left_out = left_out if left_out is not None else []
     out = results.out
     folder = out / FIGURES_DIR
     folder.mkdir(parents=True, exist_ok=True)
@@ -47,15 +50,17 @@ def make_figures(results: StudyResults) -> list[Figure]:
     world = results.config.get("world", "university")
     try:
         truth_grid = load_world_grid(out, world)
-    except InputError:
+    except InputError as err:
+        left_out.append(f"no figures: the world's ground-truth grid cannot be read ({err})")
         return figures
     for route in results.routes:
         for camera in results.row_cameras:
-            figures += _route_figures(results, route, camera, truth_grid)
+            figures += _route_figures(results, route, camera, truth_grid, left_out)
     return figures
 
 
-def _route_figures(results: StudyResults, route: str, camera: str | None, truth_grid) -> list[Figure]:
+def _route_figures(results: StudyResults, route: str, camera: str | None, truth_grid,
+                   left_out: list[str]) -> list[Figure]:
     """The figures of one route: of one camera's runs, or of all (camera None, one camera)."""
     from longslam.eval.map_quality import map_scores
     from longslam.gridmap import GridMap
@@ -71,7 +76,8 @@ def _route_figures(results: StudyResults, route: str, camera: str | None, truth_
     where = f"route {route}, camera {camera}" if camera else f"route {route}"
     try:
         data = load_route_data(out, route, results.camera_folder(camera or results.cameras[0]))
-    except (OSError, InputError):
+    except (OSError, InputError, ValueError, KeyError) as err:
+        left_out.append(f"no figures of {where}: its ground truth in the study folder's routes/ cannot be read ({err})")
         return figures
     truth_xy = data.truth.positions[:, :2]
     mine = [r for r in results.ok if r["route"] == route and on_camera(r, camera)]
@@ -84,7 +90,8 @@ def _route_figures(results: StudyResults, route: str, camera: str | None, truth_
             try:
                 paths[f"{method}"] = read_tum(out / run["trajectory_path"]).positions[:, :2]
                 seeds.add(run["seed"])
-            except (OSError, InputError, TypeError):
+            except (OSError, InputError, TypeError) as err:
+                left_out.append(f"trajectory of {run['key']} left out of the trajectory figure ({err})")
                 continue
         name = Path(FIGURES_DIR) / f"trajectories-{tag}-{_safe(noise)}.png"
         seed_text = ", ".join(str(s) for s in sorted(seeds))
@@ -125,7 +132,8 @@ def _route_figures(results: StudyResults, route: str, camera: str | None, truth_
                 continue
             try:
                 maps[method] = GridMap.load(out / run["grid_path"])
-            except InputError:
+            except InputError as err:
+                left_out.append(f"map of {run['key']} left out of the map figures ({err})")
                 continue
             p, r = run.get("map_precision"), run.get("map_recall")
             captions[method] = f"precision {p:.2f}, recall {r:.2f}" if p is not None and r is not None else ""

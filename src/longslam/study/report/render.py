@@ -9,6 +9,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
+from longslam.errors import InputError
 from longslam.io.atomic import write_text_atomic
 from longslam.study.database import DB_NAME
 from longslam.study.paper import CITATION
@@ -137,7 +138,7 @@ def _camera_shown(camera: dict) -> str:
             f"of view, depth to {camera.get('max_depth', '?')} m")
 
 
-def build_report(out: str | Path, figures: bool = True) -> Report:
+def build_report(out: str | Path, figures: bool = True, left_out: list[str] | None = None) -> Report:
     results = load_results(out)
     config = results.config
     name = config.get("name", Path(out).name)
@@ -164,7 +165,11 @@ def build_report(out: str | Path, figures: bool = True) -> Report:
         notes.append("No method of this study builds an occupancy grid, so there is no map quality table or map figure.")
     appendix = [] if _paper_columns(results.columns) else paper_tables()
     failures = [f"{r['key']}: {r['error']}" for r in results.runs if r["status"] != "ok"]
-    figs = make_figures(results) if figures else []
+    missing: list[str] = []
+    figs = make_figures(results, missing) if figures else []
+    notes += [f"Left out: {m}." for m in missing]
+    if left_out is not None:
+        left_out.extend(missing)
     return Report(f"longslam study report: {name}", intro, tables, figs, failures, appendix, notes)
 
 
@@ -213,10 +218,33 @@ def render_html(report: Report, out: Path) -> str:
     return "\n".join(parts) + "\n"
 
 
-def write_report(out: str | Path, figures: bool = True) -> Path:
+REPORT_FILES = {"report.md": "# longslam study report", "report.html": "<title>longslam study report"}
+
+
+def check_report_files(out: str | Path, overwrite: bool = False) -> None:
+    """A report.md or report.html that longslam did not write (a user's own, recognised by its
+    opening) is replaced only with `overwrite`; longslam's own report of the folder is rewritten."""
+    for name, opening in REPORT_FILES.items():
+        path = Path(out) / name
+        if path.is_dir():
+            raise InputError(f"{path} is a folder; the report needs that name for a file")
+        if path.exists() and not overwrite:
+            try:
+                with open(path, encoding="utf-8", errors="replace") as handle:
+                    head = handle.read(4096)
+            except OSError as err:
+                raise InputError(f"{path} cannot be read to check it is longslam's report: {err.strerror}") from None
+            if opening not in head:
+                raise InputError(f"{path} exists and is not a report longslam wrote; choose another folder, "
+                                 "move it, or pass --overwrite")
+
+
+def write_report(out: str | Path, figures: bool = True, overwrite: bool = False,
+                 left_out: list[str] | None = None) -> Path:
     """Write DIR/report.md (+ DIR/report_files/*.png) and DIR/report.html; returns the HTML's path."""
     out = Path(out)
-    report = build_report(out, figures)
+    check_report_files(out, overwrite)
+    report = build_report(out, figures, left_out)
     write_text_atomic(out / "report.md", render_markdown(report))
     page = out / "report.html"
     write_text_atomic(page, render_html(report, out))

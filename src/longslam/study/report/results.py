@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from longslam.errors import InputError
-from longslam.study.database import DB_NAME, ResultsDB
+from longslam.study.database import DB_NAME, ResultsDB, check_results_tables
 from longslam.study.spec import DEFAULT_CAMERA
 
 
@@ -65,6 +65,7 @@ def load_results(out: str | Path) -> StudyResults:
     path = out / DB_NAME
     if not path.is_file():
         raise InputError(f"{out} holds no study results ({DB_NAME} is missing); run `longslam study FILE --out {out}` first")
+    check_results_tables(path)
     with ResultsDB(path) as db:
         config = db.study() or {}
         runs = db.runs()
