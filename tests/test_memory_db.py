@@ -9,7 +9,7 @@ import pytest
 
 from longslam.errors import InputError
 from longslam.geometry import planar_pose
-from longslam.slam.memory_db import MemoryDatabase
+from longslam.slam.keyframe.memory_db import MemoryDatabase
 
 
 def _arrays(rng):

@@ -9,7 +9,7 @@ import numpy as np
 from longslam.geometry import CameraMount
 from longslam.geometry.cells import average_3d
 from longslam.gridmap import GridMap
-from longslam.slam.occupancy import GridVotes, LocalGrid
+from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid
 
 
 def assemble_maps(
