@@ -13,7 +13,7 @@ from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
 from longslam.slam.api import MethodContext
 from longslam.slam.keyframe import KeyframeConfig
-from longslam.slam.memory_db import MemoryDatabase
+from longslam.slam.keyframe.memory_db import MemoryDatabase
 from longslam.slam.catalog import check_params, create_method
 from longslam.world import get_world
 from conftest import simulate_in_own_cache

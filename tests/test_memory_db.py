@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from longslam.errors import InputError
-from longslam.geometry import planar_pose
-from longslam.slam.memory_db import MemoryDatabase
+from longslam.geometry import pose_from_xyyaw
+from longslam.slam.keyframe.memory_db import MemoryDatabase
 
 
 def _arrays(rng):
@@ -23,17 +23,17 @@ def test_nodes_links_and_statistics_round_trip(tmp_path):
     with MemoryDatabase(path) as db:
         for i in range(5):
             stored[i] = _arrays(rng)
-            db.put_node(i, 0.1 * i, planar_pose(i, 0, 0.1 * i), planar_pose(i, 0.1, 0.1 * i), stored[i], weight=i)
-        db.put_link(0, 1, "odometry", planar_pose(1, 0, 0.1), np.eye(3))
-        db.put_link(4, 0, "loop", planar_pose(-4, 0, -0.4), np.eye(3) * 10)
-        db.update_poses({2: planar_pose(2.5, 0.5, 0.2)})
+            db.put_node(i, 0.1 * i, pose_from_xyyaw((i, 0, 0.1 * i)), pose_from_xyyaw((i, 0.1, 0.1 * i)), stored[i], weight=i)
+        db.put_link(0, 1, "odometry", pose_from_xyyaw((1, 0, 0.1)), np.eye(3))
+        db.put_link(4, 0, "loop", pose_from_xyyaw((-4, 0, -0.4)), np.eye(3) * 10)
+        db.update_poses({2: pose_from_xyyaw((2.5, 0.5, 0.2))})
         db.set_statistics({"loops_accepted": 1})
     with MemoryDatabase(path) as db:  # reopened: everything is there
         assert db.node_ids() == [0, 1, 2, 3, 4]
         node = db.get_node(3)
         np.testing.assert_array_equal(node.arrays["descriptors"], stored[3]["descriptors"])
-        np.testing.assert_allclose(node.odometry, planar_pose(3, 0.1, 0.3))
-        np.testing.assert_allclose(db.get_node(2).pose, planar_pose(2.5, 0.5, 0.2))
+        np.testing.assert_allclose(node.odometry, pose_from_xyyaw((3, 0.1, 0.3)))
+        np.testing.assert_allclose(db.get_node(2).pose, pose_from_xyyaw((2.5, 0.5, 0.2)))
         assert [(a, b) for a, b, _, _ in db.links("loop")] == [(4, 0)]
         assert db.statistics() == {"loops_accepted": 1}
         assert db.size_bytes() > 0
@@ -72,3 +72,9 @@ def test_not_a_database_is_a_clear_error(tmp_path):
     bad.write_text("this is not sqlite " * 100)
     with pytest.raises(InputError, match="notes.db is not a longslam memory database"):
         MemoryDatabase(bad)
+
+
+def test_the_readme_path_opens_the_same_database():
+    from longslam.slam.memory_db import MemoryDatabase as documented
+
+    assert documented is MemoryDatabase

@@ -9,7 +9,7 @@ from longslam.errors import InputError
 from longslam.frame import Intrinsics
 from longslam.geometry import base_to_camera
 from longslam.gridmap import FREE, OCCUPIED, UNKNOWN
-from longslam.slam.occupancy import GridVotes, LocalGrid, assemble, local_grid
+from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid, assemble, local_grid
 
 CAMERA_HEIGHT = 1.25
 INTR = Intrinsics.from_fov(64, 48, 90)

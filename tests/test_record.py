@@ -2,7 +2,7 @@
 
 from types import SimpleNamespace
 
-from longslam.run.record import HEADLINE, RunRecord
+from longslam.study.record import HEADLINE, RunRecord
 from longslam.study.database import ResultsDB
 
 

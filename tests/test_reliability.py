@@ -254,7 +254,7 @@ def test_the_largest_seed_is_drawn_and_recorded(tmp_path):
     from longslam.study.database import ResultsDB
     from longslam.study.config import load_study
     from longslam.study.spec import plan_runs
-    from longslam.run.record import RunRecord
+    from longslam.study.record import RunRecord
 
     config = load_study(_study_file(tmp_path, "[9223372036854775807]"))
     (spec,) = plan_runs(config)

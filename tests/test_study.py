@@ -35,7 +35,7 @@ import numpy as np
 
 from longslam.geometry import base_to_camera, planar_from_camera_poses
 from longslam.slam.api import Result
-from longslam.slam.occupancy import assemble, local_grid
+from longslam.slam.keyframe.occupancy import assemble, local_grid
 from longslam.trajectory import Trajectory
 
 

@@ -8,7 +8,7 @@ import pytest
 from longslam.errors import InputError
 from longslam.eval.metrics import ate
 from longslam.frame import Frame, Intrinsics
-from longslam.geometry import camera_poses_from_planar, planar_pose
+from longslam.geometry import camera_poses_from_planar, pose_from_xyyaw
 from longslam.io.sequence import SequenceReader
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.routes import Route
@@ -104,7 +104,7 @@ def _hall_submap() -> TSDF:
     x, y = world.places["hall_center"]
     yaws = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
     world_poses = camera_poses_from_planar(np.column_stack([np.full(24, x), np.full(24, y), yaws]), 1.25)
-    to_submap = np.linalg.inv(planar_pose(x, y, 0.0))
+    to_submap = np.linalg.inv(pose_from_xyyaw((x, y, 0.0)))
     tsdf = TSDF(0.2, 0.8)
     for pose in world_poses:
         _, depth = camera.render(pose)
@@ -118,7 +118,7 @@ def test_registration_recovers_a_small_offset_and_rejects_no_overlap():
     upright = points[np.abs(normals[:, 2]) < 0.7].astype(np.float64)
     sample = upright[np.random.default_rng(0).choice(len(upright), 800, replace=False)]
     true = np.array([0.25, -0.15, np.radians(3.0)])
-    inverse = np.linalg.inv(planar_pose(*true))
+    inverse = np.linalg.inv(pose_from_xyyaw(true))
     reading = sample @ inverse[:3, :3].T + inverse[:3, 3]  # B's points: A's surface seen from B
     result = register(tsdf, reading, np.zeros(3))
     assert result.accepted, result.reason
@@ -272,7 +272,7 @@ def test_fusing_with_release_gives_the_same_map_and_empties_the_submaps():
         tsdf.compact()
         return tsdf
 
-    poses = [np.eye(4), planar_pose(0.3, 0.1, 0.05)]
+    poses = [np.eye(4), pose_from_xyyaw((0.3, 0.1, 0.05))]
     kept = fuse_submaps([(submap(0.0), poses[0]), (submap(0.1), poses[1])], 0.2, 0.8)
     released = [submap(0.0), submap(0.1)]
     fused = fuse_submaps(list(zip(released, poses)), 0.2, 0.8, release=True)

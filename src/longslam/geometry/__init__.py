@@ -14,19 +14,17 @@ from longslam.geometry.planar import (
     camera_poses_from_planar,
     compose_xyyaw,
     planar_from_camera_poses,
-    planar_pose,
     planar_poses,
     pose_from_xyyaw,
     relative_xyyaw,
     wrap_angle,
     xyyaw_from_pose,
-    xyyaw_of_transform,
 )
 from longslam.geometry.se3 import invert, poses_from_tum, rigidity_violation, tum_from_poses
 
 __all__ = [
     "R_BASE_CAMERA", "CameraMount", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",
-    "compose_xyyaw", "invert", "planar_from_camera_poses", "planar_pose", "planar_poses",
+    "compose_xyyaw", "invert", "planar_from_camera_poses", "planar_poses",
     "pose_from_xyyaw", "poses_from_tum", "relative_xyyaw", "rigid_transform", "rigid_transform_2d", "rigidity_violation",
-    "tum_from_poses", "umeyama", "wrap_angle", "xyyaw_from_pose", "xyyaw_of_transform",
+    "tum_from_poses", "umeyama", "wrap_angle", "xyyaw_from_pose",
 ]

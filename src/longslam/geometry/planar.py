@@ -23,15 +23,6 @@ def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def planar_pose(x: float, y: float, yaw: float, z: float = 0.0) -> np.ndarray:
-    """4x4 pose of a frame at (x, y, z) rotated by yaw about world z."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    pose = np.eye(4)
-    pose[:2, :2] = [[c, -s], [s, c]]
-    pose[:3, 3] = (x, y, z)
-    return pose
-
-
 def planar_poses(xyyaw: np.ndarray, z: float = 0.0) -> np.ndarray:
     """(N, 3) array of x, y, yaw -> (N, 4, 4) poses."""
     xyyaw = np.asarray(xyyaw, dtype=np.float64)
@@ -66,7 +57,7 @@ def planar_from_camera_poses(poses: np.ndarray, camera_height: float) -> np.ndar
 def xyyaw_from_pose(pose: np.ndarray) -> np.ndarray:
     """(4, 4) or (N, 4, 4) planar pose(s) -> (3,) or (N, 3) x, y, yaw.
 
-    Only the rotation about z is kept; for camera poses use `planar_from_camera_poses`, which
+    Only the translation in x, y and the rotation about z are kept (tilt ignored); for camera poses use `planar_from_camera_poses`, which
     first removes the camera's mounting rotation.
     """
     pose = np.asarray(pose, dtype=np.float64)
@@ -75,9 +66,14 @@ def xyyaw_from_pose(pose: np.ndarray) -> np.ndarray:
 
 
 def pose_from_xyyaw(xyyaw: np.ndarray, z: float = 0.0) -> np.ndarray:
-    """(3,) x, y, yaw -> (4, 4) pose (see `planar_poses` for many at once)."""
+    """(3,) x, y, yaw -> (4, 4) pose of a frame at (x, y, z) rotated by yaw about world z (see
+    `planar_poses` for many at once)."""
     x, y, yaw = (float(v) for v in np.asarray(xyyaw, dtype=np.float64).reshape(3))
-    return planar_pose(x, y, yaw, z)
+    c, s = np.cos(yaw), np.sin(yaw)
+    pose = np.eye(4)
+    pose[:2, :2] = [[c, -s], [s, c]]
+    pose[:3, 3] = (x, y, z)
+    return pose
 
 
 def relative_xyyaw(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -97,12 +93,6 @@ def compose_xyyaw(a: np.ndarray, delta: np.ndarray) -> np.ndarray:
     x = a[..., 0] + c * delta[..., 0] - s * delta[..., 1]
     y = a[..., 1] + s * delta[..., 0] + c * delta[..., 1]
     return np.stack([x, y, wrap_angle(a[..., 2] + delta[..., 2])], axis=-1)
-
-
-def xyyaw_of_transform(transform: np.ndarray) -> np.ndarray:
-    """(x, y, yaw) of a 4x4 transform's translation and rotation about z (tilt ignored)."""
-    transform = np.asarray(transform, dtype=np.float64)
-    return np.array([transform[0, 3], transform[1, 3], np.arctan2(transform[1, 0], transform[0, 0])])
 
 
 @dataclass(frozen=True)
@@ -135,11 +125,6 @@ class CameraMount:
     def to_camera(self, xyyaw: np.ndarray) -> np.ndarray:
         """(N, 3) robot x, y, yaw -> (N, 4, 4) camera-in-world poses."""
         return camera_poses_from_planar(xyyaw, self.camera_height, self.floor_z)
-
-    def base_pose(self, xyyaw: np.ndarray) -> np.ndarray:
-        """(3,) robot x, y, yaw -> (4, 4) robot-base-in-world pose on the floor."""
-        x, y, yaw = (float(v) for v in np.asarray(xyyaw, dtype=np.float64).reshape(3))
-        return planar_pose(x, y, yaw, self.floor_z)
 
 
 class PlanarOdometry:

@@ -18,7 +18,6 @@ import numpy as np
 from tqdm import tqdm
 
 from longslam.errors import InputError
-from longslam.eval.resources import current_rss_bytes, peak_rss_bytes
 from longslam.frame import Frame
 from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.partials import clean_stale_partials
@@ -29,6 +28,7 @@ from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
 from longslam.run.observer import RunObserver
 from longslam.run.read_ahead import IMAGES, read_ahead
+from longslam.run.resources import current_rss_bytes, peak_rss_bytes
 from longslam.settings import to_mapping
 from longslam.slam.api import Closable, MethodContext, Result, images_every_frame
 from longslam.slam.catalog import get_spec

@@ -17,11 +17,11 @@ from typing import Any
 
 import numpy as np
 
-from longslam.eval.resources import peak_rss_bytes
 from longslam.io.atomic import write_text
 from longslam.io.ply import vertex_rows, write_ply
 from longslam.io.trajectory_files import write_tum
 from longslam.jsonable import json_default
+from longslam.run.resources import peak_rss_bytes
 from longslam.settings import to_toml
 from longslam.slam.api import Result
 

@@ -21,14 +21,14 @@ from typing import Any
 
 from longslam.errors import InputError
 from longslam.run.folder import RUN_FILES
-from longslam.run.record import HEADLINE, JSON_PARTS, RunRecord
+from longslam.study.record import HEADLINE, JSON_PARTS, RunRecord
 from longslam.study.spec import DEFAULT_CAMERA
 
 DB_NAME = "results.sqlite"
 SCHEMA_VERSION = 2  # 2: the harness's figures column is `measurements`
 
 # The run's identity and configuration (from its RunSpec), what happened, the headline values of
-# its record (run/record.py decides which), whole parts of the record as JSON, and its files.
+# its record (study/record.py decides which), whole parts of the record as JSON, and its files.
 SPEC_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
     "study": "TEXT", "world": "TEXT", "route": "TEXT", "noise": "TEXT", "method": "TEXT",

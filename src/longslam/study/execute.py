@@ -19,12 +19,12 @@ from longslam.io.sequence import SequenceReader
 from longslam.jsonable import json_default
 from longslam.run.engine import run_frames
 from longslam.run.folder import RECORD, RUN_FILES, write_result
-from longslam.run.record import OK, RunRecord
-from longslam.run.score import TruthLoader, score_run
 from longslam.recording import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
 from longslam.slam.api import MethodContext
 from longslam.study.prepare import render_once
+from longslam.study.record import OK, RunRecord
+from longslam.study.run_scores import TruthLoader, score_run
 from longslam.study.spec import RunSpec
 
 

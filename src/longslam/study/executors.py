@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from longslam.errors import LongslamError
-from longslam.run.record import RunRecord
+from longslam.study.record import RunRecord
 
 EXECUTORS = ("local", "ray")
 

@@ -22,7 +22,7 @@ import numpy as np
 import longslam
 from longslam.errors import InputError
 from longslam.geometry import base_to_camera, invert
-from longslam.geometry.planar import xyyaw_of_transform
+from longslam.geometry.planar import xyyaw_from_pose
 from longslam.io.atomic import atomic_path
 from longslam.io.partials import clean_stale_partials
 from longslam.io.outputs import BAG, ROS1_BAG, check_not_an_input, check_replaceable, replace_guard
@@ -273,7 +273,7 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
             dt = frame_dt
             if previous_base is not None:
                 dt = t - previous_t
-                step = xyyaw_of_transform(invert(previous_base) @ base)  # in base_link at the step's start
+                step = xyyaw_from_pose(invert(previous_base) @ base)  # in base_link at the step's start
                 linear[:2], angular[2] = step[:2] / dt, step[2] / dt
             # pose.covariance: one step's; twist.covariance: the velocity's (per step / dt^2). As
             # the bias holds for 10 s, a stretch of T s inside one period has twist variance x T^2:

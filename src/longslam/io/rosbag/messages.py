@@ -56,19 +56,21 @@ class MessageBuilder:
         return self.types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
 
     def _pose(self, pose: np.ndarray) -> Any:
-        t = self.types
-        qx, qy, qz, qw = Rotation.from_matrix(pose[:3, :3]).as_quat()
-        return t["geometry_msgs/msg/Pose"](
-            position=t["geometry_msgs/msg/Point"](x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3])),
-            orientation=t["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz), w=float(qw)),
-        )
+        position, orientation = self._translation_rotation(pose, "geometry_msgs/msg/Point")
+        return self.types["geometry_msgs/msg/Pose"](position=position, orientation=orientation)
 
     def _transform(self, pose: np.ndarray) -> Any:
+        translation, rotation = self._translation_rotation(pose, "geometry_msgs/msg/Vector3")
+        return self.types["geometry_msgs/msg/Transform"](translation=translation, rotation=rotation)
+
+    def _translation_rotation(self, pose: np.ndarray, vector_type: str) -> tuple[Any, Any]:
+        """A 4x4 pose's translation as `vector_type` (a Pose holds a Point, a Transform a Vector3)
+        and its rotation as a Quaternion."""
         t = self.types
         qx, qy, qz, qw = Rotation.from_matrix(pose[:3, :3]).as_quat()
-        return t["geometry_msgs/msg/Transform"](
-            translation=t["geometry_msgs/msg/Vector3"](x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3])),
-            rotation=t["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz), w=float(qw)),
+        return (
+            t[vector_type](x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3])),
+            t["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz), w=float(qw)),
         )
 
     def _vector3(self, v) -> Any:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.frame import Intrinsics
-from longslam.geometry import invert, pose_from_xyyaw, wrap_angle, xyyaw_of_transform
+from longslam.geometry import invert, pose_from_xyyaw, wrap_angle, xyyaw_from_pose
 from longslam.slam.features import Features
 from longslam.slam.graph import PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
@@ -112,4 +112,4 @@ class LoopCloser:
         tilt = np.arccos(np.clip(base[2, 2], -1.0, 1.0))
         if abs(base[2, 3]) > MAX_LOOP_Z or tilt > MAX_LOOP_TILT:
             return None
-        return xyyaw_of_transform(base)
+        return xyyaw_from_pose(base)

@@ -6,10 +6,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from longslam.geometry import CameraMount
+from longslam.geometry import CameraMount, pose_from_xyyaw
 from longslam.geometry.cells import average_3d
 from longslam.gridmap import GridMap
-from longslam.slam.occupancy import GridVotes, LocalGrid
+from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid
 
 
 def assemble_maps(
@@ -32,7 +32,7 @@ def assemble_maps(
         votes.add(grid, xyyaw)
         # Node points are in the robot base frame (z up from the floor), so they move with the
         # base's pose on the floor, not with the camera's.
-        base = mount.base_pose(xyyaw)
+        base = pose_from_xyyaw(xyyaw, mount.floor_z)
         clouds.append((points @ base[:3, :3].T + base[:3, 3]).astype(np.float32))
     cloud = voxel_filter(np.concatenate(clouds).astype(np.float64) if clouds else np.zeros((0, 3)), cloud_voxel)
     return votes.grid(), cloud

@@ -31,8 +31,8 @@ from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.loops import SOURCES, LoopCloser, counter_names
 from longslam.slam.keyframe.maps import assemble_maps
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
-from longslam.slam.memory_db import MemoryDatabase
-from longslam.slam.occupancy import depth_points_in_base, local_grid
+from longslam.slam.keyframe.memory_db import MemoryDatabase
+from longslam.slam.keyframe.occupancy import depth_points_in_base, local_grid
 from longslam.slam.place_recognition import Vocabulary
 from longslam.trajectory import Trajectory
 

@@ -23,7 +23,7 @@ def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncatio
     (at 1 km: 43 MB of submaps beside 68 MB of fused map)."""
     fused = TSDF(voxel, truncation)
     # The blocks the fused map will have, counted first, so that its arrays are allocated once:
-    # growing them by doubling copied 32 MB at 1 km, with the old copy still held.
+    # growing them by doubling would copy 32 MB at 1 km, with the old copy still held.
     fused.reserve(len(np.unique(np.concatenate(
         [np.zeros(0, np.int64)] + [_fused_blocks(moved, voxel) for one in submaps for moved, _, _ in _moved_voxels(*one)]))))
     for tsdf, pose in submaps:

@@ -33,7 +33,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.geometry import CameraMount, compose_xyyaw, invert, planar_pose, relative_xyyaw, xyyaw_of_transform
+from longslam.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, xyyaw_from_pose
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.frontend import FrontEnd
@@ -117,7 +117,7 @@ class SubmapMethod:
 
     # --- geometry helpers --------------------------------------------------------------------
     def _origin_pose(self, xyyaw: np.ndarray) -> np.ndarray:
-        return self._mount.base_pose(xyyaw)
+        return pose_from_xyyaw(xyyaw, self._mount.floor_z)
 
     def _world_pose(self, submap: int, in_submap: np.ndarray) -> np.ndarray:
         return self._origin_pose(self.graph.estimate(submap)) @ in_submap
@@ -138,7 +138,7 @@ class SubmapMethod:
                 # The new submap's origin: the robot's floor pose now, in the old submap's frame.
                 delta = self._mount.to_planar(in_submap[None])[0]
                 active = self._start_submap(frame.timestamp, delta)
-                in_submap = invert(planar_pose(*delta)) @ in_submap
+                in_submap = invert(pose_from_xyyaw(delta)) @ in_submap
         self._last_odometry = odometry
         depth = np.asarray(frame.depth)
         updates = 0
@@ -267,7 +267,7 @@ class SubmapMethod:
         c = self.config
         # Pose of the active submap's origin in the candidate submap's frame.
         origin = candidate.in_submap @ query_in_candidate @ invert(in_submap)
-        delta = xyyaw_of_transform(origin)
+        delta = xyyaw_from_pose(origin)
         info = np.diag([c.loop_sigma_xy**-2, c.loop_sigma_xy**-2, c.loop_sigma_yaw**-2])
         check = self.graph.try_loop(candidate.submap, active.index, delta, information=info, max_error=c.loop_max_error, check="edge")
         if check.accepted:
@@ -306,7 +306,7 @@ class SubmapMethod:
         online = Trajectory(stamps, np.array(self._online), source="submap online")
         map_bytes = self.map_bytes()
         # The submaps' voxels go into the fused map and are dropped as they go: the run is over,
-        # and holding both at once was the 1 km run's peak.
+        # and holding both at once would be the 1 km run's peak.
         fused = fuse_submaps([(s.tsdf, origins[s.index]) for s in self.submaps], c.voxel_size, c.truncation, release=True)
         cloud, _ = fused.surface_points(with_normals=False)
         grid = grid_from_tsdf(fused, cloud, self._mount.floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)

@@ -1,4 +1,5 @@
-"""Memory and time of a run, measured by the harness around a method, not by the method itself."""
+"""A run's resident memory (peak and now), measured by the harness around a method, not by the
+method itself."""
 
 from __future__ import annotations
 
