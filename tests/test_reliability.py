@@ -557,6 +557,15 @@ def test_a_study_camera_string_is_not_coerced_to_a_number(tmp_path, capsys):
     _one_line_error(capsys, "camera.width: '16'", "expected a whole number, got a string")
 
 
+def test_a_study_method_parameter_string_is_not_coerced_to_a_number(tmp_path, capsys):
+    """As for [camera]: in a TOML file a quoted number is a mistake, where --param text is converted."""
+    study = _study_file(tmp_path, "1").read_text().replace('methods = ["odometry"]', 'methods = ["keyframe"]')
+    (tmp_path / "s.toml").write_text(study + '[params.keyframe]\nmax_features = "500"\n')
+    assert main(["study", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
+    _one_line_error(capsys, "params.keyframe", "max_features='500'", "expected a whole number, got a string")
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_variant_listed_in_methods_is_named_a_variant(tmp_path, capsys):
     study = _study_file(tmp_path, "1").read_text().replace('methods = ["odometry"]', 'methods = ["odometry", "odo2"]')
     (tmp_path / "s.toml").write_text(study + '[variants.odo2]\nmethod = "odometry"\n')

@@ -113,12 +113,14 @@ class MethodSpec:
     build: Callable[[MethodContext, Any], Method]
     summary: str = ""
 
-    def config(self, params: Mapping[str, Any] | None = None) -> Any:
-        """The checked config for `params` (unknown keys and bad values refused), no method built."""
+    def config(self, params: Mapping[str, Any] | None = None, typed: bool = False) -> Any:
+        """The checked config for `params` (unknown keys and bad values refused), no method built.
+        `typed`: the values come from a typed file (a study's TOML), where a quoted number is a
+        mistake rather than command-line text to convert."""
         params = dict(params or {})
         if self.config_type is None:
             return params
-        return from_mapping(self.config_type, params, f"method {self.name!r}")
+        return from_mapping(self.config_type, params, f"method {self.name!r}", typed=typed)
 
     def create(self, context: MethodContext, params: Mapping[str, Any] | None = None) -> Method:
         return self.build(context, self.config(params))

@@ -59,9 +59,9 @@ def get_spec(name: str) -> MethodSpec:
     return MethodSpec(name, None, loaded)
 
 
-def check_params(name: str, params: dict[str, Any] | None = None) -> Any:
+def check_params(name: str, params: dict[str, Any] | None = None, typed: bool = False) -> Any:
     """The method's checked config for `params`, without building the method."""
-    return get_spec(name).config(params)
+    return get_spec(name).config(params, typed)
 
 
 def create_method(name: str, context: MethodContext, params: dict[str, Any] | None = None) -> Method:

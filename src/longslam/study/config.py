@@ -414,7 +414,7 @@ def check_method_params(config: StudyConfig) -> None:
     for entry in config.methods:
         key = f"variants.{entry.label}.params" if entry.label != entry.method else f"params.{entry.method}"
         try:
-            check_params(entry.method, entry.params)
+            check_params(entry.method, entry.params, typed=True)
         except UnknownNameError as err:
             raise StudyConfigError(f"study file {config.source}: methods: {err}") from None
         except InputError as err:
