@@ -462,6 +462,9 @@ def test_index_files_that_disagree_get_a_note_with_counts(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "3 of 10 colour images in rgb.txt have no depth image" in err
     assert "groundtruth.txt has no pose within 0.02 s for 2 of 7 frames" in err
+    pytest.importorskip("rosbags")
+    assert main(["export", str(seq), "--format", "ros2", "--odom-noise", "none", "--out", str(tmp_path / "bag")]) == 0
+    assert "3 of 10 colour images in rgb.txt have no depth image" in capsys.readouterr().err  # export says so too
 
 
 def test_a_principal_point_outside_the_image_is_refused(seq, tmp_path, capsys):

@@ -217,6 +217,8 @@ def cmd_export(args: argparse.Namespace) -> None:
         line += (f"; odometry covariance per step: forward {summary.linear_variance:.3g} m^2, "
                  f"yaw {summary.yaw_variance:.3g} rad^2")
     print(line)
+    for note in summary.notes:
+        print(f"note: {args.sequence}: {note}", file=sys.stderr)
 
 
 def cmd_import(args: argparse.Namespace) -> None:

@@ -49,6 +49,7 @@ class ExportSummary:
     bytes: int
     linear_variance: float | None  # per step, m^2 (None without odometry)
     yaw_variance: float | None  # per step, rad^2
+    notes: tuple[str, ...] = ()  # what reading the sequence left out (unpaired images, repeated stamps...)
 
 
 def _noise_of(meta: dict, where: Path) -> BiasNoise:
@@ -212,7 +213,7 @@ def export_sequence(
     linear = yaw = None
     if noise is not None and reader.odometry is not None:
         linear, yaw = noise.step_variances()
-    return ExportSummary(out, len(reader), bag.count, _size(out), linear, yaw)
+    return ExportSummary(out, len(reader), bag.count, _size(out), linear, yaw, tuple(reader.notes))
 
 
 def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_encoding: str,
