@@ -549,8 +549,12 @@ def test_a_camera_above_the_ceiling_is_refused(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "s").exists() and not (tmp_path / "cache").exists()
     study = _study_file(tmp_path, "1", "camera_height = 5\n")
     assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "over the ceiling")
+    _one_line_error(capsys, "camera.camera_height", "over the ceiling")
     assert not (tmp_path / "out").exists()
+    named = study.read_text().replace("[camera]", "[cameras.tall]")
+    (tmp_path / "named.toml").write_text(named)
+    assert main(["study", str(tmp_path / "named.toml"), "--out", str(tmp_path / "out")]) == 2
+    _one_line_error(capsys, "cameras.tall.camera_height", "over the ceiling")  # the table the height is in
 
 
 def test_a_study_camera_string_is_not_coerced_to_a_number(tmp_path, capsys):

@@ -166,14 +166,17 @@ def clean_partials(folder: Path) -> int:
 def check_routes(config) -> None:
     """Drive every route of a study on its world (a second or two each), so that a route through
     a wall or to an unknown place is refused before anything is written."""
-    from longslam.world import load_world
-
+    from longslam.errors import InputError
     from longslam.recording import check_camera_in_world
+    from longslam.world import load_world
 
     for route in config.routes:
         world = load_world(route.world)
-        for _, camera in config.camera_axis():
-            check_camera_in_world(world, camera)
+        for name, camera in config.camera_axis():
+            try:
+                check_camera_in_world(world, camera)
+            except InputError as err:  # name the study file's table the height came from
+                raise InputError(f"study file {config.source}: {f'cameras.{name}' if name else 'camera'}.camera_height: {err}") from None
         drive_route(world, route, config.follower)
 
 
