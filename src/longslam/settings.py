@@ -192,3 +192,13 @@ def parse_key_values(pairs: list[str], option: str = "--param") -> dict[str, Any
         except json.JSONDecodeError:
             params[key] = value
     return params
+
+
+def check_limits(config: Any, limits: Mapping[str, tuple[float, float, str, str]], what: str) -> None:
+    """Each field named in `limits` within its (least, most, unit, why) range, both ends inclusive:
+    the size-like parameters a method holds to what keeps a run within a machine's memory."""
+    for name, (least, most, unit, why) in limits.items():
+        value = getattr(config, name)
+        if not least <= value <= most:
+            raise InputError(f"{what}: parameter {name} must be from {least:g} to {most:g}"
+                             f"{' ' + unit if unit else ''} ({why}), got {value:g}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 
 from longslam.errors import InputError
+from longslam.settings import check_limits
 from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.place_recognition import WORD_INDEXES
 
@@ -104,11 +105,7 @@ class KeyframeConfig:
             value = getattr(self, name)
             if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
                 raise InputError(f"method 'keyframe': parameter {name} must not be negative, got {value}")
-        for name, (least, most, unit, why) in SIZE_LIMITS.items():
-            value = getattr(self, name)
-            if not least <= value <= most:
-                raise InputError(f"method 'keyframe': parameter {name} must be from {least:g} to {most:g}"
-                                 f"{' ' + unit if unit else ''} ({why}), got {value:g}")
+        check_limits(self, SIZE_LIMITS, "method 'keyframe'")
         if self.vocabulary_index not in WORD_INDEXES:
             raise InputError(f"method 'keyframe': parameter vocabulary_index must be one of {', '.join(WORD_INDEXES)}, "
                              f"got {self.vocabulary_index!r}")

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, field
 
 from longslam.errors import InputError
+from longslam.settings import check_limits
 from longslam.slam.frontend import FrontEndConfig
 
 
@@ -96,11 +97,7 @@ class SubmapConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:
                 raise InputError(f"submap parameter {name} must be >= 0, got {value!r}")
-        for name, (least, most, unit, why) in SIZE_LIMITS.items():
-            value = getattr(self, name)
-            if not least <= value <= most:
-                raise InputError(f"submap parameter {name} must be from {least:g} to {most:g}"
-                                 f"{' ' + unit if unit else ''} ({why}), got {value:g}")
+        check_limits(self, SIZE_LIMITS, "method 'submap'")
         if self.truncation > MAX_TRUNCATION_VOXELS * self.voxel_size:
             raise InputError(f"truncation ({self.truncation:g}) may be at most {MAX_TRUNCATION_VOXELS} x voxel_size "
                              f"({MAX_TRUNCATION_VOXELS * self.voxel_size:g} m): each surface holds that many voxels across")
