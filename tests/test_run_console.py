@@ -135,3 +135,23 @@ def test_close_is_called_when_a_run_fails_and_not_when_it_finishes(tiny_sequence
 def test_process_cpu_time_counts_the_method_threads(tiny_sequence, tmp_path):
     measurements = engine.run_sequence("threaded", tiny_sequence, tmp_path / "run", progress=False)
     assert measurements["process_cpu_time_s"] >= 0.4
+
+
+def test_the_demo_and_a_study_prepare_each_method_before_its_runs(tmp_path, monkeypatch):
+    """MethodSpec.prepare: once-per-machine work outside every run's process and figures."""
+    from longslam import demo
+    from longslam.slam import catalog
+
+    prepared = []
+    spec = MethodSpec("native", None, Native, prepare=lambda config: prepared.append(dict(config)))
+    monkeypatch.setattr(catalog, "get_spec", lambda name: spec)
+    monkeypatch.setattr(demo, "get_spec", lambda name: spec)
+    monkeypatch.setattr(demo, "run_and_score", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("runs start")))
+    from longslam.sim.camera import CameraSettings
+
+    monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
+    with pytest.raises(RuntimeError, match="runs start"):
+        demo.run_demo(tmp_path / "demo", methods=["native"], camera=CameraSettings(width=32, height=24), progress=False)
+    assert prepared == [{}]
+    spec.prepare_for({"a": 1})
+    assert prepared[-1] == {"a": 1}

@@ -13,7 +13,7 @@ from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.recording import check_seed, simulate
-from longslam.slam.catalog import method_names
+from longslam.slam.catalog import get_spec, method_names
 from longslam.viz.plots import plot_plan
 from longslam.world import load_world
 
@@ -74,6 +74,8 @@ def run_demo(
     if not sequence.exists():
         simulate(route, noise, seed, sequence, camera=camera, progress=progress)
     truth = SequenceReader(sequence).ground_truth
+    for name in methods:  # once-per-machine work (a vocabulary) outside the runs' figures
+        get_spec(name).prepare_for()
     rows, paths = [], {"ground truth": truth.positions[:, :2]}
     for name in methods:
         run_dir = out / "runs" / name

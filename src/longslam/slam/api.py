@@ -112,6 +112,16 @@ class MethodSpec:
     config_type: type | None
     build: Callable[[MethodContext, Any], Method]
     summary: str = ""
+    # Work a method needs done once per machine before its runs (a download, a vocabulary built
+    # into the cache), given its config. The demo and studies call it in their own process before
+    # the runs start, so that no run's time or peak memory carries it; `longslam run` lets the
+    # first run do it.
+    prepare: Callable[[Any], None] | None = None
+
+    def prepare_for(self, params: Mapping[str, Any] | None = None) -> None:
+        """Do the method's once-per-machine work for `params` (nothing for most methods)."""
+        if self.prepare is not None:
+            self.prepare(self.config(params))
 
     def config(self, params: Mapping[str, Any] | None = None, typed: bool = False) -> Any:
         """The checked config for `params` (unknown keys and bad values refused), no method built.

@@ -12,6 +12,7 @@ stopped (or killed) continues where it was; a run whose configuration changed is
 
 from __future__ import annotations
 
+import json
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -130,6 +131,11 @@ def _run_locked(
                 if executor == "local" and (route.name, camera_name) in needed:
                     render_once(route, camera, config.follower, progress=progress)
         clean_partials(out / "runs")
+        if executor == "local":  # once-per-machine work of the methods (a vocabulary), before the runs
+            from longslam.slam.catalog import get_spec
+
+            for entry in {(spec.method_name, json.dumps(spec.params, sort_keys=True)) for spec in todo}:
+                get_spec(entry[0]).prepare_for(json.loads(entry[1]))
 
         failed = ran = 0
         if todo:
