@@ -57,6 +57,17 @@ def simulate_in_own_cache(root: Path, route: Route, noise: str, seed: int,
         return simulate(route, get_noise(noise), seed, root / name, camera=camera, progress=False)
 
 
+def one_line_error(capsys, *needles: str) -> str:
+    """The command's stderr was one line, an error naming every needle, and no traceback."""
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "error:" in lines[0], err
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    return lines[0]
+
+
 # The slow set: tests that render a route, run a method end to end on one, or start processes
 # (a study, Ray, ORB-SLAM3). `pytest -m "not slow"` is the fast set for the edit-test loop.
 SLOW_MODULES = {

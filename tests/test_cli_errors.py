@@ -8,17 +8,9 @@ import re
 
 import pytest
 
+from conftest import one_line_error
 from longslam.cli import main
 
-
-def _one_line_error(capsys, *needles: str) -> str:
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and "error:" in lines[0], err
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
-    return lines[0]
 
 
 def test_evaluate_json_never_prints_nan_or_infinity(tmp_path, capsys):
@@ -27,7 +19,7 @@ def test_evaluate_json_never_prints_nan_or_infinity(tmp_path, capsys):
     assert main(["evaluate", str(tmp_path / "huge.txt"), str(tmp_path / "gt.txt"), "--json"]) == 2
     assert capsys.readouterr().out == ""
     assert main(["evaluate", str(tmp_path / "huge.txt"), str(tmp_path / "gt.txt"), "--json"]) == 2
-    _one_line_error(capsys, "huge.txt", "ate", "infinity")
+    one_line_error(capsys, "huge.txt", "ate", "infinity")
     assert main(["evaluate", str(tmp_path / "gt.txt"), str(tmp_path / "gt.txt"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["ate"] == 0.0
 
@@ -44,18 +36,18 @@ def test_bad_out_for_simulate_is_refused_before_rendering(tmp_path, monkeypatch,
     (tmp_path / "afile").write_text("x")
     for out in (tmp_path / "afile", tmp_path / "afile" / "seq"):
         assert main(["simulate", "--route", "demo", "--out", str(out)]) == 2
-        _one_line_error(capsys, str(out))
+        one_line_error(capsys, str(out))
 
 
 def test_bad_out_for_demo_and_study(tmp_path, capsys):
     (tmp_path / "afile").write_text("x")
     assert main(["demo", "--out", str(tmp_path / "afile")]) == 2
-    _one_line_error(capsys, "demo folder", "is a file")
+    one_line_error(capsys, "demo folder", "is a file")
     (tmp_path / "r.txt").write_text("20 31.25\n22 31.25\n")
     study = tmp_path / "s.toml"
     study.write_text('routes = ["r.txt"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = 1\n')
     assert main(["study", str(study), "--out", str(tmp_path / "afile" / "x")]) == 2
-    _one_line_error(capsys, "study folder", "is a file")
+    one_line_error(capsys, "study folder", "is a file")
 
 
 def test_a_negative_seed_is_refused_before_rendering(tmp_path, monkeypatch, capsys):
@@ -63,7 +55,7 @@ def test_a_negative_seed_is_refused_before_rendering(tmp_path, monkeypatch, caps
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before the seed was checked"))
     assert main(["simulate", "--route", "demo", "--seed", "-1", "--out", str(tmp_path / "s")]) == 2
-    _one_line_error(capsys, "seed -1", ">= 0")
+    one_line_error(capsys, "seed -1", ">= 0")
 
 
 @pytest.mark.parametrize("second", ["20 31.25", "20.02 31.25"])
@@ -76,16 +68,16 @@ def test_a_repeated_waypoint_is_driven_through(tmp_path, capsys, second):
 
 def test_world_out_in_a_missing_folder_or_of_a_wrong_kind(tmp_path, capsys):
     assert main(["world", "--out", str(tmp_path / "nodir" / "x.png")]) == 2
-    _one_line_error(capsys, "nodir", "does not exist")
+    one_line_error(capsys, "nodir", "does not exist")
     assert main(["world", "--out", str(tmp_path / "x.txt")]) == 2
-    _one_line_error(capsys, "x.txt", ".png")
+    one_line_error(capsys, "x.txt", ".png")
     assert main(["world", "--out", str(tmp_path)]) == 2
-    _one_line_error(capsys, str(tmp_path))
+    one_line_error(capsys, str(tmp_path))
 
 
 def test_a_folder_as_mesh_says_so(tmp_path, capsys):
     assert main(["world", "--mesh", str(tmp_path), "--out", str(tmp_path / "p.png")]) == 2
-    _one_line_error(capsys, "is a folder", "mesh file")
+    one_line_error(capsys, "is a folder", "mesh file")
 
 
 def test_debug_shows_the_traceback(tmp_path):

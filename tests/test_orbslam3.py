@@ -9,7 +9,6 @@ where the plugin or pyorbslam3's system libraries are not installed.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import sys

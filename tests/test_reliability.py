@@ -10,18 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from conftest import write_tiny_sequence
+from conftest import one_line_error, write_tiny_sequence
 from longslam.cli import main
 
-
-def _one_line_error(capsys, *needles: str) -> str:
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and "error:" in lines[0], err
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
-    return lines[0]
 
 
 def _tree(path: Path) -> dict[str, bytes]:
@@ -41,13 +32,13 @@ def test_run_overwrite_never_deletes_its_input_sequence(seq, tmp_path, capsys):
     before = _tree(tmp_path)
     for out in (seq, tmp_path, seq / "run"):  # the input, a folder holding it, a folder inside it
         assert main(["run", "--method", "odometry", str(seq), "--out", str(out), "--overwrite"]) == 2
-        _one_line_error(capsys, str(out), "input sequence")
+        one_line_error(capsys, str(out), "input sequence")
         assert _tree(tmp_path) == before
     # through a symbolic link too: the real paths are compared
     link = tmp_path.parent / f"{tmp_path.name}-link"
     link.symlink_to(tmp_path)
     assert main(["run", "--method", "odometry", str(seq), "--out", str(link / "seq"), "--overwrite"]) == 2
-    _one_line_error(capsys, "input sequence")
+    one_line_error(capsys, "input sequence")
     assert _tree(tmp_path) == before
 
 
@@ -64,7 +55,7 @@ def test_run_overwrite_replaces_only_a_run_folder(seq, tmp_path, capsys):
     for out, why in ((other, "no stats.json"), (mine, "no stats.json"), (holding, "holds a run")):
         before = _tree(out)
         assert main(["run", "--method", "odometry", str(seq), "--out", str(out), "--overwrite"]) == 2
-        _one_line_error(capsys, str(out), "replaces only a run folder", why, "nothing was deleted")
+        one_line_error(capsys, str(out), "replaces only a run folder", why, "nothing was deleted")
         assert _tree(out) == before
     run = tmp_path / "run"
     assert main(["run", "--method", "odometry", str(seq), "--out", str(run)]) == 0
@@ -85,7 +76,7 @@ def test_simulate_overwrite_replaces_only_a_sequence(tmp_path, capsys, monkeypat
     for out, why in ((seq, "not a sequence's: notes.txt"), (mine, "no meta.json"), (tmp_path, "holds the input")):
         before = _tree(tmp_path)
         assert main(["simulate", "--route", str(route), "--out", str(out), "--overwrite"]) == 2
-        _one_line_error(capsys, str(out), why)
+        one_line_error(capsys, str(out), why)
         assert _tree(tmp_path) == before
 
 
@@ -98,16 +89,16 @@ def test_export_and_import_overwrite_never_delete_their_input(seq, tmp_path, cap
     before = _tree(tmp_path)
     if fmt == "ros2":  # a sequence is not a bag: refused, whether it is the input or not
         assert main(["export", str(seq), "--odom-noise", "large", "--out", str(seq), "--overwrite"]) == 2
-        _one_line_error(capsys, "input sequence")
+        one_line_error(capsys, "input sequence")
         assert main(["export", str(seq), "--odom-noise", "large", "--out", str(tmp_path), "--overwrite"]) == 2
-        _one_line_error(capsys, "holds the input sequence")
+        one_line_error(capsys, "holds the input sequence")
     else:
         (tmp_path / "notes.bag").write_text("not a bag")
         before = _tree(tmp_path)
         assert main(["export", str(seq), "--odom-noise", "large", "--format", "ros1", "--out", str(tmp_path / "notes.bag"), "--overwrite"]) == 2
-        _one_line_error(capsys, "not a ROS 1 bag")
+        one_line_error(capsys, "not a ROS 1 bag")
     assert main(["import", str(bag), "--out", str(bag), "--overwrite"]) == 2
-    _one_line_error(capsys, "input bag" if fmt == "ros2" else "is a file")
+    one_line_error(capsys, "input bag" if fmt == "ros2" else "is a file")
     assert _tree(tmp_path) == before
     assert main(["import", str(bag), "--out", str(seq), "--overwrite"]) == 0  # a sequence: replaced
     capsys.readouterr()
@@ -144,7 +135,7 @@ def test_world_out_refuses_an_existing_file_without_overwrite(tmp_path, capsys):
     plan = tmp_path / "plan.png"
     plan.write_bytes(b"keep")
     assert main(["world", "--out", str(plan)]) == 2
-    _one_line_error(capsys, str(plan), "exists already", "--overwrite")
+    one_line_error(capsys, str(plan), "exists already", "--overwrite")
     assert plan.read_bytes() == b"keep"
     assert main(["world", "--out", str(plan), "--overwrite"]) == 0
     assert plan.read_bytes() != b"keep"
@@ -154,11 +145,11 @@ def test_viz_file_refused_without_overwrite(seq, tmp_path, capsys):
     keep = tmp_path / "keep.rrd"
     keep.write_bytes(b"keep")
     assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run"), "--viz", str(keep)]) == 2
-    _one_line_error(capsys, "keep.rrd", "exists already", "--overwrite")
+    one_line_error(capsys, "keep.rrd", "exists already", "--overwrite")
     assert keep.read_bytes() == b"keep" and not (tmp_path / "run").exists()
     (tmp_path / "rec-odometry.rrd").write_bytes(b"keep")
     assert main(["demo", "--out", str(tmp_path / "demo"), "--viz", str(tmp_path / "rec.rrd")]) == 2
-    _one_line_error(capsys, "rec-odometry.rrd", "exists already")
+    one_line_error(capsys, "rec-odometry.rrd", "exists already")
     assert not (tmp_path / "demo").exists()
 
 
@@ -170,7 +161,7 @@ def test_viz_into_a_read_only_folder_is_a_clear_error(seq, tmp_path, capsys):
     ro.chmod(0o555)
     try:
         assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run"), "--viz", str(ro / "x.rrd")]) == 2
-        _one_line_error(capsys, "not writable")
+        one_line_error(capsys, "not writable")
     finally:
         ro.chmod(0o755)
 
@@ -191,7 +182,7 @@ def test_report_keeps_a_report_md_longslam_did_not_write(tmp_path, capsys):
     out = _empty_study_folder(tmp_path / "study")
     (out / "report.md").write_text("my notes on the study\n")
     assert main(["report", str(out)]) == 2
-    _one_line_error(capsys, "report.md", "not a report longslam wrote", "--overwrite")
+    one_line_error(capsys, "report.md", "not a report longslam wrote", "--overwrite")
     assert (out / "report.md").read_text() == "my notes on the study\n"
     assert main(["report", str(out), "--overwrite"]) == 0
     assert main(["report", str(out)]) == 0  # its own report is rewritten without asking
@@ -208,7 +199,7 @@ def test_report_on_a_database_without_its_tables_refuses(tmp_path, capsys):
     conn.close()
     (out / "report.md").write_text("# longslam study report: the last one\n")
     assert main(["report", str(out)]) == 2
-    _one_line_error(capsys, "results.sqlite", "no table runs")
+    one_line_error(capsys, "results.sqlite", "no table runs")
     assert (out / "report.md").read_text() == "# longslam study report: the last one\n"
     conn = sqlite3.connect(out / "results.sqlite")
     assert [r[0] for r in conn.execute("SELECT name FROM sqlite_master")] == ["notes"]  # nothing created
@@ -225,7 +216,7 @@ def test_report_on_broken_json_names_the_run_and_column(tmp_path, capsys):
     conn.commit()
     conn.close()
     assert main(["report", str(out)]) == 2
-    _one_line_error(capsys, "r/none/odometry/seed-0", "params", "not valid JSON")
+    one_line_error(capsys, "r/none/odometry/seed-0", "params", "not valid JSON")
 
 
 # ------------------------------------------------------------------ BAD 3: seeds SQLite cannot store
@@ -246,7 +237,7 @@ def _study_file(tmp_path: Path, seeds: str, extra: str = "", name: str = "s.toml
 def test_a_seed_sqlite_cannot_store_is_refused_in_a_study(tmp_path, capsys, seeds, needle):
     study = _study_file(tmp_path, seeds)
     assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, str(study), needle, "2**63 - 1")
+    one_line_error(capsys, str(study), needle, "2**63 - 1")
     assert not (tmp_path / "out").exists()
 
 
@@ -270,7 +261,7 @@ def test_a_seed_out_of_range_on_the_command_line(tmp_path, capsys, monkeypatch, 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before the seed was checked"))
     args = ["--route", "demo"] if command == "simulate" else []
     assert main([command, *args, "--seed", str(2**64), "--out", str(tmp_path / "x")]) == 2
-    _one_line_error(capsys, str(2**64), "2**63 - 1")
+    one_line_error(capsys, str(2**64), "2**63 - 1")
     assert not (tmp_path / "x").exists()
 
 
@@ -287,7 +278,7 @@ def test_a_seed_out_of_range_on_the_command_line(tmp_path, capsys, monkeypatch, 
 ])
 def test_size_like_parameters_are_refused_before_the_run(seq, tmp_path, capsys, method, param, needle):
     assert main(["run", "--method", method, str(seq), "--out", str(tmp_path / "run"), "--param", param]) == 2
-    _one_line_error(capsys, needle, "100" if "truncation" in param else "got")
+    one_line_error(capsys, needle, "100" if "truncation" in param else "got")
     assert not (tmp_path / "run").exists()
 
 
@@ -296,21 +287,21 @@ def test_a_huge_camera_is_a_clear_error_not_a_memory_error(tmp_path, capsys, mon
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered a huge camera"))
     assert main(["simulate", "--route", "demo", "--width", "100000", "--height", "100000", "--out", str(tmp_path / "s")]) == 2
-    _one_line_error(capsys, "width must be at most 7680 pixels", "100000")
+    one_line_error(capsys, "width must be at most 7680 pixels", "100000")
     assert main(["simulate", "--route", "demo", "--width", "7680", "--height", "7680", "--out", str(tmp_path / "s")]) == 2
-    _one_line_error(capsys, "7680 x 7680 = 58982400 pixels", "GB")
+    one_line_error(capsys, "7680 x 7680 = 58982400 pixels", "GB")
     assert not (tmp_path / "s").exists()
 
 
 def test_an_absurd_study_grid_is_refused_with_its_count_before_anything(tmp_path, capsys):
     study = _study_file(tmp_path, "1000000000")
     assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "seeds", "1000000000", "100000")
+    one_line_error(capsys, "seeds", "1000000000", "100000")
     study = _study_file(tmp_path, "30000")
     text = study.read_text().replace('noise = ["none"]', 'noise = ["none", "small", "large", "xlarge"]')
     study.write_text(text)
     assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "1 route x 4 noise levels x 1 method x 30000 seeds = 120000 runs", "100000")
+    one_line_error(capsys, "1 route x 4 noise levels x 1 method x 30000 seeds = 120000 runs", "100000")
     assert not (tmp_path / "out").exists()
 
 
@@ -335,7 +326,7 @@ def test_a_different_study_into_a_study_folder_is_refused_unless_extended(tmp_pa
     capsys.readouterr()
     before = _tree(out)
     assert main(["study", str(b), "--out", str(out), "--no-report"]) == 2
-    line = _one_line_error(capsys, str(out), "study 'a'", "study 'b'", "name, seeds", "--extend")
+    line = one_line_error(capsys, str(out), "study 'a'", "study 'b'", "name, seeds", "--extend")
     assert "1 seed)" in line
     assert _tree(out) == before
     assert main(["study", str(b), "--out", str(out), "--no-report", "--extend"]) == 0
@@ -349,7 +340,7 @@ def test_a_different_study_into_a_study_folder_is_refused_unless_extended(tmp_pa
 def test_address_without_ray_is_refused_before_anything(tmp_path, capsys):
     study = _study_file(tmp_path, "1")
     assert main(["study", str(study), "--out", str(tmp_path / "out"), "--address", "127.0.0.1:6379"]) == 2
-    _one_line_error(capsys, "--address 127.0.0.1:6379 is for --executor ray")
+    one_line_error(capsys, "--address 127.0.0.1:6379 is for --executor ray")
     assert not (tmp_path / "out").exists()
 
 
@@ -366,7 +357,7 @@ def test_ray_address_that_refuses_is_a_clear_error_and_creates_nothing(tmp_path,
     assert main(["study", str(study), "--out", str(tmp_path / "out"), "--executor", "ray",
                  "--address", f"127.0.0.1:{port}"]) == 2
     assert time.monotonic() - t0 < 30
-    _one_line_error(capsys, f"127.0.0.1:{port}", "no Ray cluster answered")
+    one_line_error(capsys, f"127.0.0.1:{port}", "no Ray cluster answered")
     assert not (tmp_path / "out").exists()
 
 
@@ -387,7 +378,7 @@ def test_ray_init_that_hangs_is_given_up(tmp_path, capsys, monkeypatch):
         study = _study_file(tmp_path, "1")
         address = f"127.0.0.1:{listener.getsockname()[1]}"
         assert main(["study", str(study), "--out", str(tmp_path / "out"), "--executor", "ray", "--address", address]) == 2
-        _one_line_error(capsys, address, "did not start or answer")
+        one_line_error(capsys, address, "did not start or answer")
         assert not (tmp_path / "out").exists()
     finally:
         release.set()
@@ -402,7 +393,7 @@ def test_a_ray_client_address_without_ray_client_is_a_clear_error(tmp_path, caps
         pytest.skip("Ray Client is installed here")
     study = _study_file(tmp_path, "1")
     assert main(["study", str(study), "--out", str(tmp_path / "out"), "--executor", "ray", "--address", "ray://head:10001"]) == 2
-    _one_line_error(capsys, "ray://head:10001", "ray[client]")
+    one_line_error(capsys, "ray://head:10001", "ray[client]")
     assert not (tmp_path / "out").exists()
 
 
@@ -418,13 +409,13 @@ def test_viz_live_without_a_viewer_or_a_display_is_a_clear_error(seq, tmp_path, 
     monkeypatch.setattr(live, "_viewer_listening", lambda port=9876: False)
     monkeypatch.setattr(shutil_module, "which", lambda *a, **k: None)
     assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run"), "--viz"]) == 2
-    _one_line_error(capsys, "rerun viewer", "not on PATH", "--viz run.rrd")
+    one_line_error(capsys, "rerun viewer", "not on PATH", "--viz run.rrd")
     monkeypatch.undo()
     monkeypatch.setattr(live, "_viewer_listening", lambda port=9876: False)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run"), "--viz"]) == 2
-    _one_line_error(capsys, "no display", "--viz run.rrd")
+    one_line_error(capsys, "no display", "--viz run.rrd")
     assert not (tmp_path / "run").exists()
 
 
@@ -469,18 +460,18 @@ def test_index_files_that_disagree_get_a_note_with_counts(tmp_path, capsys):
 
 def test_a_principal_point_outside_the_image_is_refused(seq, tmp_path, capsys):
     assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "r"), "--intrinsics", "10,10,800,6"]) == 2
-    _one_line_error(capsys, "--intrinsics", "principal point", "(800, 6)", "16 x 12")
+    one_line_error(capsys, "--intrinsics", "principal point", "(800, 6)", "16 x 12")
     import json
 
     camera = json.loads((seq / "camera.json").read_text())
     (seq / "camera.json").write_text(json.dumps({**camera, "cy": -50}))
     assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "r")]) == 2
-    _one_line_error(capsys, "camera.json", "principal point")
+    one_line_error(capsys, "camera.json", "principal point")
 
 
 def test_a_negative_intrinsic_gets_the_intrinsics_message_not_argparses(seq, tmp_path, capsys):
     assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "r"), "--intrinsics", "-40,40,8,6"]) == 2
-    _one_line_error(capsys, "--intrinsics '-40,40,8,6'", "fx and fy positive")
+    one_line_error(capsys, "--intrinsics '-40,40,8,6'", "fx and fy positive")
 
 
 def test_evaluate_warns_on_partial_coverage_and_on_another_sequence(tmp_path, capsys):
@@ -537,7 +528,7 @@ def test_a_route_that_goes_nowhere_is_refused(tmp_path, capsys, monkeypatch, tex
     route = tmp_path / "r.txt"
     route.write_text(text)
     assert main(["simulate", "--route", str(route), "--out", str(tmp_path / "s")]) == 2
-    _one_line_error(capsys, needle)
+    one_line_error(capsys, needle)
     assert not (tmp_path / "s").exists()
 
 
@@ -545,23 +536,23 @@ def test_a_camera_above_the_ceiling_is_refused(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
     assert main(["simulate", "--route", "demo", "--camera-height", "5", "--width", "16", "--height", "12",
                  "--out", str(tmp_path / "s")]) == 2
-    _one_line_error(capsys, "camera height 5 m", "over the ceiling")
+    one_line_error(capsys, "camera height 5 m", "over the ceiling")
     assert not (tmp_path / "s").exists() and not (tmp_path / "cache").exists()
     study = _study_file(tmp_path, "1", "camera_height = 5\n")
     assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "camera.camera_height", "over the ceiling")
+    one_line_error(capsys, "camera.camera_height", "over the ceiling")
     assert not (tmp_path / "out").exists()
     named = study.read_text().replace("[camera]", "[cameras.tall]")
     (tmp_path / "named.toml").write_text(named)
     assert main(["study", str(tmp_path / "named.toml"), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "cameras.tall.camera_height", "over the ceiling")  # the table the height is in
+    one_line_error(capsys, "cameras.tall.camera_height", "over the ceiling")  # the table the height is in
 
 
 def test_a_study_camera_string_is_not_coerced_to_a_number(tmp_path, capsys):
     study = _study_file(tmp_path, "1").read_text().replace("width = 16", 'width = "16"')
     (tmp_path / "s.toml").write_text(study)
     assert main(["study", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "camera.width: '16'", "expected a whole number, got a string")
+    one_line_error(capsys, "camera.width: '16'", "expected a whole number, got a string")
 
 
 def test_a_study_method_parameter_string_is_not_coerced_to_a_number(tmp_path, capsys):
@@ -569,7 +560,7 @@ def test_a_study_method_parameter_string_is_not_coerced_to_a_number(tmp_path, ca
     study = _study_file(tmp_path, "1").read_text().replace('methods = ["odometry"]', 'methods = ["keyframe"]')
     (tmp_path / "s.toml").write_text(study + '[params.keyframe]\nmax_features = "500"\n')
     assert main(["study", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "params.keyframe", "max_features='500'", "expected a whole number, got a string")
+    one_line_error(capsys, "params.keyframe", "max_features='500'", "expected a whole number, got a string")
     assert not (tmp_path / "out").exists()
 
 
@@ -577,7 +568,7 @@ def test_a_variant_listed_in_methods_is_named_a_variant(tmp_path, capsys):
     study = _study_file(tmp_path, "1").read_text().replace('methods = ["odometry"]', 'methods = ["odometry", "odo2"]')
     (tmp_path / "s.toml").write_text(study + '[variants.odo2]\nmethod = "odometry"\n')
     assert main(["study", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
-    _one_line_error(capsys, "methods[1]", "'odo2' is a variant", "remove it from methods")
+    one_line_error(capsys, "methods[1]", "'odo2' is a variant", "remove it from methods")
 
 
 @pytest.mark.parametrize("value, needle", [("file", "is a file; expected a folder"), ("", None)])
@@ -589,7 +580,7 @@ def test_longslam_cache_that_is_a_file_or_empty(tmp_path, capsys, monkeypatch, v
         (tmp_path / "file").write_text("x")
         monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "file"))
         assert main(["simulate", "--route", "demo", "--out", str(tmp_path / "s")]) == 2
-        _one_line_error(capsys, "LONGSLAM_CACHE=", needle)
+        one_line_error(capsys, "LONGSLAM_CACHE=", needle)
     else:
         monkeypatch.setenv("LONGSLAM_CACHE", "")
         monkeypatch.setenv("HOME", str(tmp_path / "home"))
@@ -602,10 +593,10 @@ def test_ros2_folder_without_metadata_and_one_topic_in_two_roles(seq, tmp_path, 
     assert main(["export", str(seq), "--odom-noise", "large", "--out", str(bag)]) == 0
     capsys.readouterr()
     assert main(["import", str(bag), "--out", str(tmp_path / "x"), "--odom", "/groundtruth", "--groundtruth", "/groundtruth"]) == 2
-    _one_line_error(capsys, "--groundtruth /groundtruth is also the --odom topic")
+    one_line_error(capsys, "--groundtruth /groundtruth is also the --odom topic")
     (bag / "metadata.yaml").unlink()
     assert main(["import", str(bag), "--out", str(tmp_path / "x")]) == 2
-    _one_line_error(capsys, f"bag folder {bag} has no metadata.yaml")
+    one_line_error(capsys, f"bag folder {bag} has no metadata.yaml")
 
 
 def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
@@ -614,7 +605,7 @@ def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
 
     ply, _ = write_building(tmp_path / "b")
     assert main(["world", "--world", str(ply), "--units", "mm", "--out", str(tmp_path / "p.png")]) == 2
-    line = _one_line_error(capsys, "too small to be a building", "leave out --units")
+    line = one_line_error(capsys, "too small to be a building", "leave out --units")
     assert "--floor" not in line
 
 
@@ -646,23 +637,23 @@ def test_a_walls_only_mesh_is_said_to_have_no_floor(tmp_path, capsys):
     mesh = tmp_path / "walls.ply"
     trimesh.Trimesh(np.concatenate(quads), np.concatenate([k + [0, 1, 2], k + [0, 2, 3]]), process=False).export(mesh)
     assert main(["world", "--world", str(mesh), "--floor", "0", "--out", str(tmp_path / "p.png")]) == 2
-    _one_line_error(capsys, "no floor surface at height 0.000 m", "walls only")
+    one_line_error(capsys, "no floor surface at height 0.000 m", "walls only")
 
 
 def test_vocabulary_build_never_writes_into_its_input_sequence(seq, tmp_path, capsys):
     before = _tree(seq)
     for out in (seq / "rgb.txt", seq / "voc.txt"):
         assert main(["vocabulary", "build", "--sequence", str(seq), "--out", str(out), "--overwrite"]) == 2
-        _one_line_error(capsys, str(out), "inside the input")
+        one_line_error(capsys, str(out), "inside the input")
         assert _tree(seq) == before
     assert main(["vocabulary", "build", "--sequence", str(seq), "--out", str(tmp_path / "v.txt"),
                  "--seed", str(2**64)]) == 2
-    _one_line_error(capsys, "--seed", "2**63 - 1")
+    one_line_error(capsys, "--seed", "2**63 - 1")
 
 
 def test_orbslam3_refuses_images_it_would_crash_on(seq, tmp_path, capsys):
     pytest.importorskip("longslam_orbslam3", reason="the orbslam3 plugin is not installed")
     # 16 x 12: ORB-SLAM3 itself stopped with "vector::_M_default_append" (or a segfault) on such images
     assert main(["run", "--method", "orbslam3", str(seq), "--out", str(tmp_path / "run")]) == 2
-    _one_line_error(capsys, "16 x 12 images are too small for ORB-SLAM3", "at least 120 pixels")
+    one_line_error(capsys, "16 x 12 images are too small for ORB-SLAM3", "at least 120 pixels")
     assert not (tmp_path / "run").exists()

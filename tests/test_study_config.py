@@ -65,6 +65,19 @@ def test_shipped_study_files_load():
     assert {wheel["keyframe-wheel"].method, wheel["submap-wheel"].method} == {"keyframe", "submap"}
 
 
+def _refused(tmp_path, study: str, change: tuple[str, str], expected: list[str]) -> None:
+    """`study` with one change is refused, naming the file and every expected part."""
+    old, new = change
+    assert old in study
+    path = _write(tmp_path, study.replace(old, new, 1))
+    with pytest.raises(StudyConfigError) as err:
+        load_study(path)
+    message = str(err.value)
+    assert str(path) in message
+    for part in expected:
+        assert part in message, f"{part!r} not in {message!r}"
+
+
 @pytest.mark.parametrize(
     "change, expected",
     [
@@ -87,15 +100,7 @@ def test_shipped_study_files_load():
     ],
 )
 def test_errors_name_the_key_and_the_valid_values(tmp_path, change, expected):
-    old, new = change
-    assert old in GOOD
-    path = _write(tmp_path, GOOD.replace(old, new, 1))
-    with pytest.raises(StudyConfigError) as err:
-        load_study(path)
-    message = str(err.value)
-    assert str(path) in message
-    for part in expected:
-        assert part in message, f"{part!r} not in {message!r}"
+    _refused(tmp_path, GOOD, change, expected)
 
 
 def test_bad_method_parameters_fail_before_any_run(tmp_path):
@@ -194,15 +199,7 @@ def test_real_systems_study_file_loads():
     ],
 )
 def test_camera_errors_name_the_key_and_the_valid_values(tmp_path, change, expected):
-    old, new = change
-    assert old in CAMERAS
-    path = _write(tmp_path, CAMERAS.replace(old, new, 1))
-    with pytest.raises(StudyConfigError) as err:
-        load_study(path)
-    message = str(err.value)
-    assert str(path) in message
-    for part in expected:
-        assert part in message, f"{part!r} not in {message!r}"
+    _refused(tmp_path, CAMERAS, change, expected)
 
 
 @pytest.mark.parametrize("tables", ["cameras = 1\n", "cameras = {}\n", "[cameras]\nsmall = 5\n"])

@@ -67,15 +67,13 @@ def _run_method(method_name: str, spec: Any, config: Any, frames: Iterable[Frame
                 params: dict[str, Any] | None, total: int | None, progress: bool,
                 observer: RunObserver | None, baseline_rss: int) -> tuple[Result, dict[str, Any]]:
     method = spec.build(context, config)
-    finished = False
     try:
-        result, measurements = _feed(method_name, method, config, spec, frames, context, params, total, progress,
-                                     observer, baseline_rss)
-        finished = True
-        return result, measurements
-    finally:
-        if not finished and isinstance(method, Closable):
+        return _feed(method_name, method, config, spec, frames, context, params, total, progress, observer,
+                     baseline_rss)
+    except BaseException:  # an error or Ctrl-C before finish returned: nothing of the method outlives the run
+        if isinstance(method, Closable):
             method.close()
+        raise
 
 
 def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterable[Frame], context: MethodContext,
