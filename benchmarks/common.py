@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from longslam.recording import simulate
+from longslam.simulate import simulate
 from longslam.run.isolate import run_and_score  # noqa: F401 (the benchmarks import it from here)
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route

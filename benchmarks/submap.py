@@ -13,7 +13,7 @@ method with --with-keyframe):
    read from disk, so rendering is excluded; target >= 5).
 
 Each run is a separate process (`run_sequence_isolated`), so peak memory is the run's own.
-Sequences are made with `longslam.recording.simulate` (rendering cached under LONGSLAM_CACHE).
+Sequences are made with `longslam.simulate.simulate` (rendering cached under LONGSLAM_CACHE).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ import pytest
 from longslam.frame import Intrinsics
 from longslam.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceWriter
-from longslam.recording import simulate
+from longslam.simulate import simulate
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route

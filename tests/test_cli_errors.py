@@ -30,7 +30,7 @@ def tiny(tiny_sequence):
 
 
 def test_bad_out_for_simulate_is_refused_before_rendering(tmp_path, monkeypatch, capsys):
-    from longslam import recording
+    from longslam import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before --out was checked"))
     (tmp_path / "afile").write_text("x")
@@ -51,7 +51,7 @@ def test_bad_out_for_demo_and_study(tmp_path, capsys):
 
 
 def test_a_negative_seed_is_refused_before_rendering(tmp_path, monkeypatch, capsys):
-    from longslam import recording
+    from longslam import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before the seed was checked"))
     assert main(["simulate", "--route", "demo", "--seed", "-1", "--out", str(tmp_path / "s")]) == 2

@@ -12,7 +12,7 @@ from longslam.geometry import camera_poses_from_planar
 from longslam.io.partials import clean_stale_partials
 from longslam.io.sequence import SequenceWriter
 from longslam.run.engine import run_sequence
-from longslam.recording import simulate
+from longslam.simulate import simulate
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route

@@ -14,7 +14,7 @@ import trimesh
 from building_mesh import WING_END, write_building
 from longslam.cli import main
 from longslam.errors import InputError
-from longslam.recording import cache_key
+from longslam.simulate import cache_key
 from longslam.sim.camera import CameraSettings
 from longslam.sim.drive import drive_route
 from longslam.sim.follower import FollowerSettings
@@ -23,7 +23,7 @@ from longslam.sim.routes import Route, get_route, load_route_file
 from longslam.study.config import StudyConfigError, load_study
 from longslam.study.spec import plan_runs
 from longslam.world import load_mesh_world, load_world, world_key, world_ref
-from longslam.world.source import MeshSpec
+from longslam.world.reference import MeshSpec
 
 
 @pytest.fixture(scope="module")
@@ -232,7 +232,7 @@ def test_study_world_is_a_mesh_relative_to_the_study_file(folder, tmp_path):
 def test_a_scene_of_textured_and_coloured_parts_becomes_one_textured_mesh(tmp_path):
     from PIL import Image
 
-    from longslam.world.mesh_file import read_mesh_file
+    from longslam.world.mesh_reader import read_mesh_file
 
     image = np.zeros((4, 4, 3), np.uint8)
     image[:2, :2], image[:2, 2:], image[2:, :2], image[2:, 2:] = (255, 0, 0), (0, 255, 0), (0, 0, 255), (255, 255, 0)

@@ -16,7 +16,7 @@ from longslam.cli import main
 from longslam.gridmap import FREE, OCCUPIED
 from longslam.io.sequence import SequenceReader
 from longslam.study.config import load_study
-from longslam.study.runner import run_study
+from longslam.study.driver import run_study
 from longslam.world import load_mesh_world
 
 ROUTE = {"world": "building.glb", "waypoints": [[1.0, 1.0], [8.5, 2.6], list(WING_END)]}

@@ -63,7 +63,7 @@ def test_run_overwrite_replaces_only_a_run_folder(seq, tmp_path, capsys):
 
 
 def test_simulate_overwrite_replaces_only_a_sequence(tmp_path, capsys, monkeypatch):
-    from longslam import recording
+    from longslam import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before --out was checked"))
     seq = write_tiny_sequence(tmp_path / "seq", n=5)[0]
@@ -256,7 +256,7 @@ def test_the_largest_seed_is_drawn_and_recorded(tmp_path):
 
 @pytest.mark.parametrize("command", ["simulate", "demo"])
 def test_a_seed_out_of_range_on_the_command_line(tmp_path, capsys, monkeypatch, command):
-    from longslam import recording
+    from longslam import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before the seed was checked"))
     args = ["--route", "demo"] if command == "simulate" else []
@@ -283,7 +283,7 @@ def test_size_like_parameters_are_refused_before_the_run(seq, tmp_path, capsys, 
 
 
 def test_a_huge_camera_is_a_clear_error_not_a_memory_error(tmp_path, capsys, monkeypatch):
-    from longslam import recording
+    from longslam import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered a huge camera"))
     assert main(["simulate", "--route", "demo", "--width", "100000", "--height", "100000", "--out", str(tmp_path / "s")]) == 2
@@ -366,9 +366,9 @@ def test_ray_init_that_hangs_is_given_up(tmp_path, capsys, monkeypatch):
     import threading
     import socket
 
-    from longslam.study import executors
+    from longslam.study import backends
 
-    monkeypatch.setattr(executors, "RAY_CONNECT_TIMEOUT_S", 0.5)
+    monkeypatch.setattr(backends, "RAY_CONNECT_TIMEOUT_S", 0.5)
     release = threading.Event()
     monkeypatch.setattr(ray, "init", lambda **kw: release.wait(30))  # as ray.init retrying an address
     listener = socket.socket()  # answers TCP, never Ray
@@ -573,7 +573,7 @@ def test_a_variant_listed_in_methods_is_named_a_variant(tmp_path, capsys):
 
 @pytest.mark.parametrize("value, needle", [("file", "is a file; expected a folder"), ("", None)])
 def test_longslam_cache_that_is_a_file_or_empty(tmp_path, capsys, monkeypatch, value, needle):
-    from longslam.recording import cache_root
+    from longslam.simulate import cache_root
 
     monkeypatch.chdir(tmp_path)
     if value == "file":

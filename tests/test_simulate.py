@@ -8,11 +8,11 @@ import pytest
 
 from longslam.cli import main
 from longslam.io.sequence import SequenceReader
-from longslam import recording as cache_module
+from longslam import simulate as cache_module
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
-from longslam.recording import simulate
+from longslam.simulate import simulate
 
 SMALL = CameraSettings(width=64, height=48)
 ROUTE = Route("short", "university", ((20.0, 31.25), (26.0, 31.25), "junction_a"))

@@ -22,7 +22,7 @@ from longslam.slam import catalog
 from longslam.study.config import load_study
 from longslam.study.database import DB_NAME
 from longslam.study.report import Cell, StudyResults, accuracy_table, format_mean_std, memory_table
-from longslam.study.runner import run_study
+from longslam.study.driver import run_study
 
 ROUTE = "20 31.25\n28 31.25\n"  # 8 m along the spine: about 55 frames
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from longslam.study.config import StudyConfigError, check_method_params, load_study
-from longslam.study.runner import plan_text
+from longslam.study.driver import plan_text
 from longslam.study.spec import plan_runs
 
 ROOT = Path(__file__).resolve().parents[1]

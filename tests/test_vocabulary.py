@@ -15,7 +15,7 @@ import pytest
 
 from longslam.cli import main
 from longslam.errors import InputError
-from longslam.recording import rendered_sequence
+from longslam.simulate import rendered_sequence
 from longslam.sim.routes import Route
 import longslam.vocabulary.kmeans as kmeans_module
 from longslam.vocabulary import Vocabulary, build_tree, format_text, read_vocabulary, write_vocabulary

@@ -122,7 +122,7 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.sim.noise import get_noise
     from longslam.sim.routes import get_route
     from longslam.io.sequence import SequenceReader
-    from longslam.recording import simulate
+    from longslam.simulate import simulate
     from longslam.world import world_label
 
     from longslam.io.outputs import check_not_an_input
@@ -266,7 +266,7 @@ def cmd_list(args: argparse.Namespace) -> None:
 
 def cmd_study(args: argparse.Namespace) -> None:
     from longslam.study.config import load_study
-    from longslam.study.runner import run_study
+    from longslam.study.driver import run_study
 
     if args.jobs is not None and args.jobs < 1:
         raise LongslamError(f"--jobs must be at least 1, got {args.jobs}")
@@ -301,7 +301,7 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
     from longslam.io.outputs import check_not_an_input
 
     check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")
-    from longslam.recording import check_seed
+    from longslam.simulate import check_seed
 
     check_seed(args.seed, "--seed")  # the same range wherever a seed enters
     world = _world(args, args.world)

@@ -12,7 +12,7 @@ from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
-from longslam.recording import check_seed, simulate
+from longslam.simulate import check_seed, simulate
 from longslam.slam.catalog import get_spec, method_names
 from longslam.viz.plots import plot_plan
 from longslam.world import load_world

@@ -2,7 +2,7 @@
 
 Every run longslam makes goes through `run_frames` (frames in, result and measurements out):
 `longslam run` and the demo through `run_sequence` (a sequence folder in, a run folder out), a
-study's runs through `study/execute.py` (frames with odometry drawn on the fly).
+study's runs through `study/worker.py` (frames with odometry drawn on the fly).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
-from longslam.world.mesh import WorldMesh
+from longslam.world.world_mesh import WorldMesh
 
 # A fixed sun-like light from above and to one side: walls of different orientations, the floor
 # and the ceiling each get a different brightness, as under real lighting.

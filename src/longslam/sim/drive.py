@@ -9,7 +9,7 @@ from longslam.sim.follower import DrivenPath, FollowerSettings, follow_paths
 from longslam.sim.navigation import NavigationGrid
 from longslam.sim.routes import Route
 from longslam.trajectory import Trajectory
-from longslam.world.world import World
+from longslam.world.model import World
 
 
 def drive_route(

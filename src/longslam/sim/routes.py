@@ -16,7 +16,7 @@ from pathlib import Path
 from longslam.errors import InputError
 from longslam.textfile import read_text
 from longslam.registry import Registry
-from longslam.world.source import is_mesh_ref, same_world, world_label, world_ref
+from longslam.world.reference import is_mesh_ref, same_world, world_label, world_ref
 
 Waypoint = tuple[float, float] | str
 

@@ -49,7 +49,7 @@ from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import NOISE_LEVELS
 from longslam.sim.routes import ROUTES, Route, load_route_file
-from longslam.world.source import same_world, world_label, world_ref
+from longslam.world.reference import same_world, world_label, world_ref
 
 TOP_KEYS = (
     "name", "world", "routes", "noise", "methods", "seeds", "align", "map_tolerance_cells",
@@ -89,7 +89,7 @@ class CameraEntry:
 @dataclass(frozen=True)
 class StudyConfig:
     name: str
-    world: str  # a world reference: a registered name, or a mesh file's (longslam.world.source)
+    world: str  # a world reference: a registered name, or a mesh file's (longslam.world.reference)
     routes: tuple[Route, ...]
     noise: tuple[str, ...]
     methods: tuple[MethodEntry, ...]
@@ -335,7 +335,7 @@ def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
 
 
 def _seeds(r: _Reader, value: Any) -> list[int]:
-    from longslam.recording import MAX_SEED, seed_problem
+    from longslam.simulate import MAX_SEED, seed_problem
 
     if _is_int(value):
         if value < 1:

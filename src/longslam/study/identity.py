@@ -15,7 +15,7 @@ from longslam.study.database import DB_NAME, connect_read_only
 
 
 def _grid(config: dict[str, Any]) -> dict[str, Any]:
-    from longslam.world.source import world_identity
+    from longslam.world.reference import world_identity
 
     world = config.get("world", "")
     return {

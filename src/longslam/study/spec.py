@@ -47,7 +47,7 @@ class RunSpec:
     @property
     def config_hash(self) -> str:
         """Changes whenever anything that affects the run's result changes."""
-        from longslam.world.source import world_identity
+        from longslam.world.reference import world_identity
 
         described = self.describe()
         described.pop("study")  # renaming a study does not change its runs

@@ -16,7 +16,7 @@ from tqdm import tqdm
 
 from longslam.errors import InputError
 from longslam.io.sequence import SequenceReader
-from longslam.recording import rendered_sequence
+from longslam.simulate import rendered_sequence
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
 from longslam.vocabulary.dbow2 import write_vocabulary

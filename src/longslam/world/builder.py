@@ -16,7 +16,7 @@ import numpy as np
 
 from longslam.world import textures as tex
 from longslam.world.layout import FloorPlan, Rect
-from longslam.world.mesh import WorldMesh
+from longslam.world.world_mesh import WorldMesh
 
 MAX_PANEL = 4.0  # metres: longest wall panel with one texture
 JAMB = 0.35  # metres: wall segments shorter than this are door jambs

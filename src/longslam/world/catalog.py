@@ -10,7 +10,7 @@ from longslam.world.annex import TEXTURE_SEED as _ANNEX_SEED, annex_plan
 from longslam.world.builder import build_mesh
 from longslam.world.layout import FloorPlan
 from longslam.world.university import university_plan
-from longslam.world.world import World
+from longslam.world.model import World
 
 WORLDS: Registry[Callable[[], World]] = Registry("world")
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from longslam.errors import InputError
-from longslam.world.mesh import WorldMesh
+from longslam.world.world_mesh import WorldMesh
 
 HEADROOM = 1.5  # metres of free space a floor needs above it: the top of the obstacle band
 LEVEL_BIN = 0.05  # metres: horizontal surfaces this close in height are one level

@@ -125,7 +125,7 @@ class Report:
 
 def _world_shown(world: str) -> str:
     """A world's name, or its mesh file's name and content hash."""
-    from longslam.world.source import MeshSpec, is_mesh_ref
+    from longslam.world.reference import MeshSpec, is_mesh_ref
 
     if not is_mesh_ref(world):
         return world

@@ -17,9 +17,9 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.world.floor import check_metres, find_floor
-from longslam.world.mesh import WorldMesh
-from longslam.world.mesh_file import read_mesh_file
-from longslam.world.world import World
+from longslam.world.world_mesh import WorldMesh
+from longslam.world.mesh_reader import read_mesh_file
+from longslam.world.model import World
 
 OBSTACLE_BAND = (0.2, 1.5)  # metres above the floor
 FLOOR_TOLERANCE = 0.1  # metres: how far a downward ray's hit may be from the floor and count as floor

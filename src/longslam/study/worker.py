@@ -19,7 +19,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.jsonable import json_default
 from longslam.run.engine import run_frames
 from longslam.run.folder import RECORD, RUN_FILES, write_result
-from longslam.recording import frames_with_odometry, noisy_odometry
+from longslam.simulate import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
 from longslam.slam.api import MethodContext
 from longslam.study.prepare import render_once

@@ -2,7 +2,7 @@
 
 Every part of the file's scene is placed by its node transform; textured parts keep their
 textures (packed into one atlas), coloured parts their vertex or face colours. The result is in
-the file's own axes and units: `longslam.world.external` turns it upright and into metres.
+the file's own axes and units: `longslam.world.own_building` turns it upright and into metres.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from longslam.errors import InputError
-from longslam.world.mesh import WorldMesh
+from longslam.world.world_mesh import WorldMesh
 from longslam.world.textures import pack_atlas
 
 GREY = (160, 160, 160)

@@ -22,9 +22,9 @@ from typing import Any
 from longslam.errors import InputError
 from longslam.textfile import read_text
 from longslam.world.catalog import WORLDS, get_world
-from longslam.world.external import UNITS, UP_AXES, default_up, load_mesh_world
-from longslam.world.mesh_file import MESH_SUFFIXES
-from longslam.world.world import World
+from longslam.world.own_building import UNITS, UP_AXES, default_up, load_mesh_world
+from longslam.world.mesh_reader import MESH_SUFFIXES
+from longslam.world.model import World
 
 MESH_PREFIX = "mesh:"
 OPTION_KEYS = ("mesh", "floor", "units", "up", "places")

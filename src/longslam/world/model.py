@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 from longslam.gridmap import GridMap
 from longslam.world.layout import FloorPlan
-from longslam.world.mesh import WorldMesh
+from longslam.world.world_mesh import WorldMesh
 
 
 @dataclass

@@ -22,7 +22,7 @@ from tqdm import tqdm
 
 from longslam.study.config import StudyConfig, check_method_params
 from longslam.study.database import DB_NAME, ResultsDB
-from longslam.study.executors import Executor, Task, check_executor_options, make_executor
+from longslam.study.backends import Executor, Task, check_executor_options, make_executor
 from longslam.study.identity import check_same_study
 from longslam.study.lock import study_lock
 from longslam.study.prepare import (

@@ -32,7 +32,7 @@ from longslam.sim.noise import BiasNoise
 from longslam.sim.routes import Route
 from longslam.trajectory import Trajectory
 from longslam.world import load_world, world_key
-from longslam.world.source import MeshSpec, is_mesh_ref, world_identity
+from longslam.world.reference import MeshSpec, is_mesh_ref, world_identity
 
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1

@@ -68,7 +68,7 @@ def _local_child(task: Task, result_path: str, parent_pid: int) -> None:
     log = os.open(task.log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
     os.dup2(log, 1)
     os.dup2(log, 2)
-    from longslam.study.execute import error_record, execute_run, to_json
+    from longslam.study.worker import error_record, execute_run, to_json
 
     def load_truth():
         import numpy as np
@@ -163,7 +163,7 @@ def _ray_run(spec: Any, truth_refs: list) -> tuple[dict, dict[str, bytes]]:
 
     import ray
 
-    from longslam.study.execute import error_record, execute_run, to_json
+    from longslam.study.worker import error_record, execute_run, to_json
 
     def load_truth():
         return ray.get(truth_refs[0]), ray.get(truth_refs[1])
