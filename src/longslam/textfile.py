@@ -7,11 +7,13 @@ from pathlib import Path
 from longslam.errors import InputError
 
 
-def read_text(path: Path, what: str, hint: str = "") -> str:
-    """The file's text; a missing or unreadable file is an InputError naming `what` and the path."""
+def read_text(path: Path, what: str, hint: str = "", encoding: str = "utf-8",
+              error: type[InputError] = InputError) -> str:
+    """The file's text; a missing or unreadable file is an `error` (an InputError) naming `what`
+    and the path."""
     try:
-        return path.read_text(encoding="utf-8")
+        return path.read_text(encoding=encoding)
     except FileNotFoundError:
-        raise InputError(f"{what} {path} does not exist{f' ({hint})' if hint else ''}") from None
+        raise error(f"{what} {path} does not exist{f' ({hint})' if hint else ''}") from None
     except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"{what} {path} cannot be read: {err}") from None
+        raise error(f"{what} {path} cannot be read: {err}") from None

@@ -17,6 +17,7 @@ first moved by the same transform (R, t, s) that aligned its trajectory ('none' 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -103,25 +104,17 @@ def observed_walls(
     return mask
 
 
-def map_quality(
-    estimate: GridMap,
-    truth: GridMap,
-    tolerance_cells: float = 2.0,
-    observed: np.ndarray | None = None,
-    rotation: np.ndarray | None = None,
-    translation: np.ndarray | None = None,
-    scale: float = 1.0,
-    height: float = 0.0,
-) -> dict:
-    """Precision, recall and F1 of the estimate's occupied cells against the truth's.
+def map_quality(estimate: GridMap, truth: GridMap, **options: Any) -> dict:
+    """Precision, recall and F1 of the estimate's occupied cells against the truth's, as the map
+    stands (no alignment of the map itself): `map_scores` without its `*_aligned` and doubled-wall
+    keys, for the same keyword options (`tolerance_cells`, `observed`, the trajectory alignment
+    `rotation`, `translation`, `scale` and the floor `height`).
 
     `observed` (a boolean mask over truth.data, e.g. from `observed_walls`) limits recall to the
     walls the robot could see. Precision is None when the estimate has no occupied cell, recall
     None when there is no (observed) occupied ground-truth cell.
     """
-    tolerance = _tolerance(estimate, truth, tolerance_cells, observed)
-    est_xy = transform_points(occupied_points(estimate), rotation, translation, scale, height)
-    return score_points(est_xy, truth, tolerance, observed)
+    return map_scores(estimate, truth, search_alignment=False, **options)
 
 
 def _tolerance(estimate: GridMap, truth: GridMap, tolerance_cells: float, observed: np.ndarray | None) -> float:
@@ -178,19 +171,23 @@ def map_scores(
     scale: float = 1.0,
     height: float = 0.0,
     with_places: bool = False,
+    search_alignment: bool = True,
 ) -> dict:
     """`map_quality` as it is (after the trajectory's alignment, if any), again after the map's
     best planar alignment to the truth (`map_align`: keys `*_aligned`, the alignment itself in
     `map_alignment` as [x m, y m, yaw deg]), and the share of observed true walls the aligned map
     shows twice (`map_doubled_walls`, see `doubled_walls`). A global drift lowers only the
     unaligned score; doubled walls ("fake corridors") lower the aligned one and raise the share.
-    With `with_places`, `map_doubled_places` holds the (K, 2) world x, y of the doubled walls."""
+    With `with_places`, `map_doubled_places` holds the (K, 2) world x, y of the doubled walls;
+    without `search_alignment`, only the scores as the map stands (`map_quality`)."""
     from longslam.eval.doubled_walls import doubled_walls
     from longslam.eval.map_align import align_map
 
     tolerance = _tolerance(estimate, truth, tolerance_cells, observed)
     walls = transform_points(occupied_points(estimate), rotation, translation, scale, height)
     scores = score_points(walls, truth, tolerance, observed)
+    if not search_alignment:
+        return scores
     # The search and the doubled-wall test need a tolerance of at least a truth cell.
     search = max(tolerance, truth.resolution)
     planar = align_map(walls, truth, search)

@@ -49,6 +49,7 @@ from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import NOISE_LEVELS
 from longslam.sim.routes import ROUTES, Route, load_route_file
+from longslam.textfile import read_text
 from longslam.world.reference import same_world, world_label, world_ref
 
 TOP_KEYS = (
@@ -191,12 +192,7 @@ class _Reader:
 def load_study(path: str | Path, methods_available: list[str] | None = None) -> StudyConfig:
     """Read and check a study file. `methods_available` defaults to the registered methods."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise StudyConfigError(f"study file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise StudyConfigError(f"study file {path} cannot be read: {err}") from None
+    text = read_text(path, "study file", error=StudyConfigError)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:

@@ -25,6 +25,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.io.atomic import atomic_path, naming_the_file
+from longslam.textfile import read_text
 from longslam.vocabulary.tree import Vocabulary
 
 DESCRIPTOR_BYTES = 32  # FORB::L
@@ -86,12 +87,7 @@ def read_vocabulary(path: str | Path, final_newline: bool = False) -> Vocabulary
     by its lack of children but no word, so features that reach it are dropped).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="ascii")
-    except FileNotFoundError:
-        raise InputError(f"vocabulary {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"vocabulary {path} cannot be read: {err}") from None
+    text = read_text(path, "vocabulary", encoding="ascii")
     if text.endswith("\n") and final_newline:
         text = text[:-1]
     if text.endswith("\n"):
