@@ -1,9 +1,10 @@
 """Shared test helpers: tiny synthetic sequences, written in a moment, for tests of the run
 machinery (the engine, run folders, the CLI) that need frames but not a rendered building; and
-rendered sequences simulated into a cache of the test's own."""
+rendered sequences, each simulated once per session into the session's own render cache."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -48,13 +49,34 @@ def tiny_sequence(tmp_path_factory) -> Path:
     return write_tiny_sequence(tmp_path_factory.mktemp("tiny") / "seq", n=20)[0]
 
 
-def simulate_in_own_cache(root: Path, route: Route, noise: str, seed: int,
-                          camera: CameraSettings = CameraSettings(), name: str = "seq") -> Path:
-    """`root / name` simulated, rendering into `root / "cache"`: a test neither reads nor fills
-    the user's render cache."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
-        return simulate(route, get_noise(noise), seed, root / name, camera=camera, progress=False)
+@pytest.fixture(scope="session")
+def render_cache(tmp_path_factory) -> Path:
+    """The test session's own render cache: a test neither reads nor fills the user's, and a route
+    rendered for one file is not rendered again for another (another noise level or seed only
+    draws new odometry)."""
+    return tmp_path_factory.mktemp("render-cache")
+
+
+RenderedSequence = Callable[..., Path]
+
+
+@pytest.fixture(scope="session")
+def rendered(render_cache: Path, tmp_path_factory) -> RenderedSequence:
+    """`rendered(route, noise, seed, camera=CameraSettings())`: the simulated sequence folder for
+    (route, noise level, seed, camera), made once per session in the session's render cache. The
+    folder is shared: a test that changes it must copy it first."""
+    made: dict[tuple, Path] = {}
+
+    def sequence(route: Route, noise: str, seed: int, camera: CameraSettings = CameraSettings()) -> Path:
+        key = (route, noise, seed, camera)
+        if key not in made:
+            out = tmp_path_factory.mktemp(f"{route.name}-{noise}-{seed}") / "seq"
+            with pytest.MonkeyPatch.context() as mp:
+                mp.setenv("LONGSLAM_CACHE", str(render_cache))
+                made[key] = simulate(route, get_noise(noise), seed, out, camera=camera, progress=False)
+        return made[key]
+
+    return sequence
 
 
 def one_line_error(capsys, *needles: str) -> str:

@@ -1,4 +1,4 @@
-"""Recording sequences from the simulator: rendered routes cached on disk, and noisy odometry.
+"""The render cache and noisy sequences: rendered routes cached on disk, and noisy odometry.
 
 Rendering is deterministic for a (world, route, camera, follower), so the frames are stored
 once, as a TUM RGB-D sequence without odometry, under a key made from those settings. A

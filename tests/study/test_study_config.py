@@ -11,7 +11,7 @@ from longslam.study.config import StudyConfigError, check_method_params, load_st
 from longslam.study.driver import plan_text
 from longslam.study.spec import plan_runs
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 GOOD = """
 routes = ["demo", "tiny.txt"]
 noise = ["small", "large"]

@@ -25,8 +25,6 @@ from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
 from longslam.slam import catalog
 
-from conftest import simulate_in_own_cache
-
 plugin = pytest.importorskip("longslam_orbslam3", reason="the orbslam3 plugin is not installed")
 
 from longslam_orbslam3.anchoring import MapAnchors, final_poses  # noqa: E402
@@ -132,13 +130,13 @@ LONGSLAM = [sys.executable, "-m", "longslam.cli"]
 
 
 @pytest.fixture(scope="module")
-def corridor(tmp_path_factory):
+def corridor(tmp_path_factory, rendered):
     """8 m down the spine (53 frames at 320 x 240, exact odometry) and a small vocabulary of it."""
     from longslam.vocabulary.build import build_vocabulary_file
 
     root = tmp_path_factory.mktemp("orbslam3")
     route = Route("corridor", "university", ((8.0, 31.25), (16.0, 31.25)))
-    seq = simulate_in_own_cache(root, route, "none", 0, CameraSettings())
+    seq = rendered(route, "none", 0, CameraSettings())
     vocabulary = build_vocabulary_file(seq, root / "voc.txt", k=8, levels=3, seed=0, progress=False).path
     return root, seq, vocabulary
 

@@ -223,9 +223,9 @@ def test_orb_extractor_gives_32_byte_descriptors_and_none_on_a_blank_image():
 
 
 @pytest.fixture(scope="module")
-def hall_sequence(tmp_path_factory) -> Path:
-    """A short rendered walk through the hall, in a render cache of the test's own."""
-    return rendered_sequence(ROUTE, root=tmp_path_factory.mktemp("voc-cache"), progress=False)
+def hall_sequence(render_cache) -> Path:
+    """A short rendered walk through the hall, in the session's render cache."""
+    return rendered_sequence(ROUTE, root=render_cache, progress=False)
 
 
 def test_cli_builds_from_a_sequence(hall_sequence, tmp_path, capsys):

@@ -13,7 +13,6 @@ from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
 from longslam.slam.catalog import BUILTIN
 from longslam.world import get_world
-from conftest import simulate_in_own_cache
 
 CAMERA = CameraSettings(width=160, height=120)
 ROUTE = Route("map-check", "university", ((20.0, 31.25), (26.0, 31.25), "junction_a"))
@@ -22,9 +21,9 @@ TOLERANCE = 0.15  # m: voxel filtering and depth quantisation
 
 
 @pytest.fixture(scope="module")
-def sequence(tmp_path_factory):
+def sequence(rendered):
     # No noise: a correct map must then lie on the world's walls.
-    return simulate_in_own_cache(tmp_path_factory.mktemp("maps"), ROUTE, "none", 0, CAMERA)
+    return rendered(ROUTE, "none", 0, CAMERA)
 
 
 @pytest.mark.parametrize("method", list(BUILTIN))  # longslam's own methods; a plugin may build no map

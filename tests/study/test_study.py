@@ -78,8 +78,8 @@ class Dies(Gridded):
 
 
 @pytest.fixture(scope="module")
-def env(tmp_path_factory):
-    """A rendering cache of its own, a tiny route, and a plugin of test methods on the path."""
+def env(tmp_path_factory, render_cache):
+    """The session's render cache, a tiny route, and a plugin of test methods on the path."""
     root = tmp_path_factory.mktemp("study")
     plugins = root / "plugins"
     (plugins / "longslam_test_plugin-0.1.dist-info").mkdir(parents=True)
@@ -93,7 +93,7 @@ def env(tmp_path_factory):
     )
     (root / "tiny.txt").write_text(ROUTE)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
+        mp.setenv("LONGSLAM_CACHE", str(render_cache))
         mp.syspath_prepend(str(plugins))  # spawned children get the parent's sys.path
         mp.setenv("PYTHONPATH", os.pathsep.join([str(plugins), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
         # The catalogue finds the entry points again once the plugin is on the path.

@@ -21,18 +21,16 @@ from longslam.slam.submap.registration import register
 from longslam.geometry.cells import group_cells_3d, pack_3d, unpack_3d
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 from longslam.world import get_world
-from conftest import simulate_in_own_cache
 
 SMALL = CameraSettings(width=80, height=60)
 HALL_LOOP = Route("hall-loop", "university", ("hall_entry", "hall_ne", "hall_se", "hall_sw", "hall_nw", "hall_ne"))
 
 
 @pytest.fixture(scope="module")
-def hall_sequences(tmp_path_factory):
+def hall_sequences(rendered):
     """The hall loop with a small camera, at no noise and at large noise (rendered once)."""
-    root = tmp_path_factory.mktemp("submap")
-    exact = simulate_in_own_cache(root, HALL_LOOP, "none", 0, SMALL, name="none")
-    noisy = simulate_in_own_cache(root, HALL_LOOP, "large", 1, SMALL, name="large")
+    exact = rendered(HALL_LOOP, "none", 0, SMALL)
+    noisy = rendered(HALL_LOOP, "large", 1, SMALL)
     return SequenceReader(exact), SequenceReader(noisy)
 
 

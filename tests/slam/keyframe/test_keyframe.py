@@ -16,7 +16,6 @@ from longslam.slam.keyframe import KeyframeConfig
 from longslam.slam.keyframe.memory_db import MemoryDatabase
 from longslam.slam.catalog import check_params, create_method
 from longslam.world import get_world
-from conftest import simulate_in_own_cache
 
 CAMERA = CameraSettings(width=160, height=120)
 # Along the spine, back, and along it again: the second pass sees what the first saw.
@@ -24,8 +23,8 @@ ROUTE = Route("twice", "university", ((18.0, 31.25), (34.0, 31.25), (18.0, 31.25
 
 
 @pytest.fixture(scope="module")
-def sequence(tmp_path_factory):
-    return SequenceReader(simulate_in_own_cache(tmp_path_factory.mktemp("kf"), ROUTE, "xlarge", 2, CAMERA))
+def sequence(rendered):
+    return SequenceReader(rendered(ROUTE, "xlarge", 2, CAMERA))
 
 
 def _run(reader, params=None, output_dir=None, frames=None):

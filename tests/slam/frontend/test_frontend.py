@@ -18,7 +18,6 @@ from longslam.slam.frontend.local_map import LocalMap
 from longslam.slam.frontend.registration import register
 from longslam.slam.frontend.scan import ScanExtractor
 from longslam.trajectory import Trajectory
-from conftest import simulate_in_own_cache
 
 
 def _wall(a, b, step=0.05):
@@ -89,8 +88,8 @@ def test_config_refuses_unknown_parameters():
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    return SequenceReader(simulate_in_own_cache(tmp_path_factory.mktemp("fe"), get_route("demo"), "large", 0))
+def demo(rendered):
+    return SequenceReader(rendered(get_route("demo"), "large", 0))
 
 
 def _run(reader, config=None, strip_odometry=False):
