@@ -63,7 +63,7 @@ def wrong_loops(reader: SequenceReader, constraints: list, camera_height: float)
     gt = planar_from_camera_poses(reader.ground_truth.poses, camera_height)
     wrong, worst_m, worst_deg = 0, 0.0, 0.0
     for i, j, *delta in constraints:
-        d = np.asarray(delta) - relative_xyyaw(gt[i], gt[j])
+        d = np.asarray(delta) - relative_xyyaw(gt[int(i)], gt[int(j)])
         e, ey = float(np.hypot(d[0], d[1])), float(np.degrees(abs(wrap_angle(d[2]))))
         worst_m, worst_deg = max(worst_m, e), max(worst_deg, ey)
         wrong += e > 0.5 or ey > 5.0
@@ -82,10 +82,10 @@ def run_method(path: Path, method: str, frontend: str) -> dict:
     stats = result.stats
     out["rtf"] = (reader.timestamps[-1] - reader.timestamps[0]) / seconds
     out["loops"] = stats.get("loops_accepted", 0) + stats.get("registrations_accepted", 0)
-    fe = stats.get("frontend")
-    if fe is not None:
-        out["fed"] = len(fe["loop_constraints"])
-        out["wrong"], out["worst_m"], out["worst_deg"] = wrong_loops(reader, fe["loop_constraints"], stats["camera_height"])
+    loops = result.tables.get("loops")
+    if loops is not None:
+        out["fed"] = len(loops.rows)
+        out["wrong"], out["worst_m"], out["worst_deg"] = wrong_loops(reader, loops.rows.tolist(), stats["camera_height"])
     return out
 
 

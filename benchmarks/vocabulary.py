@@ -20,6 +20,8 @@ import numpy as np
 
 from common import run_and_score, sequence
 
+from longslam.run.folder import read_table
+
 
 def loop_pairs(database: Path, kind: str) -> set[tuple[int, int]]:
     with sqlite3.connect(database) as conn:
@@ -46,7 +48,7 @@ def main() -> None:
             params["frontend.mode"] = args.frontend
         scores, measured = run_and_score("keyframe", seq, out, params)
         stats = measured["method_stats"]
-        times = np.array(stats["node_time_ms"])
+        times = read_table(out / "nodes.csv").column("time_ms")
         pairs = {kind: loop_pairs(out / "memory.db", kind) for kind in ("loop", "proximity")}
         if index in ("bruteforce", "flat") and exact is None:
             exact = pairs

@@ -255,11 +255,14 @@ def cmd_demo(args: argparse.Namespace) -> None:
 def cmd_list(args: argparse.Namespace) -> None:
     from longslam.sim.noise import NOISE_LEVELS
     from longslam.sim.routes import ROUTES
+    from longslam.sim.tours import EXAMPLES as TOUR_EXAMPLES
     from longslam.slam.catalog import method_names
     from longslam.world import WORLDS
 
     print("worlds:      ", ", ".join(WORLDS.names()), "(or a mesh file: --world FILE)")
     print("routes:      ", ", ".join(ROUTES.names()))
+    print("long routes:  NAME-xN (a route N times over), tour-<L>km or tour-<L>m[-seed<S>] (a seeded random tour "
+          "of the world's places), e.g. " + ", ".join(TOUR_EXAMPLES))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
     print("methods:     ", ", ".join(method_names()))
 

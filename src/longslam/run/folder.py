@@ -6,12 +6,15 @@
     config.toml     the method and the parameters it ran with (every field, defaults included)
     grid.npz        2D occupancy grid, if the method builds one
     map.ply         3D map points, if the method builds them
+    NAME.csv        rows that grow with the route, one file per table of the result
+                    (loops.csv: every loop constraint; nodes.csv: keyframe's time per node)
     record.json     a study run's scores (study runs only)
 """
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +26,8 @@ from longslam.io.trajectory_files import write_tum
 from longslam.jsonable import json_default
 from longslam.run.resources import peak_rss_bytes
 from longslam.settings import to_toml
-from longslam.slam.api import Result
+from longslam.errors import InputError
+from longslam.slam.api import Result, Table
 
 TRAJECTORY = "trajectory.txt"
 ONLINE = "online.txt"
@@ -32,6 +36,7 @@ CONFIG = "config.toml"
 GRID = "grid.npz"
 MAP = "map.ply"
 RECORD = "record.json"
+TABLE_NAME = re.compile(r"[A-Za-z0-9_-]+")
 # The files a study's database points at, by kind.
 RUN_FILES = {"trajectory": TRAJECTORY, "online": ONLINE, "grid": GRID, "map": MAP, "stats": STATS}
 
@@ -53,6 +58,30 @@ def write_config(out: Path, measurements: dict[str, Any]) -> None:
     write_text(out / CONFIG, text)
 
 
+def write_table(path: Path, table: Table) -> None:
+    """A CSV with a header line; integers stay integers, other numbers in full precision."""
+    whole = np.all(np.mod(table.rows, 1.0) == 0.0, axis=0) if len(table.rows) else np.ones(len(table.columns), bool)
+    lines = [",".join(table.columns)]
+    lines += [",".join(str(int(v)) if whole[c] else repr(float(v)) for c, v in enumerate(row)) for row in table.rows]
+    write_text(path, "\n".join(lines) + "\n")
+
+
+def read_table(path: Path) -> Table:
+    """A table that `write_table` wrote."""
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise InputError(f"table {path} does not exist") from None
+    if not lines:
+        raise InputError(f"table {path} is empty: expected a header line of column names")
+    columns = tuple(lines[0].split(","))
+    try:
+        rows = np.array([[float(v) for v in line.split(",")] for line in lines[1:] if line], dtype=np.float64)
+    except ValueError as err:
+        raise InputError(f"table {path}: {err}") from None
+    return Table(columns, rows.reshape(-1, len(columns)))
+
+
 def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> None:
     """Write a result's files into an existing folder; stats.json last, with the peak memory of
     the whole run (this writing included)."""
@@ -63,6 +92,10 @@ def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> Non
         result.grid.save(out / GRID)
     if result.cloud is not None and len(result.cloud):
         write_point_cloud(out / MAP, np.asarray(result.cloud, dtype=np.float64))
+    for name, table in result.tables.items():
+        if not TABLE_NAME.fullmatch(name):
+            raise InputError(f"result table {name!r}: expected a file name of letters, digits, '_' or '-'")
+        write_table(out / f"{name}.csv", table)
     # The peak so far covers writing every other file (Open3D's import and the map included):
     # stats.json, written last, is tiny.
     measurements["peak_rss_bytes"] = peak_rss_bytes()

@@ -87,13 +87,27 @@ class NavigationGrid:
         self.check_waypoint(start, "start")
         self.check_waypoint(goal, "goal")
         mcp = MCP_Geometric(self.costs, fully_connected=True)
-        s, g = self.cell(start), self.cell(goal)
-        cumulative, _ = mcp.find_costs([s], [g])
+        g = self.cell(goal)
+        cumulative, _ = mcp.find_costs([self.cell(start)], [g])
         if not np.isfinite(cumulative[g]):
             raise InputError(f"no path from ({start[0]:.2f}, {start[1]:.2f}) to ({goal[0]:.2f}, {goal[1]:.2f})")
-        cells = np.asarray(mcp.traceback(g), dtype=np.float64)
-        xy = self._grid.cell_to_world(cells)
-        xy = _smooth(xy, window=7)
+        return self._polyline(mcp, start, goal)
+
+    def path_lengths(self, start: tuple[float, float], goals: list[tuple[float, float]]) -> np.ndarray:
+        """The length in metres of `shortest_path(start, goal)` for every goal (inf where there is
+        none), from one search of the grid."""
+        self.check_waypoint(start, "start")
+        mcp = MCP_Geometric(self.costs, fully_connected=True)
+        cumulative, _ = mcp.find_costs([self.cell(start)])
+        lengths = np.full(len(goals), np.inf)
+        for i, goal in enumerate(goals):
+            if self.is_traversable(goal) and np.isfinite(cumulative[self.cell(goal)]):
+                lengths[i] = np.linalg.norm(np.diff(self._polyline(mcp, start, goal), axis=0), axis=1).sum()
+        return lengths
+
+    def _polyline(self, mcp: MCP_Geometric, start: tuple[float, float], goal: tuple[float, float]) -> np.ndarray:
+        cells = np.asarray(mcp.traceback(self.cell(goal)), dtype=np.float64)
+        xy = _smooth(self._grid.cell_to_world(cells), window=7)
         xy[0], xy[-1] = start, goal
         return _dedupe(xy)
 

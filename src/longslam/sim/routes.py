@@ -16,7 +16,8 @@ from pathlib import Path
 from longslam.errors import InputError
 from longslam.textfile import read_text
 from longslam.registry import Registry
-from longslam.world.reference import is_mesh_ref, same_world, world_label, world_ref
+from longslam.sim.tours import REPEAT, TOUR, repeated, tour_length_m, tour_waypoints
+from longslam.world.reference import is_mesh_ref, load_world, same_world, world_key, world_label, world_ref
 
 Waypoint = tuple[float, float] | str
 
@@ -146,11 +147,30 @@ def load_route_file(path: str | Path, world: str | None = None) -> Route:
     return Route(path.stem, world or "university", tuple(waypoints))
 
 
+def is_route_name(name: str) -> bool:
+    """A registered route's name, or a long route spelled from one (see `longslam.sim.tours`)."""
+    if name in ROUTES or TOUR.fullmatch(name):
+        return True
+    repeat = REPEAT.fullmatch(name)
+    return repeat is not None and is_route_name(repeat["base"])
+
+
 def get_route(name_or_path: str, world: str | None = None) -> Route:
-    """A registered route by name, or a route file if the argument is an existing path.
+    """A registered route by name, a long route spelled from one (`paper-1km-x3`, `tour-10km`,
+    `tour-2500m-seed4`: see `longslam.sim.tours`), or a route file if the argument is an
+    existing path (`r.txt-x3` repeats a file's route).
 
     `world` (a world reference), if given, is the world the route must be in: the world of a
     route file that names none, and a registered route of another world is refused."""
+    repeat = REPEAT.fullmatch(name_or_path)
+    if repeat and name_or_path not in ROUTES:
+        base = get_route(repeat["base"], world)
+        return Route(f"{base.name}-x{repeat['times']}", base.world,
+                     repeated(base.waypoints, int(repeat["times"]), name_or_path))
+    tour = TOUR.fullmatch(name_or_path)
+    if tour and name_or_path not in ROUTES:
+        ref = world or "university"
+        return Route(name_or_path, ref, _tour(ref, tour_length_m(tour), int(tour["seed"] or 0)))
     if name_or_path not in ROUTES and Path(name_or_path).suffix and Path(name_or_path).exists():
         return load_route_file(name_or_path, world)
     route = ROUTES.get(name_or_path)
@@ -160,6 +180,17 @@ def get_route(name_or_path: str, world: str | None = None) -> Route:
             "give a route file (waypoints as 'x y' lines, or JSON) for that world"
         )
     return route
+
+_TOURS: dict[tuple[str, float, int], tuple[str, ...]] = {}
+
+
+def _tour(ref: str, length_m: float, seed: int) -> tuple[str, ...]:
+    """A tour's waypoints, planned once per process (a search of the grid per place)."""
+    key = (world_key(ref), length_m, seed)
+    if key not in _TOURS:
+        _TOURS[key] = tour_waypoints(load_world(ref), length_m, seed)
+    return _TOURS[key]
+
 
 # A tour of the `annex` building (the ring both ways, the hall, every room): the default route an
 # ORB vocabulary is trained on, so that appearance-based loop closure is not tuned to `university`.

@@ -23,6 +23,22 @@ if TYPE_CHECKING:  # a type only: importing the graph would load GTSAM into ever
     from longslam.slam.graph import PoseGraph
 
 
+@dataclass(frozen=True)
+class Table:
+    """Numbers that grow with the route (a row per loop constraint, per keyframe...): the run
+    folder gets them as NAME.csv, so that stats.json stays small however long the route."""
+
+    columns: tuple[str, ...]
+    rows: np.ndarray  # (N, len(columns))
+
+    def __post_init__(self) -> None:
+        rows = np.asarray(self.rows, dtype=np.float64).reshape(-1, len(self.columns))
+        object.__setattr__(self, "rows", rows)
+
+    def column(self, name: str) -> np.ndarray:
+        return self.rows[:, self.columns.index(name)]
+
+
 @dataclass
 class Result:
     trajectory: Trajectory  # final estimate, one pose per frame (after any optimisation)
@@ -31,6 +47,9 @@ class Result:
     cloud: np.ndarray | None = None  # (N, 3) float points of a 3D map, if the method builds one
     # Counts (nodes, submaps, loop closures accepted/rejected...) and bytes held by each map part.
     stats: dict[str, Any] = field(default_factory=dict)
+    # Per-loop, per-node... rows, by file name (see `Table`): "loops" is every constraint the
+    # method added to the front end (frame i, frame j, j's base pose in i's: dx, dy m, dyaw rad).
+    tables: dict[str, Table] = field(default_factory=dict)
 
 
 @runtime_checkable

@@ -48,7 +48,7 @@ from longslam.settings import from_mapping
 from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import NOISE_LEVELS
-from longslam.sim.routes import ROUTES, Route, load_route_file
+from longslam.sim.routes import ROUTES, Route, get_route, is_route_name, load_route_file
 from longslam.textfile import read_text
 from longslam.world.reference import same_world, world_label, world_ref
 
@@ -300,7 +300,8 @@ def _cameras(r: _Reader, data: dict) -> list[CameraEntry]:
 
 def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
     value = data["routes"]
-    valid = f"a route name ({_valid(ROUTES.names())}) or a waypoint file relative to the study file"
+    valid = (f"a route name ({_valid(ROUTES.names())}), a long route (NAME-xN, tour-<L>km[-seed<S>]) or a "
+             "waypoint file relative to the study file")
     if isinstance(value, str):
         value = [value]
     if not isinstance(value, list) or not value:
@@ -310,8 +311,11 @@ def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
         key = f"routes[{i}]"
         if not isinstance(item, str):
             raise r.error(key, f"expected {valid}, got {item!r}")
-        if item in ROUTES:
-            route = ROUTES.get(item)
+        if is_route_name(item):
+            try:
+                route = get_route(item, world)
+            except InputError as err:
+                raise r.error(key, str(err)) from None
         else:
             file = Path(item) if Path(item).is_absolute() else path.parent / item
             if not file.is_file():

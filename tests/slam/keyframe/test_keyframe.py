@@ -54,6 +54,14 @@ def test_loops_close_and_beat_odometry(sequence, tmp_path):
     assert (grid.values_at(np.array([[x, 31.25] for x in np.arange(20, 32, 0.5)])) == 0).mean() > 0.8
     assert result.cloud is not None and len(result.cloud) > 1000
     assert stats["map_bytes"]["features"] > 0
+    # Every constraint fed to the front end is a row of the loops table (loops.csv), not a list in
+    # stats; each node's time is a row of the nodes table.
+    loops, nodes = result.tables["loops"], result.tables["nodes"]
+    assert len(loops.rows) == stats["frontend"]["loops"] >= stats["loops_accepted"]
+    assert loops.columns == ("frame_i", "frame_j", "dx_m", "dy_m", "dyaw_rad")
+    assert np.all(loops.column("frame_i") < len(sequence)) and np.all(loops.column("frame_j") < len(sequence))
+    assert len(nodes.rows) == stats["nodes"] and np.all(nodes.column("time_ms") > 0)
+    assert "loop_constraints" not in stats["frontend"] and "node_time_ms" not in stats
 
 
 def test_long_term_memory_holds_nodes_and_reopens(sequence, tmp_path):

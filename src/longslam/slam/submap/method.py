@@ -335,7 +335,8 @@ class SubmapMethod:
             "mesh": mesh_path.name if mesh_path else None,  # in the run folder
         }
         run_stats["frontend"] = self.frontend.stats
-        return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=run_stats)
+        return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=run_stats,
+                      tables={"loops": self.frontend.loop_table()})
 
 
     def _frontend_final(self) -> np.ndarray:
