@@ -313,7 +313,9 @@ def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
             raise r.error(key, f"expected {valid}, got {item!r}")
         if is_route_name(item):
             try:
-                route = get_route(item, world)
+                # A registered route keeps its own world (refused below if not the study's); a tour
+                # is planned in the study's.
+                route = get_route(item, None if item in ROUTES else world)
             except InputError as err:
                 raise r.error(key, str(err)) from None
         else:
