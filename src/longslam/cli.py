@@ -172,6 +172,26 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
         print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
 
 
+def cmd_diagnose(args: argparse.Namespace) -> None:
+    from longslam.io.atomic import write_text
+    from longslam.io.outputs import check_output_file_free
+    from longslam.run.diagnose import diagnose_run, diagnosis_text
+
+    for out in (args.plot, args.json):
+        if out is not None:
+            check_output_file_free(out, args.overwrite)
+    found = diagnose_run(args.run, args.sequence, stretch_m=args.stretch, with_world=args.plot is not None)
+    print(diagnosis_text(found))
+    if args.json is not None:
+        write_text(args.json, json.dumps(found.to_json(), indent=1, allow_nan=False) + "\n")
+        print(f"wrote {args.json}")
+    if args.plot is not None:
+        from longslam.viz.diagnose_plot import plot_diagnosis
+
+        plot_diagnosis(found, args.plot)
+        print(f"wrote {args.plot}")
+
+
 class _LazyBar:
     """A tqdm bar that appears at the first progress report, so an error found before any work
     is the only line on stderr."""
@@ -369,6 +389,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--min-step", type=float, default=0.01,
                    help="E_trans and E_rot leave out ground-truth steps shorter than this, in metres (default 0.01)")
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("diagnose", help="where along the route a run's error comes from: heading, along and across "
+                                        "track, per stretch, with its loop constraints and front-end factors")
+    p.add_argument("run", help="a run folder (trajectory.txt; loops.csv and frontend.csv where the method wrote them)")
+    p.add_argument("sequence", help="the sequence folder the run ran on (groundtruth.txt)")
+    p.add_argument("--stretch", type=float, default=50.0, help="length of a stretch of route, in metres (default 50)")
+    p.add_argument("--plot", metavar="FILE.png", help="save the picture: the route coloured by error, the error "
+                                                      "parts and the factors against distance")
+    p.add_argument("--json", metavar="FILE.json", help="save the diagnosis as JSON (units in its 'units' key)")
+    p.add_argument("--overwrite", action="store_true", help="replace --plot and --json files that exist")
+    p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("export", help="write a sequence as a ROS 1 or ROS 2 bag (needs longslam[ros])")
     p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")

@@ -19,6 +19,7 @@ Modes:
 from __future__ import annotations
 
 import time
+from array import array
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -45,6 +46,9 @@ relative = relative_xyyaw
 MODES = ("fused", "wheel")
 # loops.csv: frame i, frame j, and j's base pose in i's frame.
 LOOP_COLUMNS = ("frame_i", "frame_j", "dx_m", "dy_m", "dyaw_rad")
+# frontend.csv: see `FrontEnd.frame_table`.
+FRAME_COLUMNS = ("frame", "wheel", "visual", "scan", "scan_shift_m", "scan_turn_deg")
+SCAN_REGISTERED, SCAN_REFUSED = 1.0, -1.0
 # Below this forward step (m) the robot is turning in place: the wheels' forward bias is not added.
 TRANSLATING_STEP = 1e-4
 
@@ -125,6 +129,11 @@ class FrontEnd:
         self._online: list[np.ndarray] = []
         self._last_insert: np.ndarray | None = None
         self._time = 0.0
+        # A row per frame (FRAME_COLUMNS) for `frame_table`: which factors the frame had, and how
+        # far the scan moved the prediction. Flat doubles: 48 bytes a frame however long the route.
+        self._frame_rows = array("d")
+        self._frame_scan = (0.0, 0.0, 0.0)  # (state, shift m, turn deg) of the latest fused frame
+        self._visual_used = False
         self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0,
                        "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
                        "scans_unmatched": 0, "scan_points": 0, "loops": 0}
@@ -142,9 +151,12 @@ class FrontEnd:
         wheel = self._wheel_step(frame) if self._has_wheels else None
         if self.config.mode == "wheel":
             pose = self._odom.copy()
+            self._visual_used = False
             self._smoother.add_frame(pose, wheel, self._wheel_sigmas(wheel), None, None, None)
         else:
+            self._frame_scan = (0.0, 0.0, 0.0)
             pose = self._fused_step(k, frame, wheel)
+        self._frame_rows.extend((k, wheel is not None, self._visual_used, *self._frame_scan))
         self._online.append(pose)
         self.counts["frames"] += 1
         self._time += time.perf_counter() - t0
@@ -240,10 +252,13 @@ class FrontEnd:
                 self.counts["scans_unmatched"] += 1
             else:
                 d = reg.pose - predicted
+                shift, turn = float(np.hypot(d[0], d[1])), float(np.degrees(abs(wrap_angle(d[2]))))
                 if np.hypot(d[0], d[1]) > cfg.max_correction or abs(wrap_angle(d[2])) > cfg.max_correction_angle:
                     self.counts["scans_refused"] += 1
+                    self._frame_scan = (SCAN_REFUSED, shift, turn)
                 else:
                     self.counts["scans_registered"] += 1
+                    self._frame_scan = (SCAN_REGISTERED, shift, turn)
                     flt.update_pose(reg.pose, reg.hessian)
                     anchor = max(0, k - cfg.scan_anchor_lag)
                     if anchor < k:
@@ -255,6 +270,7 @@ class FrontEnd:
                           or abs(wrap_angle(pose[2] - last[2])) >= cfg.insert_angle):
             self._map.insert(pose, scan)
             self._last_insert = pose
+        self._visual_used = visual is not None
         self._smoother.add_frame(pose, wheel, self._wheel_sigmas(wheel), cv_step, scan_factor,
                                  flt.bias if wheel is not None else None,
                                  None if visual is None else (visual, vis_sigmas))
@@ -298,6 +314,13 @@ class FrontEnd:
     def camera_poses(self, xyyaw: np.ndarray) -> np.ndarray:
         """(N, 3) planar poses -> (N, 4, 4) camera-in-world poses (after the first frame)."""
         return self.mount.to_camera(np.asarray(xyyaw).reshape(-1, 3))
+
+    def frame_table(self) -> Table:
+        """A row per frame: whether it had a wheel step and an accepted visual step, its scan's
+        fate (1 registered, -1 refused as too large a correction, 0 none or unmatched) and how far
+        the scan moved the predicted pose (m, deg): the run folder's frontend.csv, which
+        `longslam diagnose` reads."""
+        return Table(FRAME_COLUMNS, np.frombuffer(self._frame_rows, dtype=np.float64).reshape(-1, len(FRAME_COLUMNS)).copy())
 
     def loop_table(self) -> Table:
         """Every constraint a method added (`add_loop`), so that a benchmark can check each

@@ -249,7 +249,7 @@ class KeyframeMethod:
         nodes = Table(("node", "time_ms"), np.column_stack([np.arange(len(self._node_seconds)),
                                                             1000.0 * np.asarray(self._node_seconds, dtype=np.float64)]))
         return Result(trajectory=trajectory, online=online, grid=grid_map, cloud=cloud, stats=run_stats,
-                      tables={"loops": self.frontend.loop_table(), "nodes": nodes})
+                      tables={"loops": self.frontend.loop_table(), "frontend": self.frontend.frame_table(), "nodes": nodes})
 
 
 SPEC = MethodSpec("keyframe", KeyframeConfig, KeyframeMethod, "RTAB-Map's design: keyframes, bag of words, SQLite memory")

@@ -336,7 +336,7 @@ class SubmapMethod:
         }
         run_stats["frontend"] = self.frontend.stats
         return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=run_stats,
-                      tables={"loops": self.frontend.loop_table()})
+                      tables={"loops": self.frontend.loop_table(), "frontend": self.frontend.frame_table()})
 
 
     def _frontend_final(self) -> np.ndarray:

@@ -1,0 +1,56 @@
+"""`longslam diagnose RUN SEQ`: the text, the JSON and the picture, from a run folder's files."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from conftest import one_line_error, write_tiny_sequence
+from longslam.cli import main
+from longslam.run.folder import write_table
+from longslam.slam.api import Table
+
+
+def _run(tmp_path):
+    seq = write_tiny_sequence(tmp_path / "seq", n=30, step=0.2, odometry_scale=1.1)[0]
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run")]) == 0
+    return seq, tmp_path / "run"
+
+
+def test_diagnose_prints_stretches_and_writes_json_and_a_picture(tmp_path, capsys):
+    seq, run = _run(tmp_path)
+    # What keyframe or submap would write: a loop constraint (exact, from the truth) and the factors.
+    write_table(run / "loops.csv", Table(("frame_i", "frame_j", "dx_m", "dy_m", "dyaw_rad"), np.array([[2, 20, 3.6, 0, 0]])))
+    frames = np.column_stack([np.arange(30), np.ones(30), np.zeros(30), np.ones(30), np.full(30, 0.01), np.zeros(30)])
+    write_table(run / "frontend.csv", Table(("frame", "wheel", "visual", "scan", "scan_shift_m", "scan_turn_deg"), frames))
+    capsys.readouterr()
+    args = ["diagnose", str(run), str(seq), "--stretch", "2", "--json", str(tmp_path / "d.json"), "--plot", str(tmp_path / "d.png")]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "58 m" not in out and "30 frames, 6 m" in out
+    assert "loop constraints: 1, 0 wrong" in out and "along error picked up most at" in out
+    found = json.loads((tmp_path / "d.json").read_text())
+    assert found["units"]["along"] == "m" and len(found["stretches"]) == 3
+    # The odometry overshoots by 10 %: the error is all along the track, growing stretch by stretch.
+    assert found["summary"]["final_along_m"] > 0.5 and abs(found["summary"]["final_across_m"]) < 1e-6
+    assert all(s["along_gain_m"] > 0 for s in found["stretches"])
+    assert {s["dominant"] for s in found["stretches"]} <= {"scans", "loops"}
+    assert (tmp_path / "d.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # Written files are not replaced without --overwrite.
+    assert main(args) == 2
+    one_line_error(capsys, "d.png", "--overwrite")
+
+
+def test_a_run_without_tables_is_diagnosed_without_factors(tmp_path, capsys):
+    seq, run = _run(tmp_path)
+    capsys.readouterr()
+    assert main(["diagnose", str(run), str(seq)]) == 0
+    out = capsys.readouterr().out
+    assert "loop constraints: none" in out and "no frontend.csv" in out
+
+
+def test_a_folder_that_is_no_run_is_named(tmp_path, capsys):
+    seq = write_tiny_sequence(tmp_path / "seq", n=5)[0]
+    assert main(["diagnose", str(seq), str(seq)]) == 2
+    one_line_error(capsys, str(seq), "trajectory.txt")
