@@ -1,0 +1,97 @@
+"""evo_ape's two figures of one evaluation, side by side: the estimate over the floor plane
+coloured by its absolute pose error, with the reference dashed; and that error over time with
+its rmse, median and mean as lines and mean +- std as a band.
+
+Figures are built on matplotlib's object API, not pyplot, so saving needs no display and does not
+change the process's backend; `show` alone goes through pyplot.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
+
+from longslam.errors import InputError
+from longslam.eval.evaluation import Evaluation
+from longslam.eval.units import units_of
+from longslam.io.atomic import atomic_path
+
+SAVE_SUFFIXES = (".png", ".pdf")
+
+
+def _label(evaluation: Evaluation) -> str:
+    relation = evaluation.scores["ape_pose_relation"]
+    unit = units_of(evaluation.scores)["ape_rmse"]
+    return f"APE, {relation}" + (f" [{unit}]" if unit else " (unit-less)")
+
+
+def draw(fig: Figure, evaluation: Evaluation, title: str = "") -> Figure:
+    """Draw both panels into `fig`."""
+    errors = evaluation.ape_errors
+    ref, est = evaluation.reference, evaluation.aligned
+    label = _label(evaluation)
+    left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1.0]})
+
+    # The trajectory coloured by error (evo's plot.traj_colormap), the reference dashed (evo's style).
+    left.plot(ref.positions[:, 0], ref.positions[:, 1], ls="--", color="grey", lw=1.2, label="reference")
+    xy = est.positions[:, :2]
+    segments = np.stack([xy[:-1], xy[1:]], axis=1)
+    lines = LineCollection(segments, cmap="jet", linewidths=2.0)
+    lines.set_array((errors[:-1] + errors[1:]) / 2)
+    lines.set_clim(float(errors.min()), float(errors.max()))
+    left.add_collection(lines)
+    left.plot(*xy[0], "o", color="black", ms=6, label="start")
+    left.plot(*xy[-1], "s", color="black", ms=6, label="end")
+    fig.colorbar(lines, ax=left, label=label, shrink=0.85)
+    left.set_aspect("equal", adjustable="datalim")
+    left.autoscale_view()
+    left.set_xlabel("x [m]")
+    left.set_ylabel("y [m]")
+    left.set_title(f"estimate ({evaluation.scores['align']} alignment) coloured by error")
+    left.legend(loc="best", fontsize=8)
+    left.grid(alpha=0.3)
+
+    # The error over time with its statistics (evo's plot.error_array with statistics).
+    seconds = est.timestamps - est.timestamps[0]
+    stats = {k: evaluation.scores[f"ape_{k}"] for k in ("rmse", "median", "mean", "std")}
+    right.plot(seconds, errors, color="tab:grey", lw=1.0, label=label.split(",")[0])
+    right.axhline(stats["rmse"], color="tab:blue", lw=1.5, label=f"rmse {stats['rmse']:.4g}")
+    right.axhline(stats["median"], color="tab:green", lw=1.5, label=f"median {stats['median']:.4g}")
+    right.axhline(stats["mean"], color="tab:red", lw=1.5, label=f"mean {stats['mean']:.4g}")
+    right.axhspan(stats["mean"] - stats["std"], stats["mean"] + stats["std"], color="tab:olive", alpha=0.3,
+                  label=f"std {stats['std']:.4g}")
+    right.set_xlabel("time from start [s]")
+    right.set_ylabel(label)
+    right.set_title("error over time")
+    right.legend(loc="upper left", fontsize=8)
+    right.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def save_plot(evaluation: Evaluation, out: str | Path, title: str = "", overwrite: bool = False) -> Path:
+    """Both panels in one PNG or PDF file (written under a temporary name, then renamed)."""
+    out = Path(out)
+    if out.suffix.lower() not in SAVE_SUFFIXES:
+        raise InputError(f"--save-plot {out}: expected a file ending in {', '.join(SAVE_SUFFIXES)}")
+    fig = draw(Figure(figsize=(13, 5.2)), evaluation, title)
+    with atomic_path(out, overwrite=overwrite) as tmp:
+        fig.savefig(tmp, dpi=110, format=out.suffix.lower().lstrip("."))
+    return out
+
+
+def show_plot(evaluation: Evaluation, title: str = "") -> None:
+    """Both panels in a window (needs a display and an interactive matplotlib backend)."""
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
+        raise InputError(f"--plot needs a display, and matplotlib's backend is {matplotlib.get_backend()!r} "
+                         "(no display found); use --save-plot FILE.png instead")
+    draw(plt.figure(figsize=(13, 5.2)), evaluation, title)
+    plt.show()
