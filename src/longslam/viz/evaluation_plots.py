@@ -16,16 +16,24 @@ from matplotlib.figure import Figure
 
 from longslam.errors import InputError
 from longslam.eval.evaluation import Evaluation
+from longslam.eval.relations import EVO_NAMES
 from longslam.eval.units import units_of
 from longslam.io.atomic import atomic_path
 
 SAVE_SUFFIXES = (".png", ".pdf")
 
 
+ALIGNED = {"none": "not aligned", "se3": "SE(3) Umeyama alignment", "sim3": "Sim(3) Umeyama alignment",
+           "scale": "scale corrected", "origin": "origin alignment"}
+
+
+def _unit(evaluation: Evaluation) -> str:
+    return units_of(evaluation.scores)["ape_rmse"]
+
+
 def _label(evaluation: Evaluation) -> str:
-    relation = evaluation.scores["ape_pose_relation"]
-    unit = units_of(evaluation.scores)["ape_rmse"]
-    return f"APE, {relation}" + (f" [{unit}]" if unit else " (unit-less)")
+    unit = _unit(evaluation)
+    return f"APE, {EVO_NAMES[evaluation.scores['ape_pose_relation']]}" + (f" [{unit}]" if unit else " (unit-less)")
 
 
 def draw(fig: Figure, evaluation: Evaluation, title: str = "") -> Figure:
@@ -50,19 +58,21 @@ def draw(fig: Figure, evaluation: Evaluation, title: str = "") -> Figure:
     left.autoscale_view()
     left.set_xlabel("x [m]")
     left.set_ylabel("y [m]")
-    left.set_title(f"estimate ({evaluation.scores['align']} alignment) coloured by error")
+    left.set_title(f"estimate coloured by APE ({ALIGNED[evaluation.scores['align']]})")
     left.legend(loc="best", fontsize=8)
     left.grid(alpha=0.3)
 
     # The error over time with its statistics (evo's plot.error_array with statistics).
     seconds = est.timestamps - est.timestamps[0]
     stats = {k: evaluation.scores[f"ape_{k}"] for k in ("rmse", "median", "mean", "std")}
-    right.plot(seconds, errors, color="tab:grey", lw=1.0, label=label.split(",")[0])
-    right.axhline(stats["rmse"], color="tab:blue", lw=1.5, label=f"rmse {stats['rmse']:.4g}")
-    right.axhline(stats["median"], color="tab:green", lw=1.5, label=f"median {stats['median']:.4g}")
-    right.axhline(stats["mean"], color="tab:red", lw=1.5, label=f"mean {stats['mean']:.4g}")
+    unit = f" {_unit(evaluation)}" if _unit(evaluation) else ""
+    right.plot(seconds, errors, color="tab:grey", lw=1.0, label="APE")
+    # evo's colours: rmse blue, median green, mean red, mean +- std an olive band.
+    right.axhline(stats["rmse"], color="tab:blue", lw=1.5, label=f"rmse {stats['rmse']:.4g}{unit}")
+    right.axhline(stats["median"], color="tab:green", lw=1.5, label=f"median {stats['median']:.4g}{unit}")
+    right.axhline(stats["mean"], color="tab:red", lw=1.5, label=f"mean {stats['mean']:.4g}{unit}")
     right.axhspan(stats["mean"] - stats["std"], stats["mean"] + stats["std"], color="tab:olive", alpha=0.3,
-                  label=f"std {stats['std']:.4g}")
+                  label=f"mean +- std ({stats['std']:.4g}{unit})")
     right.set_xlabel("time from start [s]")
     right.set_ylabel(label)
     right.set_title("error over time")
