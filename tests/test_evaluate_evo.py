@@ -240,3 +240,22 @@ def test_cli_options_reach_the_figures(tmp_path, capsys):
     assert ours["units"]["ape_rmse"] == ours["units"]["rpe_rmse"] == "deg"
     assert (ours["align"], ours["n_to_align"], ours["rpe_delta_unit"], ours["rpe_pairs_from"]) == \
         ("sim3", 150, "d", "estimate")
+
+
+@pytest.mark.parametrize("flags, mode", [([], "none"), (["-a"], "se3"), (["--align"], "se3"), (["-as"], "sim3"),
+                                         (["-s"], "scale"), (["--align", "sim3"], "sim3"), (["-a", "--align", "sim3"], "sim3"),
+                                         (["--align-origin"], "origin")])
+def test_cli_alignment_flags_as_evo(pair, tmp_path, capsys, flags, mode):
+    reference, estimate = pair
+    write_tum(tmp_path / "gt.txt", reference)
+    write_tum(tmp_path / "est.txt", estimate)
+    assert main(["evaluate", str(tmp_path / "est.txt"), str(tmp_path / "gt.txt"), *flags, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["align"] == mode
+
+
+def test_cli_refuses_two_alignments(pair, tmp_path, capsys):
+    reference, estimate = pair
+    write_tum(tmp_path / "gt.txt", reference)
+    write_tum(tmp_path / "est.txt", estimate)
+    assert main(["evaluate", str(tmp_path / "est.txt"), str(tmp_path / "gt.txt"), "-a", "--align-origin"]) == 2
+    assert "align_origin cannot be combined" in capsys.readouterr().err

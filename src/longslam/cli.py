@@ -166,8 +166,13 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
             check_output_file(path, (suffix,) if suffix else SAVE_PLOT_SUFFIXES, option)
             _check_out_file(args, path, option, [args.estimate, args.groundtruth])
+    if args.plot:
+        from longslam.viz.evaluation_plots import check_can_show
+
+        check_can_show()
     warnings: list[str] = []
-    align = "se3" if args.align_flag else args.align
+    # -a is --align's se3; --align sim3 beside it asks for more, and wins.
+    align = "se3" if args.align_flag and args.align == "none" else args.align
     evaluation = score_files_full(
         args.estimate, args.groundtruth, align=align, max_diff=args.t_max_diff, min_step=args.min_step,
         warnings=warnings, offset=args.t_offset, estimate_topic=args.est_topic, truth_topic=args.ref_topic,

@@ -95,13 +95,24 @@ def save_plot(evaluation: Evaluation, out: str | Path, title: str = "", overwrit
     return out
 
 
+NON_INTERACTIVE = ("agg", "pdf", "svg", "ps", "cairo", "template", "pgf")
+
+
+def check_can_show() -> None:
+    """Refuse --plot where no window can open: matplotlib falls back to a file-only backend
+    (Agg) when there is no display, and `show` would then return at once, showing nothing."""
+    import matplotlib
+
+    backend = matplotlib.get_backend()
+    if backend.lower() in NON_INTERACTIVE:
+        raise InputError(f"--plot needs a display, and matplotlib's backend is {backend!r} (no display found); "
+                         "use --save-plot FILE.png instead")
+
+
 def show_plot(evaluation: Evaluation, title: str = "") -> None:
     """Both panels in a window (needs a display and an interactive matplotlib backend)."""
-    import matplotlib
     import matplotlib.pyplot as plt
 
-    if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
-        raise InputError(f"--plot needs a display, and matplotlib's backend is {matplotlib.get_backend()!r} "
-                         "(no display found); use --save-plot FILE.png instead")
+    check_can_show()
     draw(plt.figure(figsize=(13, 5.2)), evaluation, title)
     plt.show()
