@@ -44,15 +44,17 @@ def draw(fig: Figure, evaluation: Evaluation, title: str = "") -> Figure:
     left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1.0]})
 
     # The trajectory coloured by error (evo's plot.traj_colormap), the reference dashed (evo's style).
-    left.plot(ref.positions[:, 0], ref.positions[:, 1], ls="--", color="grey", lw=1.2, label="reference")
+    # Drawn over the estimate: under a thick coloured line a close reference would vanish.
+    left.plot(ref.positions[:, 0], ref.positions[:, 1], ls="--", color="black", lw=0.9, alpha=0.8,
+              label="reference", zorder=3)
     xy = est.positions[:, :2]
     segments = np.stack([xy[:-1], xy[1:]], axis=1)
-    lines = LineCollection(segments, cmap="jet", linewidths=2.0)
+    lines = LineCollection(segments, cmap="jet", linewidths=2.5, zorder=2)
     lines.set_array((errors[:-1] + errors[1:]) / 2)
     lines.set_clim(float(errors.min()), float(errors.max()))
     left.add_collection(lines)
-    left.plot(*xy[0], "o", color="black", ms=6, label="start")
-    left.plot(*xy[-1], "s", color="black", ms=6, label="end")
+    left.plot(*xy[0], "o", color="black", ms=6, label="start", zorder=4)
+    left.plot(*xy[-1], "s", color="black", ms=6, label="end", zorder=4)
     fig.colorbar(lines, ax=left, label=label, shrink=0.85)
     left.set_aspect("equal", adjustable="datalim")
     left.autoscale_view()
@@ -76,7 +78,7 @@ def draw(fig: Figure, evaluation: Evaluation, title: str = "") -> Figure:
     right.set_xlabel("time from start [s]")
     right.set_ylabel(label)
     right.set_title("error over time")
-    right.legend(loc="upper left", fontsize=8)
+    right.legend(loc="best", fontsize=8, framealpha=0.85)
     right.grid(alpha=0.3)
     if title:
         fig.suptitle(title)
