@@ -328,3 +328,13 @@ def test_tum_text_on_stdin_round_trips_format_tum(files):
 
     trajectory, fmt = read_trajectory(Path("<stdin>"), text=format_tum(Trajectory(np.arange(3.0), np.tile(np.eye(4), (3, 1, 1)))))
     assert fmt == "tum" and len(trajectory) == 3 and trajectory.source == "<stdin>"
+
+
+def test_t_offset_is_refused_for_kitti_files(files, tmp_path, capsys):
+    from longslam.io.trajectory_files import read_tum, write_kitti
+
+    gt, est, _ = files
+    write_kitti(tmp_path / "est.kitti", read_tum(est))
+    write_kitti(tmp_path / "gt.kitti", read_tum(gt))
+    assert main(["evaluate", str(tmp_path / "est.kitti"), str(tmp_path / "gt.kitti"), "--t-offset", "0.5"]) == 2
+    one_line_error(capsys, "--t-offset 0.5", "est.kitti", "by index")

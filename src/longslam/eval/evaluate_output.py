@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from longslam.eval.metrics import DELTA_UNIT_LABELS
 from longslam.eval.units import units_of
 
 STATISTIC_LABELS = {"rpe_trans": "rpe_trans (rmse)", "rpe_rot": "rpe_rot (rmse)"}
@@ -23,7 +24,7 @@ def scores_json(scores: dict[str, Any]) -> dict[str, Any]:
 
 def _undefined(key: str, scores: dict[str, Any], min_step: float) -> str:
     if key.startswith("rpe"):
-        unit = {"f": "frames", "m": "m", "d": "deg", "r": "rad"}[scores.get("rpe_delta_unit", "m")]
+        unit = DELTA_UNIT_LABELS[scores.get("rpe_delta_unit", "m")]
         return (f"undefined: no pair of poses {scores.get('rpe_delta')} {unit} apart "
                 f"(a path shorter than --delta; see --delta, --delta-unit)")
     return f"undefined: no ground-truth step of {min_step} m or more (see --min-step)"

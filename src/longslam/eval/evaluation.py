@@ -11,13 +11,16 @@ estimate), so an estimate that stalls or jumps does not change which segments ar
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from longslam.errors import InputError
 from longslam.eval.align import alignment, alignment_mode, transform_trajectory
+from longslam.eval.metrics import (
+    MIN_STEP, _local_steps, ate, delta_unit_letter, relative_errors, rpe_errors, rpe_pairs, statistics,
+)
 from longslam.eval.relations import ape_relation_errors, check_relation, rpe_relation_errors
 from longslam.eval.sync import associate, require_same_length
 from longslam.trajectory import Trajectory
@@ -35,7 +38,6 @@ class Evaluation:
     rpe_errors: np.ndarray | None  # (M,) per pair under the pose relation; None without pairs
     rpe_ids: np.ndarray | None  # (M,) index j of each pair (i, j), as evo's delta_ids
     alignment_sim3: np.ndarray | None  # 4x4 [sR t; 0 1] applied to the estimate, None for 'none'
-    options: dict[str, Any] = field(default_factory=dict)
 
 
 def _sim3(rotation: np.ndarray, translation: np.ndarray, scale: float) -> np.ndarray:
@@ -64,11 +66,6 @@ def evaluate_full(
     t_offset: float = 0.0,
 ) -> Evaluation:
     """`longslam.eval.metrics.evaluate` with the arrays behind its scores."""
-    from longslam.eval.metrics import (
-        DELTA_UNIT_LABELS, MIN_STEP, _local_steps, ate, delta_unit_letter, relative_errors, rpe_errors, rpe_pairs,
-        statistics,
-    )
-
     min_step = MIN_STEP if min_step is None else min_step
     if t_max_diff is not None or t_offset != 0.0:
         reference, estimate = associate(reference, estimate, DEFAULT_T_MAX_DIFF if t_max_diff is None else t_max_diff,
@@ -135,7 +132,5 @@ def evaluate_full(
         "align_scale": float(scale),
         "n_to_align": int(n_to_align) if mode not in ("none", "origin") else -1,
     }
-    options = {"delta_unit_label": DELTA_UNIT_LABELS[letter], "t_max_diff": t_max_diff, "t_offset": t_offset,
-               "delta_tol": delta_tol}
     return Evaluation(scores, reference, estimate, aligned, ape_errors, rpe_values, rpe_ids,
-                      None if mode == "none" else _sim3(rotation, translation, scale), options)
+                      None if mode == "none" else _sim3(rotation, translation, scale))

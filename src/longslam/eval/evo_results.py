@@ -19,13 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from longslam.eval.evaluation import Evaluation
+from longslam.eval.metrics import DELTA_UNIT_LABELS  # evo's Unit values for frames, m, deg, rad
 from longslam.eval.relations import EVO_NAMES, RELATION_UNITS
 from longslam.io.atomic import atomic_path
 from longslam.io.trajectory_files import format_tum
 from longslam.trajectory import Trajectory
 
-RESULT_SUFFIX = ".zip"
-EVO_DELTA_UNITS = {"f": "frames", "m": "m", "d": "deg", "r": "rad"}
 
 
 def _evo_unit(relation: str) -> str:
@@ -99,7 +98,7 @@ def save_rpe_result(evaluation: Evaluation, out: str | Path, ref_name: str, est_
     relation = s["pose_relation"]
     unit = _evo_unit(relation)
     delta = s["rpe_delta"]
-    title = (f"RPE w.r.t. {EVO_NAMES[relation]} ({unit})\nfor delta = {delta} ({EVO_DELTA_UNITS[s['rpe_delta_unit']]})"
+    title = (f"RPE w.r.t. {EVO_NAMES[relation]} ({unit})\nfor delta = {delta} ({DELTA_UNIT_LABELS[s['rpe_delta_unit']]})"
              + (" using all pairs" if s["rpe_all_pairs"] else " using consecutive pairs") + _alignment_note(evaluation))
     info = {"title": title, "ref_name": ref_name, "est_name": est_name, "label": f"RPE ({unit})"}
     # As evo: the trajectories reduced to pose 0 and each pair's second pose; the arrays skip pose 0.

@@ -19,6 +19,7 @@ import numpy as np
 
 from longslam.errors import InputError, TrajectoryError, UnknownNameError
 from longslam.eval.align import align_trajectory
+from longslam.eval.angle_pairs import pairs_by_angle
 from longslam.eval.sync import require_same_length
 from longslam.geometry import invert
 from longslam.trajectory import Trajectory
@@ -282,8 +283,6 @@ def rpe_pairs(
     chooser: Trajectory, delta: float, unit: str = "m", all_pairs: bool = False, rel_tol: float = 0.1
 ) -> tuple[np.ndarray, np.ndarray]:
     """Index pairs of `chooser` `delta` apart in `unit` (evo's `id_pairs_from_delta`)."""
-    from longslam.eval.angle_pairs import pairs_by_angle
-
     letter = delta_unit_letter(unit)
     if not delta > 0:
         raise InputError(f"RPE delta must be > 0, got {delta}")
@@ -311,7 +310,6 @@ def rpe(
     all_pairs: bool = False,
     rel_tol: float = 0.1,
     pairs_from_reference: bool = False,
-    relation: str | None = None,
 ) -> dict:
     """RPE like `evo_rpe` (no alignment; align first with `longslam.eval.align` if wanted).
 
@@ -320,12 +318,8 @@ def rpe(
     the reference's with `pairs_from_reference` (evo's --pairs_from_reference). In all_pairs mode
     (units m, d, r) pairs off delta by more than rel_tol * delta are dropped. Returns
     {'translation': stats (m), 'rotation': stats (deg), 'pairs': count, 'delta': delta, 'unit':
-    unit}, and with `relation` (evo's --pose_relation, see `eval.relations`) also 'relation':
-    stats under it.
+    unit}. Other pose relations: `evaluate(..., pose_relation=...)`.
     """
-    from longslam.eval.relations import rpe_relation_errors
-
-    delta_unit_letter(unit)
     require_same_length(reference, estimate, minimum=2)
     chooser = reference if pairs_from_reference else estimate
     if delta_unit_letter(unit) == "f" and float(delta) == int(delta):
@@ -334,16 +328,13 @@ def rpe(
     if not len(first):
         raise _no_pairs(chooser, delta, unit, "reference" if pairs_from_reference else "estimate")
     translation, rotation = rpe_errors(reference, estimate, first, second)
-    out = {
+    return {
         "translation": statistics(translation),
         "rotation": statistics(rotation),
         "pairs": int(len(first)),
         "delta": delta,
         "unit": unit,
     }
-    if relation is not None:
-        out["relation"] = statistics(rpe_relation_errors(reference, estimate, first, second, relation)[0])
-    return out
 
 
 # ----------------------------------------------------------------------------- summaries

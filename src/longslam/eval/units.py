@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from longslam.eval.metrics import DELTA_UNIT_LABELS
 from longslam.eval.relations import RELATION_UNITS
 
 STATISTICS = ("rmse", "mean", "median", "std", "min", "max")
-DELTA_UNITS = {"f": "frames", "m": "m", "d": "deg", "r": "rad"}
 
 FIXED = {
     "ate": "m", "e_trans": "m/m", "e_rot": "deg/m", "rpe_trans": "m", "rpe_rot": "deg",
@@ -34,5 +34,5 @@ def units_of(scores: dict[str, Any]) -> dict[str, str]:
             if f"{prefix}_{name}" in scores:
                 units[f"{prefix}_{name}"] = unit
     if "rpe_delta" in scores:
-        units["rpe_delta"] = DELTA_UNITS[scores.get("rpe_delta_unit", "m")]
+        units["rpe_delta"] = DELTA_UNIT_LABELS[scores.get("rpe_delta_unit", "m")]
     return units

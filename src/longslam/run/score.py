@@ -154,6 +154,9 @@ def score_files_full(estimate: str | Path, truth: str | Path, align: str | bool 
     est, est_format, est_file = read_source(estimate, (TRAJECTORY,), estimate_topic, "--est-topic")
     ref, ref_format, ref_file = read_source(truth, ("groundtruth.txt",), truth_topic, "--ref-topic")
     by_index = KITTI in (est_format, ref_format)
+    if by_index and offset != 0.0:
+        raise InputError(f"--t-offset {offset}: {est_file if est_format == KITTI else ref_file} is a KITTI file, "
+                         "without timestamps, so poses are paired by index; drop --t-offset")
     evaluation = score_full(ref, est, align, max_diff, by_index=by_index, what=f"{estimate} against {truth}",
                             min_step=min_step, offset=offset, **options)
     shares = coverage(ref, est, max_diff, by_index, offset)
