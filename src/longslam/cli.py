@@ -375,6 +375,7 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ref-topic", metavar="TOPIC", help="the ground truth's topic when it is a bag (as --est-topic)")
     align = p.add_argument_group("alignment (evo's -a, -s, --align_origin, --n_to_align)")
     align.add_argument("--align", nargs="?", const="se3", default="none", choices=("none", "se3", "sim3"),
+                       metavar="none|se3|sim3",
                        help="Umeyama alignment of the estimate for APE and RPE: --align alone is se3 (evo's -a); "
                             "sim3 also scales (evo's -as); default none")
     align.add_argument("-a", dest="align_flag", action="store_true", help="the same as --align (se3), as evo's -a")
@@ -385,9 +386,9 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
     align.add_argument("--n-to-align", type=int, default=-1, metavar="N",
                        help="fit the alignment on the first N poses only (default -1: all)")
     rel = p.add_argument_group("pose relation and RPE pairs (evo's -r, -d, -u, -t, --all_pairs)")
-    rel.add_argument("-r", "--pose-relation", default="trans_part", choices=RPE_RELATIONS,
-                     help="what APE and RPE measure (default trans_part, metres; angle_deg: degrees; "
-                          "point_distance_error_ratio is RPE only, APE then uses trans_part)")
+    rel.add_argument("-r", "--pose-relation", default="trans_part", choices=RPE_RELATIONS, metavar="RELATION",
+                     help=f"what APE and RPE measure: {', '.join(RPE_RELATIONS)} (default trans_part, metres; "
+                          "angle_deg: degrees; point_distance_error_ratio is RPE only, APE then uses trans_part)")
     rel.add_argument("-d", "--delta", type=float, default=1.0, help="RPE distance between the poses of a pair, "
                                                                     "in --delta-unit (default 1)")
     rel.add_argument("-u", "--delta-unit", default="m", choices=DELTA_UNITS,

@@ -25,8 +25,7 @@ def scores_json(scores: dict[str, Any]) -> dict[str, Any]:
 def _undefined(key: str, scores: dict[str, Any], min_step: float) -> str:
     if key.startswith("rpe"):
         unit = DELTA_UNIT_LABELS[scores.get("rpe_delta_unit", "m")]
-        return (f"undefined: no pair of poses {scores.get('rpe_delta')} {unit} apart "
-                f"(a path shorter than --delta; see --delta, --delta-unit)")
+        return f"undefined: no pair of poses {scores.get('rpe_delta')} {unit} apart (see --delta, --delta-unit)"
     return f"undefined: no ground-truth step of {min_step} m or more (see --min-step)"
 
 
