@@ -52,7 +52,7 @@ def evaluate_full(
     estimate: Trajectory,
     align: str | bool = "none",
     delta: float = 1.0,
-    min_step: float | None = None,
+    min_step: float = MIN_STEP,
     *,
     delta_unit: str = "m",
     all_pairs: bool = False,
@@ -66,7 +66,6 @@ def evaluate_full(
     t_offset: float = 0.0,
 ) -> Evaluation:
     """`longslam.eval.metrics.evaluate` with the arrays behind its scores."""
-    min_step = MIN_STEP if min_step is None else min_step
     if t_max_diff is not None or t_offset != 0.0:
         reference, estimate = associate(reference, estimate, DEFAULT_T_MAX_DIFF if t_max_diff is None else t_max_diff,
                                         t_offset)
