@@ -155,21 +155,60 @@ def cmd_run(args: argparse.Namespace) -> None:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
-    from longslam.run.score import score_files
+    from longslam.eval.evaluate_output import format_text, scores_json
+    from longslam.run.score import score_files_full
 
+    for option, path, suffix in (("--save-plot", args.save_plot, None), ("--save-results", args.save_results, ".zip"),
+                                 ("--save-rpe-results", args.save_rpe_results, ".zip")):
+        if path is not None:  # before any work, as every output
+            from longslam.io.paths import check_output_file
+            from longslam.viz.evaluation_plots import SAVE_SUFFIXES as SAVE_PLOT_SUFFIXES
+
+            check_output_file(path, (suffix,) if suffix else SAVE_PLOT_SUFFIXES, option)
+            _check_out_file(args, path, option, [args.estimate, args.groundtruth])
+    if args.plot:
+        from longslam.viz.evaluation_plots import check_can_show
+
+        check_can_show()
     warnings: list[str] = []
-    scores = score_files(args.estimate, args.groundtruth, align=args.align, max_diff=args.max_diff, min_step=args.min_step,
-                         warnings=warnings)
+    # -a is --align's se3; --align sim3 beside it asks for more, and wins.
+    align = "se3" if args.align_flag and args.align == "none" else args.align
+    evaluation = score_files_full(
+        args.estimate, args.groundtruth, align=align, max_diff=args.t_max_diff, min_step=args.min_step,
+        warnings=warnings, offset=args.t_offset, estimate_topic=args.est_topic, truth_topic=args.ref_topic,
+        delta=args.delta, delta_unit=args.delta_unit, all_pairs=args.all_pairs, delta_tol=args.delta_tol,
+        pairs_from_reference=args.pairs_from_reference, pose_relation=args.pose_relation,
+        correct_scale=args.correct_scale, align_origin=args.align_origin, n_to_align=args.n_to_align,
+    )
     for warning in warnings:
         print(f"warning: {warning}", file=sys.stderr)
+    names = (str(args.groundtruth), str(args.estimate))
+    if args.save_results:
+        from longslam.eval.evo_results import save_ape_result
+
+        save_ape_result(evaluation, args.save_results, *names, overwrite=args.overwrite)
+    if args.save_rpe_results:
+        from longslam.eval.evo_results import save_rpe_result
+
+        save_rpe_result(evaluation, args.save_rpe_results, *names, overwrite=args.overwrite)
+    title = f"{args.estimate} against {args.groundtruth}"
+    if args.save_plot:
+        from longslam.viz.evaluation_plots import save_plot
+
+        save_plot(evaluation, args.save_plot, title, overwrite=args.overwrite)
     if args.json:
-        print(json.dumps(scores, allow_nan=False))
-        return
-    for key, value in scores.items():
-        if value is None:  # e_trans, e_rot: no step long enough; rpe: a path under one segment
-            value = ("undefined: the ground truth's path is shorter than the 1 m segment" if key.startswith("rpe")
-                     else f"undefined: no ground-truth step of {args.min_step} m or more (see --min-step)")
-        print(f"{key:>16}: {value:.6g}" if isinstance(value, float) else f"{key:>16}: {value}")
+        print(json.dumps(scores_json(evaluation.scores), allow_nan=False))
+    else:
+        print(format_text(evaluation.scores, min_step=args.min_step))
+    for option, path in (("--save-results", args.save_results), ("--save-rpe-results", args.save_rpe_results),
+                         ("--save-plot", args.save_plot)):
+        if path:
+            print(f"wrote {path} ({option})", file=sys.stderr)
+    if args.plot:
+        from longslam.viz.evaluation_plots import show_plot
+
+        sys.stdout.flush()
+        show_plot(evaluation, title)
 
 
 def cmd_diagnose(args: argparse.Namespace) -> None:
@@ -345,6 +384,60 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
           f"{summary.bytes / 1e6:.1f} MB in {summary.seconds:.0f} s")
 
 
+def _evaluate_args(p: argparse.ArgumentParser) -> None:
+    from longslam.eval.metrics import DELTA_UNITS
+    from longslam.eval.relations import RPE_RELATIONS
+
+    p.add_argument("estimate", help="estimated trajectory: a TUM or KITTI file, a run folder, a ROS bag "
+                                    "(see --est-topic), or - for TUM text on stdin")
+    p.add_argument("groundtruth", help="ground truth: a TUM or KITTI file, a sequence folder, a ROS bag "
+                                       "(see --ref-topic), or - for stdin")
+    p.add_argument("--est-topic", metavar="TOPIC", help="the estimate's topic when it is a bag (PoseStamped, "
+                                                         "PoseWithCovarianceStamped, TransformStamped or Odometry; "
+                                                         "default: the bag's only pose topic)")
+    p.add_argument("--ref-topic", metavar="TOPIC", help="the ground truth's topic when it is a bag (as --est-topic)")
+    align = p.add_argument_group("alignment (evo's -a, -s, --align_origin, --n_to_align)")
+    align.add_argument("--align", nargs="?", const="se3", default="none", choices=("none", "se3", "sim3"),
+                       metavar="none|se3|sim3",
+                       help="Umeyama alignment of the estimate for APE and RPE: --align alone is se3 (evo's -a); "
+                            "sim3 also scales (evo's -as); default none")
+    align.add_argument("-a", dest="align_flag", action="store_true", help="the same as --align (se3), as evo's -a")
+    align.add_argument("-s", "--correct-scale", action="store_true",
+                       help="correct the scale: with --align a Sim(3) fit, alone the scale only (evo's -s)")
+    align.add_argument("--align-origin", action="store_true",
+                       help="move the estimate's first pose onto the reference's (evo's --align_origin)")
+    align.add_argument("--n-to-align", type=int, default=-1, metavar="N",
+                       help="fit the alignment on the first N poses only (default -1: all)")
+    rel = p.add_argument_group("pose relation and RPE pairs (evo's -r, -d, -u, -t, --all_pairs)")
+    rel.add_argument("-r", "--pose-relation", default="trans_part", choices=RPE_RELATIONS, metavar="RELATION",
+                     help=f"what APE and RPE measure: {', '.join(RPE_RELATIONS)} (default trans_part, metres; "
+                          "angle_deg: degrees; point_distance_error_ratio is RPE only, APE then uses trans_part)")
+    rel.add_argument("-d", "--delta", type=float, default=1.0, help="RPE distance between the poses of a pair, "
+                                                                    "in --delta-unit (default 1)")
+    rel.add_argument("-u", "--delta-unit", default="m", choices=DELTA_UNITS,
+                     help="unit of --delta: f frames, m metres of path (default; evo's default is f), "
+                          "d degrees, r radians of rotation")
+    rel.add_argument("-t", "--delta-tol", type=float, default=0.1,
+                     help="with --all-pairs, the share of delta a pair may be off (default 0.1)")
+    rel.add_argument("--all-pairs", action="store_true", help="every pair delta apart instead of consecutive ones")
+    rel.add_argument("--pairs-from-reference", action=argparse.BooleanOptionalAction, default=True,
+                     help="choose RPE pairs on the reference (default; evo's default is the estimate)")
+    sync = p.add_argument_group("timestamp matching (evo's --t_max_diff, --t_offset)")
+    sync.add_argument("--t-max-diff", "--max-diff", dest="t_max_diff", type=float, default=0.01, metavar="SECONDS",
+                      help="largest stamp difference of a matched pair (default 0.01 s)")
+    sync.add_argument("--t-offset", type=float, default=0.0, metavar="SECONDS",
+                      help="added to the estimate's stamps for matching (default 0 s)")
+    p.add_argument("--min-step", type=float, default=0.01,
+                   help="E_trans and E_rot leave out ground-truth steps shorter than this, in metres (default 0.01)")
+    out = p.add_argument_group("output (evo's -p, --save_plot, --save_results)")
+    out.add_argument("--json", action="store_true", help="print one JSON object, with a \"units\" object")
+    out.add_argument("-p", "--plot", action="store_true", help="show the APE figures in a window (needs a display)")
+    out.add_argument("--save-plot", metavar="FILE", help="save the APE figures to FILE (.png or .pdf)")
+    out.add_argument("--save-results", metavar="FILE.zip", help="save the APE result as evo_res reads it")
+    out.add_argument("--save-rpe-results", metavar="FILE.zip", help="save the RPE result as evo_res reads it")
+    out.add_argument("--overwrite", action="store_true", help="replace existing --save-* files")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
     parser.add_argument("--debug", action="store_true", help="show the full traceback of an error")
@@ -380,14 +473,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="show the run live in a rerun viewer, or record it to FILE.rrd (needs longslam[viz])")
     p.set_defaults(func=cmd_run)
 
-    p = sub.add_parser("evaluate", help="score a trajectory (TUM or KITTI) against ground truth")
-    p.add_argument("estimate", help="estimated trajectory file, or a run folder")
-    p.add_argument("groundtruth", help="ground-truth trajectory file, or a sequence folder")
-    p.add_argument("--align", default="none", choices=("none", "se3", "sim3"), help="alignment for APE (default none)")
-    p.add_argument("--max-diff", type=float, default=0.01, help="timestamp matching tolerance in seconds")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--min-step", type=float, default=0.01,
-                   help="E_trans and E_rot leave out ground-truth steps shorter than this, in metres (default 0.01)")
+    p = sub.add_parser("evaluate", help="score a trajectory against ground truth (evo's APE / RPE and the paper's metrics)",
+                       description="Score an estimated trajectory against the ground truth: the paper's ATE, "
+                                   "E_trans, E_rot and evo's APE and RPE. Options carry evo_ape's / evo_rpe's names "
+                                   "(with dashes: --pose-relation is evo's --pose_relation).")
+    _evaluate_args(p)
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("diagnose", help="where along the route a run's error comes from: heading, along and across "

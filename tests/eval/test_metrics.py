@@ -489,7 +489,7 @@ def test_unequal_lengths_are_refused():
 
 def test_alignment_errors_are_clear(pair):
     reference, estimate = pair
-    with pytest.raises(UnknownNameError, match="none, se3, sim3"):
+    with pytest.raises(UnknownNameError, match="none, origin, scale, se3, sim3"):
         lm.ape(reference, estimate, align="sim2")
     with pytest.raises(UnknownNameError, match="rotation, translation"):
         lm.ape(reference, estimate, part="full")

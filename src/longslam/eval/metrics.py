@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.errors import InputError, TrajectoryError, UnknownNameError
-from longslam.eval.align import align_trajectory, alignment, transform_trajectory
+from longslam.eval.align import align_trajectory
+from longslam.eval.angle_pairs import pairs_by_angle
 from longslam.eval.sync import require_same_length
 from longslam.geometry import invert
 from longslam.trajectory import Trajectory
@@ -33,7 +34,6 @@ ZERO_STEP = 1e-9
 ZERO_STEP_ANGLE_DEG = 90.0
 
 PARTS = ("translation", "rotation")
-RPE_UNITS = ("m", "frames")
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -267,6 +267,41 @@ def rpe_errors(
     return np.linalg.norm(error[:, :3, 3], axis=1), rotation_angle_deg(error[:, :3, :3])
 
 
+DELTA_UNITS = ("f", "m", "d", "r")  # evo_rpe's -u: frames, metres of path, degrees, radians of rotation
+_DELTA_UNIT_NAMES = {"frames": "f", "f": "f", "m": "m", "d": "d", "r": "r"}
+DELTA_UNIT_LABELS = {"f": "frames", "m": "m", "d": "deg", "r": "rad"}
+
+
+def delta_unit_letter(unit: str) -> str:
+    """evo's letter (f, m, d, r) for a delta unit; 'frames' is accepted for 'f'."""
+    if unit not in _DELTA_UNIT_NAMES:
+        raise UnknownNameError("RPE delta unit", unit, (*DELTA_UNITS, "frames"))
+    return _DELTA_UNIT_NAMES[unit]
+
+
+def rpe_pairs(
+    chooser: Trajectory, delta: float, unit: str = "m", all_pairs: bool = False, rel_tol: float = 0.1
+) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs of `chooser` `delta` apart in `unit` (evo's `id_pairs_from_delta`)."""
+    letter = delta_unit_letter(unit)
+    if not delta > 0:
+        raise InputError(f"RPE delta must be > 0, got {delta}")
+    if letter == "f":
+        if float(delta) != int(delta):
+            raise InputError(f"RPE delta in frames must be a whole number, got {delta}")
+        return pairs_by_index(len(chooser), int(delta), all_pairs)
+    if letter == "m":
+        return pairs_by_path(chooser.positions, delta, delta * rel_tol, all_pairs)
+    return pairs_by_angle(chooser.poses[:, :3, :3], delta, delta * rel_tol, letter == "d", all_pairs)
+
+
+def _no_pairs(chooser: Trajectory, delta: float, unit: str, which: str) -> TrajectoryError:
+    return TrajectoryError(
+        f"RPE with delta {delta} {DELTA_UNIT_LABELS[delta_unit_letter(unit)]} found no pair of poses on the "
+        f"{which} ({len(chooser)} poses, {chooser.path_length():.3f} m of path); use a smaller delta"
+    )
+
+
 def rpe(
     reference: Trajectory,
     estimate: Trajectory,
@@ -278,30 +313,20 @@ def rpe(
 ) -> dict:
     """RPE like `evo_rpe` (no alignment; align first with `longslam.eval.align` if wanted).
 
-    delta in metres of travelled path (unit 'm') or in frames ('frames'). Pairs are chosen on the
-    estimate's path, as evo does by default, or on the reference's with `pairs_from_reference`
-    (evo's --pairs_from_reference). In all_pairs mode with unit 'm', pairs whose path is off delta
-    by more than rel_tol * delta are dropped. Returns {'translation': stats (m), 'rotation':
-    stats (deg), 'pairs': count, 'delta': delta, 'unit': unit}.
+    delta in metres of travelled path (unit 'm'), frames ('f' or 'frames'), or degrees / radians
+    of rotation ('d', 'r'). Pairs are chosen on the estimate's poses, as evo does by default, or on
+    the reference's with `pairs_from_reference` (evo's --pairs_from_reference). In all_pairs mode
+    (units m, d, r) pairs off delta by more than rel_tol * delta are dropped. Returns
+    {'translation': stats (m), 'rotation': stats (deg), 'pairs': count, 'delta': delta, 'unit':
+    unit}. Other pose relations: `evaluate(..., pose_relation=...)`.
     """
-    _check_name("RPE delta unit", unit, RPE_UNITS)
     require_same_length(reference, estimate, minimum=2)
-    if not delta > 0:
-        raise InputError(f"RPE delta must be > 0, got {delta}")
     chooser = reference if pairs_from_reference else estimate
-    if unit == "frames":
-        if float(delta) != int(delta):
-            raise InputError(f"RPE delta in frames must be a whole number, got {delta}")
+    if delta_unit_letter(unit) == "f" and float(delta) == int(delta):
         delta = int(delta)
-        first, second = pairs_by_index(len(chooser), delta, all_pairs)
-    else:
-        first, second = pairs_by_path(chooser.positions, delta, delta * rel_tol, all_pairs)
+    first, second = rpe_pairs(chooser, delta, unit, all_pairs, rel_tol)
     if not len(first):
-        which = "reference" if pairs_from_reference else "estimate"
-        raise TrajectoryError(
-            f"RPE with delta {delta} {unit} found no pair of poses on the {which} "
-            f"({len(chooser)} poses, {chooser.path_length():.3f} m of path); use a smaller delta"
-        )
+        raise _no_pairs(chooser, delta, unit, "reference" if pairs_from_reference else "estimate")
     translation, rotation = rpe_errors(reference, estimate, first, second)
     return {
         "translation": statistics(translation),
@@ -326,48 +351,45 @@ def errors_by_distance(
 def evaluate(
     reference: Trajectory,
     estimate: Trajectory,
-    align: str = "none",
-    rpe_delta: float = 1.0,
+    align: str | bool = "none",
+    delta: float = 1.0,
     min_step: float = MIN_STEP,
+    *,
+    delta_unit: str = "m",
+    all_pairs: bool = False,
+    delta_tol: float = 0.1,
+    pairs_from_reference: bool = True,
+    pose_relation: str = "trans_part",
+    correct_scale: bool = False,
+    align_origin: bool = False,
+    n_to_align: int = -1,
+    t_max_diff: float | None = None,
+    t_offset: float = 0.0,
 ) -> dict:
-    """All metrics of one run as a flat, JSON-ready dict (no NaN).
+    """All metrics of one run as a flat, JSON-ready dict (no NaN); units in `longslam.eval.units`.
 
-    e_trans and e_rot are None when no ground-truth step moves `min_step` (every step skipped);
-    rpe_trans and rpe_rot are None when the ground truth's path is shorter than `rpe_delta`.
+    The options are `longslam evaluate`'s, which are evo_ape's / evo_rpe's (see
+    `longslam.eval.evaluation`): `align` is a mode of `longslam.eval.align.ALIGN_MODES` or True
+    (se3); `correct_scale`, `align_origin`, `n_to_align` as evo's; `pose_relation` one of
+    `longslam.eval.relations.RPE_RELATIONS`; RPE pairs `delta` apart in `delta_unit` (f frames,
+    m metres of path, d / r degrees / radians of rotation), consecutive or `all_pairs` (within
+    `delta_tol` * delta), chosen on the reference unless `pairs_from_reference` is False. Given
+    `t_max_diff` or `t_offset`, poses are first matched by timestamp (evo's defaults 0.01 s, 0 s);
+    otherwise they must be associated already.
 
-    The paper's ate, e_trans, e_rot never use alignment. `align` ('none', 'se3', 'sim3') applies
-    to APE and RPE. rpe_trans / rpe_rot are RMSEs over consecutive segments of `rpe_delta` metres
-    of ground-truth path (evo_rpe -d 1 -u m --pairs_from_reference): choosing segments on the
-    reference keeps an estimate that stalls or jumps from changing which segments are scored.
-    path_length is the ground truth's over the associated poses.
+    The paper's ate, e_trans, e_rot never use alignment nor the pose relation; e_trans and e_rot
+    are None when no ground-truth step moves `min_step` (every step skipped). ape_* (rmse, mean,
+    median, std, min, max) and rpe_* are statistics under the pose relation (APE takes trans_part
+    for the RPE-only point_distance_error_ratio); rpe_trans (m) and rpe_rot (deg) are always the
+    RMSEs of the translation part and the rotation angle over the same pairs. The rpe_ figures
+    are None when no pair is found (a path shorter than delta). path_length is the ground
+    truth's over the associated poses.
     """
-    require_same_length(reference, estimate, minimum=2)
-    if not min_step > 0.0:
-        raise InputError(f"min_step must be a length > 0 m, got {min_step}")
-    longest = float(np.linalg.norm(_local_steps(reference.poses), axis=1).max())
-    # A slow hand-held sequence at 30 Hz (TUM's freiburg2_xyz moves 2 mm a frame) has no step
-    # of min_step: E_trans and E_rot are undefined there, the other metrics are not.
-    relative = relative_errors(reference, estimate, min_step) if longest >= min_step else None
-    rotation, translation, scale = alignment(estimate, reference, align)
-    aligned = estimate if align == "none" else transform_trajectory(estimate, rotation, translation, scale)
-    absolute = statistics(ape_errors(reference, aligned, "translation"))
-    # A path shorter than one segment has no RPE (a few seconds of a hand-held sequence).
-    relative_pose = (rpe(reference, aligned, rpe_delta, "m", pairs_from_reference=True)
-                     if reference.path_length() >= rpe_delta else None)
-    return {
-        "ate": ate(reference, estimate),
-        "e_trans": None if relative is None else relative.e_trans,
-        "e_rot": None if relative is None else relative.e_rot,
-        "used_steps": 0 if relative is None else relative.used_steps,
-        "skipped_steps": len(reference) - 1 if relative is None else relative.skipped_steps,
-        "zero_estimate_steps": 0 if relative is None else relative.zero_estimate_steps,
-        **{f"ape_{name}": value for name, value in absolute.items()},
-        "rpe_trans": None if relative_pose is None else relative_pose["translation"]["rmse"],
-        "rpe_rot": None if relative_pose is None else relative_pose["rotation"]["rmse"],
-        "rpe_pairs": 0 if relative_pose is None else relative_pose["pairs"],
-        "rpe_delta_m": float(rpe_delta),
-        "matched_poses": len(reference),
-        "path_length": reference.path_length(),
-        "align": align,
-        "align_scale": float(scale),
-    }
+    from longslam.eval.evaluation import evaluate_full
+
+    return evaluate_full(
+        reference, estimate, align, delta, min_step, delta_unit=delta_unit, all_pairs=all_pairs,
+        delta_tol=delta_tol, pairs_from_reference=pairs_from_reference, pose_relation=pose_relation,
+        correct_scale=correct_scale, align_origin=align_origin, n_to_align=n_to_align, t_max_diff=t_max_diff,
+        t_offset=t_offset,
+    ).scores

@@ -19,8 +19,8 @@ from longslam.trajectory import Trajectory
 TUM, KITTI = "tum", "kitti"
 
 
-def _read_rows(path: Path) -> list[tuple[int, list[str]]]:
-    text = read_text(path, "trajectory file")
+def _read_rows(path: Path, text: str | None = None) -> list[tuple[int, list[str]]]:
+    text = read_text(path, "trajectory file") if text is None else text
     rows = []
     for number, line in enumerate(text.splitlines(), start=1):
         line = line.strip()
@@ -41,10 +41,10 @@ def _numbers(path: Path, rows: list[tuple[int, list[str]]], width: int, what: st
     return out
 
 
-def detect_format(path: str | Path) -> str:
-    """'tum' for 8 fields a line, 'kitti' for 12."""
+def detect_format(path: str | Path, text: str | None = None) -> str:
+    """'tum' for 8 fields a line, 'kitti' for 12 (of the file, or of `text` read elsewhere)."""
     path = Path(path)
-    rows = _read_rows(path)
+    rows = _read_rows(path, text)
     if not rows:
         raise InputError(f"trajectory file {path} holds no poses")
     width = len(rows[0][1])
@@ -57,30 +57,31 @@ def detect_format(path: str | Path) -> str:
     )
 
 
-def read_tum(path: str | Path) -> Trajectory:
+def read_tum(path: str | Path, text: str | None = None) -> Trajectory:
     path = Path(path)
-    data = _numbers(path, _read_rows(path), 8, "t tx ty tz qx qy qz qw")
+    data = _numbers(path, _read_rows(path, text), 8, "t tx ty tz qx qy qz qw")
     if len(data) and np.any(np.linalg.norm(data[:, 4:8], axis=1) < 1e-9):
         bad = int(np.flatnonzero(np.linalg.norm(data[:, 4:8], axis=1) < 1e-9)[0])
         raise TrajectoryError(f"{path}: pose {bad} has a zero quaternion")
     return Trajectory(data[:, 0], poses_from_tum(data[:, 1:8]), source=str(path))
 
 
-def read_kitti(path: str | Path) -> Trajectory:
+def read_kitti(path: str | Path, text: str | None = None) -> Trajectory:
     path = Path(path)
-    data = _numbers(path, _read_rows(path), 12, "a row-major 3x4 pose matrix")
+    data = _numbers(path, _read_rows(path, text), 12, "a row-major 3x4 pose matrix")
     poses = np.tile(np.eye(4), (len(data), 1, 1))
     poses[:, :3, :4] = data.reshape(-1, 3, 4)
     return Trajectory(np.arange(len(data), dtype=np.float64), poses, source=str(path))
 
 
-def read_trajectory(path: str | Path, fmt: str | None = None) -> tuple[Trajectory, str]:
-    """Read a TUM or KITTI file (format detected unless given). Returns the trajectory and its format."""
-    fmt = fmt or detect_format(path)
+def read_trajectory(path: str | Path, fmt: str | None = None, text: str | None = None) -> tuple[Trajectory, str]:
+    """Read a TUM or KITTI file (format detected unless given), or `text` already read (from
+    stdin: `path` then only names it in errors). Returns the trajectory and its format."""
+    fmt = fmt or detect_format(path, text)
     if fmt == TUM:
-        return read_tum(path), fmt
+        return read_tum(path, text), fmt
     if fmt == KITTI:
-        return read_kitti(path), fmt
+        return read_kitti(path, text), fmt
     raise InputError(f"unknown trajectory format {fmt!r}; valid formats: {TUM}, {KITTI}")
 
 

@@ -5,38 +5,55 @@ and the benchmarks all score through here, so a figure means the same wherever i
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from longslam.errors import InputError
-from longslam.eval.metrics import MIN_STEP, evaluate
+from longslam.eval.evaluation import Evaluation, evaluate_full
+from longslam.eval.metrics import MIN_STEP
 from longslam.eval.sync import associate, associate_by_index
 from longslam.io.trajectory_files import KITTI, read_trajectory
 from longslam.run.folder import TRAJECTORY
 from longslam.trajectory import Trajectory
 
+BAG = "bag"  # the format read_source names for a bag topic
+
 MAX_DIFF = 0.01  # seconds between matched stamps (the CLI's --max-diff default)
 
 
-def score(
-    truth: Trajectory, estimate: Trajectory, align: str = "none", max_diff: float = MAX_DIFF,
-    by_index: bool = False, what: str = "the estimate", min_step: float = MIN_STEP,
-) -> dict[str, Any]:
-    """The paper's metrics and the field's (see `eval.metrics.evaluate`) of `estimate` against
-    `truth`, poses matched by timestamp (or by index). A metric that overflowed is an error: it
-    measures nothing, and JSON could not hold it."""
-    ref, est = associate_by_index(truth, estimate) if by_index else associate(truth, estimate, max_diff=max_diff)
+def score_full(
+    truth: Trajectory, estimate: Trajectory, align: str | bool = "none", max_diff: float = MAX_DIFF,
+    by_index: bool = False, what: str = "the estimate", min_step: float = MIN_STEP, offset: float = 0.0,
+    **options: Any,
+) -> Evaluation:
+    """The evaluation behind `score`: its scores and the arrays (per-pose errors, the aligned
+    estimate) that plots and result files need. `options` are `evaluate`'s keyword options."""
+    ref, est = (associate_by_index(truth, estimate) if by_index
+                else associate(truth, estimate, max_diff=max_diff, offset=offset))
     with np.errstate(all="ignore"):  # overflow is reported below, as one error
-        scores = evaluate(ref, est, align=align, min_step=min_step)
-    bad = [key for key, value in scores.items() if isinstance(value, float) and not math.isfinite(value)]
+        evaluation = evaluate_full(ref, est, align=align, min_step=min_step, **options)
+    bad = [key for key, value in evaluation.scores.items() if isinstance(value, float) and not math.isfinite(value)]
     if bad:
         raise InputError(
             f"{what}: {', '.join(bad)} overflowed to NaN or infinity; "
             "the poses hold coordinates too large to score (expected metres)"
         )
-    return scores
+    return evaluation
+
+
+def score(
+    truth: Trajectory, estimate: Trajectory, align: str | bool = "none", max_diff: float = MAX_DIFF,
+    by_index: bool = False, what: str = "the estimate", min_step: float = MIN_STEP, offset: float = 0.0,
+    **options: Any,
+) -> dict[str, Any]:
+    """The paper's metrics and the field's (see `eval.metrics.evaluate`) of `estimate` against
+    `truth`, poses matched by timestamp (`max_diff` and `offset` in seconds, evo's --t_max_diff
+    and --t_offset) or by index. A metric that overflowed is an error: it measures nothing, and
+    JSON could not hold it."""
+    return score_full(truth, estimate, align, max_diff, by_index, what, min_step, offset, **options).scores
 
 
 def trajectory_file(path: str | Path, names: tuple[str, ...]) -> Path:
@@ -59,10 +76,12 @@ def _span(stamps: np.ndarray) -> float:
     return float(stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
 
 
-def coverage(truth: Trajectory, estimate: Trajectory, max_diff: float, by_index: bool) -> dict[str, Any]:
+def coverage(truth: Trajectory, estimate: Trajectory, max_diff: float, by_index: bool,
+             offset: float = 0.0) -> dict[str, Any]:
     """How much of each trajectory the scores rest on: poses matched, their share of the
     estimate's poses, and the share of the ground truth's time span they cover."""
-    ref, est = associate_by_index(truth, estimate) if by_index else associate(truth, estimate, max_diff=max_diff)
+    ref, est = (associate_by_index(truth, estimate) if by_index
+                else associate(truth, estimate, max_diff=max_diff, offset=offset))
     truth_span = _span(truth.timestamps)
     return {
         "matched_poses": len(est),
@@ -85,19 +104,63 @@ def _run_sequence_of(estimate: Path) -> str | None:
     return value if isinstance(value, str) else None
 
 
-def score_files(estimate: str | Path, truth: str | Path, align: str = "none", max_diff: float = MAX_DIFF,
-                min_step: float = MIN_STEP, warnings: list[str] | None = None) -> dict[str, Any]:
-    """Score trajectory files (TUM or KITTI) or run / sequence folders. KITTI files have no stamps,
-    so they are matched by index. The scores include how much was matched (`coverage`); what
-    makes them doubtful (part of a route matched, a run scored against another sequence than its
-    own) is appended to `warnings`."""
-    est_file, ref_file = trajectory_file(estimate, (TRAJECTORY,)), trajectory_file(truth, ("groundtruth.txt",))
-    est, est_format = read_trajectory(est_file)
-    ref, ref_format = read_trajectory(ref_file)
+STDIN = "-"  # a trajectory file name that means: TUM (or KITTI) text on standard input
+
+
+def read_source(source: str | Path, names: tuple[str, ...], topic: str | None = None,
+                topic_option: str = "--topic", stdin_text: str | None = None) -> tuple[Trajectory, str, str]:
+    """A trajectory, its format (tum, kitti or bag) and a name for messages, from a file, a run
+    or sequence folder, a ROS bag's topic, or `-` (stdin, given as `stdin_text` or read here)."""
+    if str(source) == STDIN:
+        if topic is not None:
+            raise InputError(f"{topic_option} names a bag topic, but the trajectory comes from stdin (-)")
+        text = sys.stdin.read() if stdin_text is None else stdin_text
+        trajectory, fmt = read_trajectory(Path("<stdin>"), text=text)
+        return trajectory, fmt, "<stdin>"
+    from longslam.io.rosbag.trajectory import is_bag
+
+    if is_bag(source):
+        from longslam.io.rosbag.trajectory import read_bag_trajectory
+
+        trajectory = read_bag_trajectory(source, topic, topic_option)
+        return trajectory, BAG, trajectory.source
+    if topic is not None:
+        raise InputError(f"{topic_option} {topic}: {source} is not a ROS bag (a .bag or .mcap file, "
+                         "or a folder holding metadata.yaml)")
+    path = trajectory_file(source, names)
+    trajectory, fmt = read_trajectory(path)
+    return trajectory, fmt, str(path)
+
+
+def score_files(estimate: str | Path, truth: str | Path, align: str | bool = "none", max_diff: float = MAX_DIFF,
+                min_step: float = MIN_STEP, warnings: list[str] | None = None, offset: float = 0.0,
+                estimate_topic: str | None = None, truth_topic: str | None = None, **options: Any) -> dict[str, Any]:
+    """`score_files_full`'s scores."""
+    return score_files_full(estimate, truth, align, max_diff, min_step, warnings, offset, estimate_topic,
+                            truth_topic, **options).scores
+
+
+def score_files_full(estimate: str | Path, truth: str | Path, align: str | bool = "none", max_diff: float = MAX_DIFF,
+                     min_step: float = MIN_STEP, warnings: list[str] | None = None, offset: float = 0.0,
+                     estimate_topic: str | None = None, truth_topic: str | None = None,
+                     **options: Any) -> Evaluation:
+    """Score trajectory files (TUM or KITTI), run / sequence folders, topics of ROS bags or `-`
+    (stdin, for one of the two). KITTI files have no stamps, so they are matched by index. The
+    scores include how much was matched (`coverage`); what makes them doubtful (part of a route
+    matched, a run scored against another sequence than its own) is appended to `warnings`.
+    `options` are `evaluate`'s keyword options (pose_relation, delta, delta_unit...)."""
+    if str(estimate) == STDIN and str(truth) == STDIN:
+        raise InputError("only one of the estimate and the ground truth can come from stdin (-)")
+    est, est_format, est_file = read_source(estimate, (TRAJECTORY,), estimate_topic, "--est-topic")
+    ref, ref_format, ref_file = read_source(truth, ("groundtruth.txt",), truth_topic, "--ref-topic")
     by_index = KITTI in (est_format, ref_format)
-    scores = score(ref, est, align, max_diff, by_index=by_index, what=f"{estimate} against {truth}", min_step=min_step)
-    shares = coverage(ref, est, max_diff, by_index)
-    scores.update(shares)
+    if by_index and offset != 0.0:
+        raise InputError(f"--t-offset {offset}: {est_file if est_format == KITTI else ref_file} is a KITTI file, "
+                         "without timestamps, so poses are paired by index; drop --t-offset")
+    evaluation = score_full(ref, est, align, max_diff, by_index=by_index, what=f"{estimate} against {truth}",
+                            min_step=min_step, offset=offset, **options)
+    shares = coverage(ref, est, max_diff, by_index, offset)
+    evaluation.scores.update(shares)
     if warnings is not None:
         if shares["matched_share_estimate"] < COVERAGE_WARNING:
             warnings.append(f"only {shares['matched_poses']} of {len(est)} poses of {est_file} "
@@ -106,9 +169,9 @@ def score_files(estimate: str | Path, truth: str | Path, align: str = "none", ma
         if shares["matched_share_groundtruth_span"] < COVERAGE_WARNING:
             warnings.append(f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
                             f"of {ref_file}; the scores cover that part of the route only")
-        own = _run_sequence_of(Path(estimate))
-        if own is not None:
+        own = _run_sequence_of(Path(estimate)) if str(estimate) != STDIN else None
+        if own is not None and str(truth) != STDIN:
             given = Path(truth) if Path(truth).is_dir() else Path(ref_file).parent
             if Path(own).resolve() != given.resolve():
                 warnings.append(f"{estimate} ran on the sequence {own} (its stats.json), not on {given}")
-    return scores
+    return evaluation
