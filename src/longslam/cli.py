@@ -13,6 +13,8 @@ import sys
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
+from longslam.cli_output import configure, note
+from longslam.cli_parser import Parser, add_common_options
 from longslam.errors import LongslamError
 
 
@@ -150,8 +152,8 @@ def cmd_run(args: argparse.Namespace) -> None:
         f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
         + (f", live view {measurements['observer_time_s']:.1f} s" if "observer_time_s" in measurements else "")
     )
-    for note in measurements.get("sequence_notes", []):
-        print(f"note: {args.sequence}: {note}", file=sys.stderr)
+    for text in measurements.get("sequence_notes", []):
+        note(f"{args.sequence}: {text}")
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
@@ -182,9 +184,9 @@ class _LazyBar:
 
     def update(self, done: int, total: int) -> None:
         if self.bar is None:
-            from tqdm import tqdm
+            from longslam.progress import bar
 
-            self.bar = tqdm(desc=self.desc, unit="frame", leave=False)
+            self.bar = bar(desc=self.desc, unit="frame", leave=False)
         self.bar.total = total
         self.bar.update(done - self.bar.n)
 
@@ -217,8 +219,8 @@ def cmd_export(args: argparse.Namespace) -> None:
         line += (f"; odometry covariance per step: forward {summary.linear_variance:.3g} m^2, "
                  f"yaw {summary.yaw_variance:.3g} rad^2")
     print(line)
-    for note in summary.notes:
-        print(f"note: {args.sequence}: {note}", file=sys.stderr)
+    for text in summary.notes:
+        note(f"{args.sequence}: {text}")
 
 
 def cmd_import(args: argparse.Namespace) -> None:
@@ -234,8 +236,8 @@ def cmd_import(args: argparse.Namespace) -> None:
           f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info}; "
           f"odometry {'from ' + t.odom if summary.odometry else 'none'}; "
           f"ground truth {'from ' + t.groundtruth if summary.groundtruth else 'none'}")
-    for note in summary.notes:
-        print(f"note: {note}", file=sys.stderr)
+    for text in summary.notes:
+        note(text)
 
 
 def cmd_demo(args: argparse.Namespace) -> None:
@@ -289,7 +291,7 @@ def cmd_report(args: argparse.Namespace) -> None:
     left_out: list[str] = []
     page = write_report(args.dir, overwrite=args.overwrite, left_out=left_out)
     for what in left_out:
-        print(f"note: {what}", file=sys.stderr)
+        note(what)
     print(f"wrote {page} and {page.with_suffix('.md')}")
 
 
@@ -323,9 +325,10 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
-    parser.add_argument("--debug", action="store_true", help="show the full traceback of an error")
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = Parser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                        help="print longslam's version and exit")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("world", help="draw a world's floor plan, optionally with a route")
     _world_args(p, "university, or the route file's")
@@ -397,9 +400,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="the demo route at large noise with every method: a table and a plot")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
-    p.add_argument("--route", default="demo")
-    p.add_argument("--noise", default="large")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--route", default="demo", help="route name (see `longslam list`) or a waypoint file (default demo)")
+    p.add_argument("--noise", default="large", help="odometry noise level: none, small, medium, large, xlarge (default large)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise (default 0)")
     p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
                    help="show each method's run live in a rerun viewer, or record FILE-<method>.rrd (needs longslam[viz])")
     p.add_argument("--overwrite", action="store_true", help="replace existing FILE-<method>.rrd recordings")
@@ -442,14 +445,26 @@ def build_parser() -> argparse.ArgumentParser:
                    help="at most this many frames, spread evenly over the sequence (default 1000)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing file")
     _camera_args(p)
-    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the full traceback of an error")
     p.set_defaults(func=cmd_vocabulary_build)
 
     p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")
     p.set_defaults(func=cmd_list)
-    for command in sub.choices.values():  # --debug also after the command; SUPPRESS keeps the top-level value
-        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the full traceback of an error")
+    add_common_options(parser)  # last, so that every subcommand has them (also after the command)
+    from longslam.cli_complete import attach_completers
+
+    attach_completers(parser)
     return parser
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("longslam")  # the installed distribution's, as pip shows it
+    except PackageNotFoundError:  # run from a source tree that is not installed
+        import longslam
+
+        return f"{longslam.__version__} (not installed)"
 
 
 def _tolerant_output() -> None:
@@ -497,8 +512,12 @@ def _glue_negative_values(argv: list[str], options: set[str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     _tolerant_output()
     parser = build_parser()
+    import argcomplete
+
+    argcomplete.autocomplete(parser)  # answers a shell's completion request and exits; else nothing
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(_glue_negative_values(argv, _value_options(parser)))
+    configure(args)
     try:
         args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers below

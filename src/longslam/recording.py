@@ -16,7 +16,6 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 import longslam
 from longslam.errors import InputError
@@ -25,6 +24,7 @@ from longslam.geometry import camera_poses_from_planar, planar_from_camera_poses
 from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
+from longslam.progress import bar
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
@@ -113,7 +113,7 @@ def rendered_sequence(
         "longslam_version": longslam.__version__,
     }
     with SequenceWriter(path, camera.intrinsics, camera.max_depth, meta, overwrite=True) as writer:
-        frames = tqdm(range(len(truth)), desc=f"render {route.name} ({camera.width} x {camera.height})", unit="frame", disable=not progress, leave=False)
+        frames = bar(range(len(truth)), desc=f"render {route.name} ({camera.width} x {camera.height})", unit="frame", disable=not progress, leave=False)
         for i in frames:
             rgb, depth = renderer.render(truth.poses[i])
             writer.add(float(truth.timestamps[i]), rgb, depth)
