@@ -147,8 +147,10 @@ def cmd_run(args: argparse.Namespace) -> None:
         check_target(args.viz, args.overwrite)
     measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
                                 intrinsics=args.intrinsics, viz=args.viz)
+    from longslam.run.speed import describe_real_time_factor
+
     print(
-        f"wrote {args.out}: {measurements['frames']} frames, real-time factor {measurements['real_time_factor']:.1f}, "
+        f"wrote {args.out}: {measurements['frames']} frames, {describe_real_time_factor(measurements['real_time_factor'])}, "
         f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
         + (f", live view {measurements['observer_time_s']:.1f} s" if "observer_time_s" in measurements else "")
     )
