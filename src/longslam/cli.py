@@ -138,6 +138,26 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}")
 
 
+def _run_inputs(args: argparse.Namespace) -> tuple[str, str, dict]:
+    """The method, sequence and parameters of `run`: the options, over a --config file's."""
+    params = _params(args.param)
+    if args.config is None:
+        if args.method is None:
+            raise LongslamError("give the method: --method NAME (see `longslam list`), or --config RUN/config.toml")
+        if args.sequence is None:
+            raise LongslamError("give the sequence folder to run on")
+        return args.method, args.sequence, params
+    from longslam.run.repeat import merged_params, read_run_config
+
+    config = read_run_config(args.config)
+    if args.method is not None and args.method != config.method:
+        raise LongslamError(f"--method {args.method}: {args.config} holds the parameters of method {config.method!r}")
+    sequence = args.sequence or config.sequence
+    if sequence is None:
+        raise LongslamError(f"give the sequence folder to run on ({args.config} names none in [run])")
+    return config.method, sequence, merged_params(config, params, args.config)
+
+
 def cmd_run(args: argparse.Namespace) -> None:
     from longslam.run.engine import run_sequence
 
@@ -145,7 +165,8 @@ def cmd_run(args: argparse.Namespace) -> None:
         from longslam.viz.live import check_target
 
         check_target(args.viz, args.overwrite)
-    measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
+    method, sequence, params = _run_inputs(args)
+    measurements = run_sequence(method, sequence, args.out, params, overwrite=args.overwrite,
                                 intrinsics=args.intrinsics, viz=args.viz)
     from longslam.run.speed import describe_real_time_factor
 
@@ -351,8 +372,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("run", help="run a SLAM method over a sequence")
-    p.add_argument("--method", required=True, help="method name (see `longslam list`)")
-    p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")
+    p.add_argument("--method", help="method name (see `longslam list`); required without --config")
+    p.add_argument("sequence", nargs="?", help="sequence folder (TUM RGB-D layout); default with --config: its [run] sequence")
+    p.add_argument("--config", metavar="CONFIG.toml",
+                   help="a run folder's config.toml: run its method with its parameters again (--param overrides them)")
     p.add_argument("--out", required=True, help="run folder to write")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="method parameter (repeatable)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing run folder (and --viz file)")
