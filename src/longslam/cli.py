@@ -277,7 +277,37 @@ def cmd_demo(args: argparse.Namespace) -> None:
     print(f"\ntrajectories over the floor plan: {plot}")
 
 
+def _list_params(method: str) -> None:
+    from longslam.settings_doc import describe
+    from longslam.slam.catalog import get_spec
+
+    spec = get_spec(method)
+    if spec.config_type is None:
+        print(f"{method}: takes its parameters as given (no typed config to describe)")
+        return
+    rows = [(p.name, _toml_text(p.default), p.allowed, p.doc) for p in describe(spec.config_type)]
+    print(f"{method}: {len(rows)} parameters (--param NAME=VALUE, or [params.{method}] in a study file)"
+          if rows else f"{method}: no parameters")
+    if rows:
+        widths = [max(len(row[i]) for row in rows) for i in range(3)]
+        for row in rows:
+            print("  " + "  ".join(cell.ljust(w) for cell, w in zip(row[:3], widths)) + "  " + row[3])
+
+
+def _toml_text(value: object) -> str:
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, tuple):
+        return "[" + ", ".join(map(str, value)) + "]"
+    return str(value)
+
+
 def cmd_list(args: argparse.Namespace) -> None:
+    if args.params_of is not None:
+        _list_params(args.params_of)
+        return
     from longslam.sim.noise import NOISE_LEVELS
     from longslam.sim.routes import ROUTES
     from longslam.slam.catalog import method_names
@@ -472,7 +502,9 @@ def build_parser() -> argparse.ArgumentParser:
     _camera_args(p)
     p.set_defaults(func=cmd_vocabulary_build)
 
-    p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")
+    p = sub.add_parser("list", help="list worlds, routes, noise levels and methods, or a method's parameters")
+    p.add_argument("--params", dest="params_of", metavar="METHOD",
+                   help="list the method's parameters: default, allowed values and what each does")
     p.set_defaults(func=cmd_list)
     add_common_options(parser)  # last, so that every subcommand has them (also after the command)
     from longslam.cli_complete import attach_completers

@@ -21,7 +21,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -48,6 +48,8 @@ TRANSLATING_STEP = 1e-4
 
 @dataclass(frozen=True)
 class FrontEndConfig:
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"mode": MODES}  # what `longslam list --params` shows
+
     mode: str = "fused"
     # m above the floor; None: the first odometry pose's z (the floor is z = 0), or
     # `default_camera_height` without odometry.

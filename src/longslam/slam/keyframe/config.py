@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from typing import ClassVar
 
 from longslam.errors import InputError
 from longslam.settings import check_limits
@@ -27,6 +28,9 @@ SIZE_LIMITS = {
 
 @dataclass(frozen=True)
 class KeyframeConfig:
+    # The values a text parameter takes (`longslam list --params` shows them).
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"vocabulary_index": tuple(WORD_INDEXES)}
+
     # Node creation (Rtabmap/DetectionRate, RGBD/LinearUpdate, RGBD/AngularUpdate).
     detection_rate: float = 1.0  # Hz
     linear_update: float = 0.1  # m moved since the last node

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from longslam.errors import InputError
 from longslam.settings import check_limits
@@ -24,11 +25,15 @@ SIZE_LIMITS = {
     "registration_max_points": (1, 1_000_000, "", "points are matched between every pair of submaps"),
     "loop_max_features": (1, 100_000, "", "features are held per keyframe"),
 }
+ROBUST_KERNELS = ("cauchy", "huber", "none")
 MAX_TRUNCATION_VOXELS = 40  # truncation / voxel_size: voxels on each side of a surface
 
 
 @dataclass(frozen=True)
 class SubmapConfig:
+    # The values a text parameter takes (`longslam list --params` shows them).
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"robust_kernel": ROBUST_KERNELS}
+
     # TSDF (the paper: voxel 0.2 m, truncation 0.8 m; Voxgraph: max_ray_length_m 16)
     voxel_size: float = 0.2
     truncation: float = 0.8
@@ -105,7 +110,7 @@ class SubmapConfig:
             raise InputError(f"truncation ({self.truncation}) must exceed voxel_size ({self.voxel_size})")
         if self.registration_sampling_ratio > 1:
             raise InputError(f"registration_sampling_ratio must be in (0, 1], got {self.registration_sampling_ratio}")
-        if self.robust_kernel not in ("cauchy", "huber", "none"):
+        if self.robust_kernel not in ROBUST_KERNELS:
             raise InputError(f"robust_kernel must be cauchy, huber or none, got {self.robust_kernel!r}")
         if self.grid_max_height <= self.grid_min_height:
             raise InputError("grid_max_height must exceed grid_min_height")
