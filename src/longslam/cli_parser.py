@@ -72,6 +72,9 @@ class Parser(argparse.ArgumentParser):
         return self
 
     def unrecognized(self, extras: list[str]) -> str:
+        options = [token for token in extras if self._unknown_option(token)]
+        if options:  # `--methd keyframe SEQ`: the stray words are the mistyped option's value
+            extras = options
         parts = []
         for token in extras:
             name = token.split("=", 1)[0]

@@ -31,8 +31,8 @@ class SmootherConfig:
     # 10 Hz step in the previous pose's frame, and dead reckoning gets that almost exactly right
     # (0.13 deg/m at large noise = 0.05 mm sideways per 15 cm step). A correction must come as
     # heading and forward distance, never as a sideways shift of a step.
-    lateral_sigma: float = 1e-5  # m
-    iterations: int = 50
+    lateral_sigma: float = 1e-5  # m: std of a wheel step's sideways component in the smoother
+    iterations: int = 50  # most optimiser iterations of the full smoother
     # Bias states in the smoother (a Python factor per frame), or each wheel step corrected by
     # the online filter's bias estimate (GTSAM's own between factors).
     bias_states: bool = True
