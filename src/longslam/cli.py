@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 
@@ -16,6 +17,8 @@ from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broke
 from longslam.cli_output import configure, note
 from longslam.cli_parser import Parser, add_common_options
 from longslam.errors import LongslamError
+
+log = logging.getLogger("longslam.cli")
 
 
 CAMERA_HELP = {
@@ -166,6 +169,7 @@ def cmd_run(args: argparse.Namespace) -> None:
 
         check_target(args.viz, args.overwrite)
     method, sequence, params = _run_inputs(args)
+    log.info("run: method %s on %s into %s, parameters %s", method, sequence, args.out, params or "the defaults")
     measurements = run_sequence(method, sequence, args.out, params, overwrite=args.overwrite,
                                 intrinsics=args.intrinsics, viz=args.viz)
     from longslam.run.speed import describe_real_time_factor

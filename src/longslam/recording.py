@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
 from collections.abc import Iterator
 from dataclasses import asdict
@@ -37,6 +38,8 @@ from longslam.world.source import MeshSpec, is_mesh_ref, world_identity
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1
 
+
+log = logging.getLogger(__name__)  # -v shows where frames come from (longslam/cli_output.py)
 
 def cache_root() -> Path:
     """The render cache: LONGSLAM_CACHE, or ~/.cache/longslam if it is unset or empty (an empty
@@ -93,7 +96,9 @@ def rendered_sequence(
     root = Path(root) if root is not None else cache_root()
     path = root / cache_key(route, camera, follower)
     if path.is_dir():
+        log.info("route %s at %d x %d: rendered frames from the cache, %s", route.name, camera.width, camera.height, path)
         return path
+    log.info("route %s at %d x %d: rendering into the cache, %s", route.name, camera.width, camera.height, path)
     world = load_world(route.world)
     check_camera_in_world(world, camera)
     driven = drive_route(world, route, follower)
