@@ -320,7 +320,7 @@ def cmd_list(args: argparse.Namespace) -> None:
     print("worlds:      ", ", ".join(WORLDS.names()), "(or a mesh file: --world FILE)")
     print("routes:      ", ", ".join(ROUTES.names()))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
-    print("methods:     ", ", ".join(method_names()))
+    print("methods:     ", ", ".join(method_names()), "(parameters: longslam list --params METHOD)")
 
 
 def cmd_study(args: argparse.Namespace) -> None:

@@ -23,7 +23,7 @@ _REQUIRED = "the following arguments are required"
 
 COMMON_OPTIONS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
     (("--debug",), {"action": "store_true", "help": "show the full traceback of an error"}),
-    (("-v", "--verbose"), {"action": "count", "help": "say more: -v what each step reads and writes, -vv debugging detail"}),
+    (("-v", "--verbose"), {"action": "count", "help": "say more: -v where a route's frames come from and what a run uses, -vv debugging detail"}),
     (("--quiet",), {"action": "store_true", "help": "print only results, warnings and errors: no progress bars, no notes"}),
     (("--no-progress",), {"action": "store_true",
                           "help": "draw no progress bars (they are never drawn when stderr is not a terminal)"}),
