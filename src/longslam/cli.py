@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 
@@ -13,7 +14,11 @@ import sys
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
+from longslam.cli_output import configure, note
+from longslam.cli_parser import Parser, add_common_options
 from longslam.errors import LongslamError
+
+log = logging.getLogger("longslam.cli")
 
 
 CAMERA_HELP = {
@@ -136,6 +141,26 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}")
 
 
+def _run_inputs(args: argparse.Namespace) -> tuple[str, str, dict]:
+    """The method, sequence and parameters of `run`: the options, over a --config file's."""
+    params = _params(args.param)
+    if args.config is None:
+        if args.method is None:
+            raise LongslamError("give the method: --method NAME (see `longslam list`), or --config RUN/config.toml")
+        if args.sequence is None:
+            raise LongslamError("give the sequence folder to run on")
+        return args.method, args.sequence, params
+    from longslam.run.repeat import merged_params, read_run_config
+
+    config = read_run_config(args.config)
+    if args.method is not None and args.method != config.method:
+        raise LongslamError(f"--method {args.method}: {args.config} holds the parameters of method {config.method!r}")
+    sequence = args.sequence or config.sequence
+    if sequence is None:
+        raise LongslamError(f"give the sequence folder to run on ({args.config} names none in [run])")
+    return config.method, sequence, merged_params(config, params, args.config)
+
+
 def cmd_run(args: argparse.Namespace) -> None:
     from longslam.run.engine import run_sequence
 
@@ -143,15 +168,19 @@ def cmd_run(args: argparse.Namespace) -> None:
         from longslam.viz.live import check_target
 
         check_target(args.viz, args.overwrite)
-    measurements = run_sequence(args.method, args.sequence, args.out, _params(args.param), overwrite=args.overwrite,
+    method, sequence, params = _run_inputs(args)
+    log.info("run: method %s on %s into %s, parameters %s", method, sequence, args.out, params or "the defaults")
+    measurements = run_sequence(method, sequence, args.out, params, overwrite=args.overwrite,
                                 intrinsics=args.intrinsics, viz=args.viz)
+    from longslam.run.speed import describe_real_time_factor
+
     print(
-        f"wrote {args.out}: {measurements['frames']} frames, real-time factor {measurements['real_time_factor']:.1f}, "
+        f"wrote {args.out}: {measurements['frames']} frames, {describe_real_time_factor(measurements['real_time_factor'])}, "
         f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
         + (f", live view {measurements['observer_time_s']:.1f} s" if "observer_time_s" in measurements else "")
     )
-    for note in measurements.get("sequence_notes", []):
-        print(f"note: {args.sequence}: {note}", file=sys.stderr)
+    for text in measurements.get("sequence_notes", []):
+        note(f"{args.sequence}: {text}")
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
@@ -241,9 +270,9 @@ class _LazyBar:
 
     def update(self, done: int, total: int) -> None:
         if self.bar is None:
-            from tqdm import tqdm
+            from longslam.progress import bar
 
-            self.bar = tqdm(desc=self.desc, unit="frame", leave=False)
+            self.bar = bar(desc=self.desc, unit="frame", leave=False)
         self.bar.total = total
         self.bar.update(done - self.bar.n)
 
@@ -276,8 +305,8 @@ def cmd_export(args: argparse.Namespace) -> None:
         line += (f"; odometry covariance per step: forward {summary.linear_variance:.3g} m^2, "
                  f"yaw {summary.yaw_variance:.3g} rad^2")
     print(line)
-    for note in summary.notes:
-        print(f"note: {args.sequence}: {note}", file=sys.stderr)
+    for text in summary.notes:
+        note(f"{args.sequence}: {text}")
 
 
 def cmd_import(args: argparse.Namespace) -> None:
@@ -293,8 +322,8 @@ def cmd_import(args: argparse.Namespace) -> None:
           f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info}; "
           f"odometry {'from ' + t.odom if summary.odometry else 'none'}; "
           f"ground truth {'from ' + t.groundtruth if summary.groundtruth else 'none'}")
-    for note in summary.notes:
-        print(f"note: {note}", file=sys.stderr)
+    for text in summary.notes:
+        note(text)
 
 
 def cmd_demo(args: argparse.Namespace) -> None:
@@ -311,7 +340,37 @@ def cmd_demo(args: argparse.Namespace) -> None:
     print(f"\ntrajectories over the floor plan: {plot}")
 
 
+def _list_params(method: str) -> None:
+    from longslam.settings_doc import describe
+    from longslam.slam.catalog import get_spec
+
+    spec = get_spec(method)
+    if spec.config_type is None:
+        print(f"{method}: takes its parameters as given (no typed config to describe)")
+        return
+    rows = [(p.name, _toml_text(p.default), p.allowed, p.doc) for p in describe(spec.config_type)]
+    print(f"{method}: {len(rows)} parameters (--param NAME=VALUE, or [params.{method}] in a study file)"
+          if rows else f"{method}: no parameters")
+    if rows:
+        widths = [max(len(row[i]) for row in rows) for i in range(3)]
+        for row in rows:
+            print("  " + "  ".join(cell.ljust(w) for cell, w in zip(row[:3], widths)) + "  " + row[3])
+
+
+def _toml_text(value: object) -> str:
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, tuple):
+        return "[" + ", ".join(map(str, value)) + "]"
+    return str(value)
+
+
 def cmd_list(args: argparse.Namespace) -> None:
+    if args.params_of is not None:
+        _list_params(args.params_of)
+        return
     from longslam.sim.noise import NOISE_LEVELS
     from longslam.sim.routes import ROUTES
     from longslam.sim.tours import EXAMPLES as TOUR_EXAMPLES
@@ -323,7 +382,7 @@ def cmd_list(args: argparse.Namespace) -> None:
     print("long routes:  NAME-xN (a route N times over), tour-<L>km or tour-<L>m[-seed<S>] (a seeded random tour "
           "of the world's places), e.g. " + ", ".join(TOUR_EXAMPLES))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
-    print("methods:     ", ", ".join(method_names()))
+    print("methods:     ", ", ".join(method_names()), "(parameters: longslam list --params METHOD)")
 
 
 def cmd_study(args: argparse.Namespace) -> None:
@@ -351,7 +410,7 @@ def cmd_report(args: argparse.Namespace) -> None:
     left_out: list[str] = []
     page = write_report(args.dir, overwrite=args.overwrite, left_out=left_out)
     for what in left_out:
-        print(f"note: {what}", file=sys.stderr)
+        note(what)
     print(f"wrote {page} and {page.with_suffix('.md')}")
 
 
@@ -439,9 +498,10 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
-    parser.add_argument("--debug", action="store_true", help="show the full traceback of an error")
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = Parser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                        help="print longslam's version and exit")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("world", help="draw a world's floor plan, optionally with a route")
     _world_args(p, "university, or the route file's")
@@ -462,8 +522,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("run", help="run a SLAM method over a sequence")
-    p.add_argument("--method", required=True, help="method name (see `longslam list`)")
-    p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")
+    p.add_argument("--method", help="method name (see `longslam list`); required without --config")
+    p.add_argument("sequence", nargs="?", help="sequence folder (TUM RGB-D layout); default with --config: its [run] sequence")
+    p.add_argument("--config", metavar="CONFIG.toml",
+                   help="a run folder's config.toml: run its method with its parameters again (--param overrides them)")
     p.add_argument("--out", required=True, help="run folder to write")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="method parameter (repeatable)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing run folder (and --viz file)")
@@ -521,9 +583,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="the demo route at large noise with every method: a table and a plot")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
-    p.add_argument("--route", default="demo")
-    p.add_argument("--noise", default="large")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--route", default="demo", help="route name (see `longslam list`) or a waypoint file (default demo)")
+    p.add_argument("--noise", default="large", help="odometry noise level: none, small, medium, large, xlarge (default large)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise (default 0)")
     p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
                    help="show each method's run live in a rerun viewer, or record FILE-<method>.rrd (needs longslam[viz])")
     p.add_argument("--overwrite", action="store_true", help="replace existing FILE-<method>.rrd recordings")
@@ -566,14 +628,28 @@ def build_parser() -> argparse.ArgumentParser:
                    help="at most this many frames, spread evenly over the sequence (default 1000)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing file")
     _camera_args(p)
-    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the full traceback of an error")
     p.set_defaults(func=cmd_vocabulary_build)
 
-    p = sub.add_parser("list", help="list worlds, routes, noise levels and methods")
+    p = sub.add_parser("list", help="list worlds, routes, noise levels and methods, or a method's parameters")
+    p.add_argument("--params", dest="params_of", metavar="METHOD",
+                   help="list the method's parameters: default, allowed values and what each does")
     p.set_defaults(func=cmd_list)
-    for command in sub.choices.values():  # --debug also after the command; SUPPRESS keeps the top-level value
-        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show the full traceback of an error")
+    add_common_options(parser)  # last, so that every subcommand has them (also after the command)
+    from longslam.cli_complete import attach_completers
+
+    attach_completers(parser)
     return parser
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("longslam")  # the installed distribution's, as pip shows it
+    except PackageNotFoundError:  # run from a source tree that is not installed
+        import longslam
+
+        return f"{longslam.__version__} (not installed)"
 
 
 def _tolerant_output() -> None:
@@ -621,8 +697,12 @@ def _glue_negative_values(argv: list[str], options: set[str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     _tolerant_output()
     parser = build_parser()
+    import argcomplete
+
+    argcomplete.autocomplete(parser)  # answers a shell's completion request and exits; else nothing
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(_glue_negative_values(argv, _value_options(parser)))
+    configure(args)
     try:
         args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers below

@@ -8,6 +8,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
 from longslam.run.folder import TRAJECTORY
 from longslam.run.isolate import run_and_score
+from longslam.run.speed import format_real_time_factor
 from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
@@ -28,7 +29,7 @@ def format_table(rows: list[dict]) -> str:
             f"{r['e_trans']:.4f}",
             f"{r['e_rot']:.4f}",
             f"{r['peak_rss_bytes'] / 1e6:.0f}",
-            f"{r['real_time_factor']:.1f}",
+            format_real_time_factor(r["real_time_factor"]),
         )
         for r in rows
     ]

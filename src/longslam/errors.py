@@ -20,7 +20,10 @@ class UnknownNameError(InputError, KeyError):
         self.kind = kind
         self.name = name
         self.valid = sorted(valid)
-        super().__init__(f"unknown {kind} {name!r}; valid {kind} names: {', '.join(self.valid)}")
+        from longslam.suggest import did_you_mean
+
+        super().__init__(f"unknown {kind} {name!r}{did_you_mean(name, self.valid)}; "
+                         f"valid {kind} names: {', '.join(self.valid)}")
 
     def __str__(self) -> str:  # KeyError would otherwise quote the message
         return self.args[0]

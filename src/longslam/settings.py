@@ -110,10 +110,9 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
             nested.setdefault(head, {}).update({tail: raw} if dot else dict(raw))
         else:
             flat[key] = raw
-    unknown = sorted(set(flat) - set(names))
+    unknown = sorted(set(flat) - set(names), key=str)
     if unknown:
-        valid = ", ".join(sorted(names)) if names else "none (it takes no parameters)"
-        raise InputError(f"{what}: unknown parameter(s) {', '.join(map(str, unknown))}; valid parameters: {valid}")
+        raise InputError(_unknown_keys(cls, unknown, what))
     converted = {}
     for key, raw in flat.items():
         kind, optional = _field_type(cls, key)
@@ -131,6 +130,30 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
     if base is not None:
         return dataclasses.replace(base, **converted)
     return cls(**converted)
+
+
+def parameter_names(cls: type, prefix: str = "") -> list[str]:
+    """Every settable key of the dataclass `cls`, a nested config's fields as `head.field`."""
+    out = []
+    for name in field_names(cls):
+        kind = _field_type(cls, name)[0]
+        out.extend(parameter_names(kind, f"{prefix}{name}.") if dataclasses.is_dataclass(kind) else [f"{prefix}{name}"])
+    return out
+
+
+def _unknown_keys(cls: type, unknown: list[Any], what: str) -> str:
+    """The error for keys `cls` does not have: "did you mean" for a near miss (a typo), the list of
+    valid keys only when nothing is close, since a list of 42 names hides the one that was meant."""
+    from longslam.suggest import close_names
+
+    names = field_names(cls)
+    candidates = names + [n for n in parameter_names(cls) if n not in names]
+    guesses = {key: close_names(str(key), candidates, n=1) for key in unknown}
+    if all(guesses.values()):
+        shown = ", ".join(f"{key} (did you mean {guesses[key][0]}?)" for key in unknown)
+        return f"{what}: unknown parameter {shown}"
+    valid = ", ".join(sorted(names)) if names else "none (it takes no parameters)"
+    return f"{what}: unknown parameter(s) {', '.join(map(str, unknown))}; valid parameters: {valid}"
 
 
 def to_mapping(config: Any) -> dict[str, Any]:

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
 from collections.abc import Iterator
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 import longslam
 from longslam.errors import InputError
@@ -25,6 +25,7 @@ from longslam.geometry import camera_poses_from_planar, planar_from_camera_poses
 from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
+from longslam.progress import bar
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
@@ -37,6 +38,8 @@ from longslam.world.reference import MeshSpec, is_mesh_ref, world_identity
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1
 
+
+log = logging.getLogger(__name__)  # -v shows where frames come from (longslam/cli_output.py)
 
 def cache_root() -> Path:
     """The render cache: LONGSLAM_CACHE, or ~/.cache/longslam if it is unset or empty (an empty
@@ -93,7 +96,9 @@ def rendered_sequence(
     root = Path(root) if root is not None else cache_root()
     path = root / cache_key(route, camera, follower)
     if path.is_dir():
+        log.info("route %s at %d x %d: rendered frames from the cache, %s", route.name, camera.width, camera.height, path)
         return path
+    log.info("route %s at %d x %d: rendering into the cache, %s", route.name, camera.width, camera.height, path)
     world = load_world(route.world)
     check_camera_in_world(world, camera)
     driven = drive_route(world, route, follower)
@@ -113,7 +118,7 @@ def rendered_sequence(
         "longslam_version": longslam.__version__,
     }
     with SequenceWriter(path, camera.intrinsics, camera.max_depth, meta, overwrite=True) as writer:
-        frames = tqdm(range(len(truth)), desc=f"render {route.name} ({camera.width} x {camera.height})", unit="frame", disable=not progress, leave=False)
+        frames = bar(range(len(truth)), desc=f"render {route.name} ({camera.width} x {camera.height})", unit="frame", disable=not progress, leave=False)
         for i in frames:
             rgb, depth = renderer.render(truth.poses[i])
             writer.add(float(truth.timestamps[i]), rgb, depth)

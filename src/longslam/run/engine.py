@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from longslam.errors import InputError
 from longslam.frame import Frame
@@ -26,6 +25,7 @@ from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
+from longslam.progress import bar
 from longslam.run.observer import RunObserver
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes, peak_rss_bytes
@@ -94,7 +94,7 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
         t0 = time.perf_counter()
         observer.start(method, context)
         observer_time += time.perf_counter() - t0
-    for frame in tqdm(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
+    for frame in bar(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
         t0 = time.perf_counter()
         pose = method.step(frame)
         step_times.append(time.perf_counter() - t0)

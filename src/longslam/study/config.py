@@ -146,6 +146,12 @@ def _valid(values) -> str:
     return ", ".join(str(v) for v in values)
 
 
+def _unknown_key(name: str, valid) -> str:
+    from longslam.suggest import did_you_mean
+
+    return f"unknown key{did_you_mean(name, [str(v) for v in valid], quote=False)}; valid keys: {_valid(valid)}"
+
+
 def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
@@ -185,7 +191,7 @@ class _Reader:
             raise self.error(key, f"expected a table ([{key}]), got {value!r}")
         for sub in value:
             if sub not in valid_keys:
-                raise self.error(f"{key}.{sub}", f"unknown key; valid keys: {_valid(valid_keys)}")
+                raise self.error(f"{key}.{sub}", _unknown_key(sub, valid_keys))
         return value
 
 
@@ -208,7 +214,7 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     r = _Reader(path)
     for key in data:
         if key not in TOP_KEYS:
-            raise r.error(key, f"unknown key; valid keys: {_valid(TOP_KEYS)}")
+            raise r.error(key, _unknown_key(key, TOP_KEYS))
     for key in REQUIRED_KEYS:
         if key not in data:
             raise r.error(key, f"missing; a study file needs {_valid(REQUIRED_KEYS)}")
@@ -287,7 +293,7 @@ def _cameras(r: _Reader, data: dict) -> list[CameraEntry]:
             raise r.error(key, f"expected a table of camera settings ({_valid(CAMERA_KEYS)}), got {table!r}")
         for sub in table:
             if sub not in CAMERA_KEYS:
-                raise r.error(f"{key}.{sub}", f"unknown key; valid keys: {_valid(CAMERA_KEYS)}")
+                raise r.error(f"{key}.{sub}", _unknown_key(sub, CAMERA_KEYS))
         settings = _camera(r, table, key)
         for other in entries:
             if other.name.lower() == name.lower():  # one folder on a case-insensitive file system
@@ -385,7 +391,7 @@ def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
             raise r.error(key, f"expected a table with keys {_valid(VARIANT_KEYS)}")
         for sub in variant:
             if sub not in VARIANT_KEYS:
-                raise r.error(f"{key}.{sub}", f"unknown key; valid keys: {_valid(VARIANT_KEYS)}")
+                raise r.error(f"{key}.{sub}", _unknown_key(sub, VARIANT_KEYS))
         method = variant.get("method")
         if method not in available:
             raise r.error(f"{key}.method", f"unknown method {method!r}; valid values: {_valid(available)}")

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from longslam.progress import bar as progress_bar
 from longslam.study.config import StudyConfig, check_method_params
 from longslam.study.database import DB_NAME, ResultsDB
 from longslam.study.backends import Executor, Task, check_executor_options, make_executor
@@ -141,7 +142,7 @@ def _run_locked(
         if todo:
             pending = deque(todo)
             started: dict[str, float] = {}
-            bar = tqdm(total=len(specs), initial=skipped, unit="run", desc=f"study {config.name}",
+            bar = progress_bar(total=len(specs), initial=skipped, unit="run", desc=f"study {config.name}",
                        disable=not progress, dynamic_ncols=True, smoothing=0.0)
             try:
                 while pending or pool.running:

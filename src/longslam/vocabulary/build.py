@@ -12,7 +12,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
+from longslam.progress import bar as tqdm
 
 from longslam.errors import InputError
 from longslam.io.sequence import SequenceReader

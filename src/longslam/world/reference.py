@@ -87,8 +87,10 @@ def world_ref(value: Any, base: Path | None = None, what: str = "world") -> str:
     path = _resolve(value, base)
     if path.is_file() or Path(value).suffix.lower() in MESH_SUFFIXES or "/" in value:
         return mesh_world_ref(value, base=base, what=what)
+    from longslam.suggest import did_you_mean
+
     raise InputError(
-        f"{what}: unknown world {value!r}; valid values: a world name ({', '.join(WORLDS.names())}) "
+        f"{what}: unknown world {value!r}{did_you_mean(value, WORLDS.names())}; valid values: a world name ({', '.join(WORLDS.names())}) "
         f"or a mesh file ({', '.join(s.lstrip('.').upper() for s in MESH_SUFFIXES)})"
     )
 

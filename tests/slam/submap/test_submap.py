@@ -208,7 +208,7 @@ def test_frames_without_depth_are_counted_and_skipped(hall_sequences):
 
 def test_bad_parameters_are_input_errors():
     context = MethodContext(Intrinsics.from_fov(64, 48, 90.0), 8.0)
-    with pytest.raises(InputError, match="valid parameters: .*voxel_size"):
+    with pytest.raises(InputError, match=r"unknown parameter voxel \(did you mean voxel_size\?\)"):
         check_params("submap", {"voxel": 0.1})
     with pytest.raises(InputError, match="truncation"):
         check_params("submap", {"voxel_size": 1.0})

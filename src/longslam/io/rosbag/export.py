@@ -72,9 +72,7 @@ def _noise_of(meta: dict, where: Path) -> BiasNoise:
 def _camera_height(reader: SequenceReader, given: float | None) -> float:
     """Height of the camera above base_link: given, meta.json's camera, or the first odometry
     (or ground-truth) pose's height over the floor at z = 0 (longslam's convention)."""
-    if given is not None:
-        if not np.isfinite(given):
-            raise InputError(f"--camera-height must be a finite number of metres, got {given}")
+    if given is not None:  # checked by export_sequence
         return float(given)
     camera = reader.meta.get("camera")
     if isinstance(camera, dict) and isinstance(camera.get("camera_height"), (int, float)):
@@ -188,10 +186,14 @@ def export_sequence(
         raise InputError(f"--storage {storage!r}: expected one of {', '.join(STORAGES)}")
     if fmt == "ros1" and storage != "sqlite3":
         raise InputError("--storage applies to ROS 2 bags only")
+    if camera_height is not None and not (np.isfinite(camera_height) and camera_height >= 0):
+        raise InputError(f"--camera-height must be a finite number of metres, 0 or more (the camera above "
+                         f"base_link, which is on the floor), got {camera_height}")
+    given_noise = get_noise(odom_noise) if odom_noise is not None else None
     out = Path(out)
     _check_out(out, fmt, overwrite, sequence)
     reader = SequenceReader(sequence)
-    noise = get_noise(odom_noise) if odom_noise is not None else (
+    noise = given_noise if given_noise is not None else (
         _noise_of(reader.meta, reader.path) if reader.odometry is not None else None)
     height = _camera_height(reader, camera_height)
     camera_in_base = base_to_camera(height)

@@ -205,6 +205,8 @@ def import_bag(
     check_replaceable(out, SEQUENCE, overwrite)
     if not (isinstance(max_diff, (int, float)) and math.isfinite(max_diff) and max_diff > 0):
         raise InputError(f"--max-diff must be a positive number of seconds, got {max_diff!r}")
+    if max_depth is not None:
+        _max_depth(max_depth, {})  # before the bag's first pass, which reads every message but the images
     reader = _Bag(bag)
     try:
         return _import(reader, out, topics, float(max_diff), max_depth, groundtruth_frame, overwrite, progress)

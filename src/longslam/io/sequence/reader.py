@@ -17,6 +17,7 @@ from longslam.io.camera_guess import intrinsics_without_camera_json
 from longslam.io.sequence.layout import (
     CAMERA, DEFAULT_MAX_DIFF, DEPTH_LIST, DEPTH_SCALE, GROUND_TRUTH, META, ODOMETRY, RGB_LIST,
 )
+from longslam.io.sequence.not_a_sequence import bag_refusal
 from longslam.io.trajectory_files import read_tum
 from longslam.textfile import read_text
 from longslam.timestamps import associate_lists, match_every
@@ -121,6 +122,9 @@ class SequenceReader:
         self._given_intrinsics = intrinsics
         self.path = Path(path)
         self.max_diff = float(max_diff)
+        refusal = bag_refusal(self.path)
+        if refusal is not None:
+            raise InputError(refusal)
         if not self.path.is_dir():
             what = "is not a folder" if self.path.exists() else "does not exist"
             raise InputError(f"sequence folder {self.path} {what}")

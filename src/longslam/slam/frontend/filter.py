@@ -20,22 +20,22 @@ from longslam.slam.graph.factors import WheelStep
 class MotionNoise:
     """Per-frame noise of the wheel step and of its biases (stds)."""
 
-    forward_min: float = 0.003  # m
+    forward_min: float = 0.003  # m: floor of a wheel step's forward std
     forward_rel: float = 0.01  # fraction of the forward step
     lateral: float = 0.001  # m: wheels do not slip sideways
-    yaw_min: float = 0.0005  # rad
+    yaw_min: float = 0.0005  # rad: floor of a wheel step's heading std
     yaw_rel: float = 0.01  # fraction of the heading change
     # Bias random walks per frame: the biases hold for seconds, so they move little per frame,
     # yet fast enough to follow a new value within a few seconds.
     bias_forward_walk: float = 0.0008  # m/frame per frame
     bias_yaw_walk: float = 0.00003  # rad/frame per frame
-    bias_forward_init: float = 0.01  # m/frame
+    bias_forward_init: float = 0.01  # m/frame: std of the forward bias at the start
     bias_forward_reset: float = 0.03  # m/frame, added when the RGB-D steps say the bias jumped
-    bias_yaw_init: float = 0.0005  # rad/frame
+    bias_yaw_init: float = 0.0005  # rad/frame: std of the heading bias at the start
     # Without wheels: a constant-velocity prediction, loose in every direction.
-    cv_forward: float = 0.05  # m
-    cv_lateral: float = 0.02  # m
-    cv_yaw: float = 0.03  # rad
+    cv_forward: float = 0.05  # m: forward std of a step predicted at constant velocity (no wheels)
+    cv_lateral: float = 0.02  # m: lateral std of a step predicted at constant velocity (no wheels)
+    cv_yaw: float = 0.03  # rad: heading std of a step predicted at constant velocity (no wheels)
 
 
 class BiasFilter:

@@ -22,7 +22,7 @@ import time
 from array import array
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -55,31 +55,33 @@ TRANSLATING_STEP = 1e-4
 
 @dataclass(frozen=True)
 class FrontEndConfig:
-    mode: str = "fused"
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"mode": MODES}  # what `longslam list --params` shows
+
+    mode: str = "fused"  # fused: wheels, scans and RGB-D steps; wheel: the wheel odometry alone (the paper's)
     # m above the floor; None: the first odometry pose's z (the floor is z = 0), or
     # `default_camera_height` without odometry.
     camera_height: float | None = None
-    default_camera_height: float = 1.25
+    default_camera_height: float = 1.25  # m above the floor when neither camera_height nor odometry gives it
     jump_distance: float = 1.0  # m in one frame: a bigger odometry step is a jump, not motion
     jump_angle: float = 0.8  # rad in one frame
     use_bias: bool = True  # estimate the wheels' forward and heading biases
     scan_anchor_lag: int = 20  # frames: a scan factor links a frame to the one this many before
     scan_information_scale: float = 1.0  # of the registration's Hessian, in the full smoother
     max_correction: float = 0.5  # m: a registration moving the prediction further is refused
-    max_correction_angle: float = 0.1  # rad
+    max_correction_angle: float = 0.1  # rad: a registration turning the prediction further is refused
     insert_distance: float = 0.05  # m moved (or insert_angle turned) before a scan joins the map
-    insert_angle: float = 0.03  # rad
+    insert_angle: float = 0.03  # rad turned (or insert_distance moved) before a scan joins the map
     # Gated RGB-D steps (tracked corners with depth): they give forward distance in corridors,
     # where the scan has nothing along the way. Accepted only within these bounds of the
     # bias-corrected wheel step (or, without wheels, of the constant-velocity prediction).
     visual: bool = True
-    visual_gate_distance: float = 0.04  # m
-    visual_gate_angle: float = 0.01  # rad
+    visual_gate_distance: float = 0.04  # m: an RGB-D step is accepted within this of the wheel step
+    visual_gate_angle: float = 0.01  # rad: an RGB-D step is accepted within this of the wheel step's heading change
     visual_gate_sigmas: float = 4.0  # forward gate in stds of the forward-bias innovation
     visual_max_bias: float = 0.1  # m per step: an RGB-D step further than this from the raw wheel step is wrong
     visual_bias_reset_after: int = 5  # consecutive forward refusals that widen the bias's variance
-    visual_gate_distance_no_wheels: float = 0.3  # m
-    visual_gate_angle_no_wheels: float = 0.2  # rad
+    visual_gate_distance_no_wheels: float = 0.3  # m: the gate around the constant-velocity prediction without wheels
+    visual_gate_angle_no_wheels: float = 0.2  # rad: the heading gate around the constant-velocity prediction without wheels
     visual_sigma_forward: float = 0.004  # m per step
     visual_sigma_lateral: float = 0.05  # m per step: the wheels hold the lateral step
     # Loose on purpose: measured on paper-300m, fusing the visual heading change at its per-step

@@ -21,14 +21,14 @@ from longslam.slam.frontend.local_map import LocalMap
 
 @dataclass(frozen=True)
 class RegistrationConfig:
-    iterations: int = 10
+    iterations: int = 10  # Gauss-Newton iterations of scan-to-map registration
     max_match_distance: float = 0.3  # m between a scan point and its nearest map point
-    huber: float = 0.05  # m
+    huber: float = 0.05  # m: Huber threshold of a point-to-line residual
     sigma: float = 0.03  # m, point-to-line noise of one scan point
     # Neighbouring 5 cm cells of one wall are not independent views: the Hessian is divided by
     # this so the smoother does not take a 200-point scan as 200 independent measurements.
     correlation: float = 10.0
-    min_matches: int = 15
+    min_matches: int = 15  # matched scan points a registration needs
     tolerance: float = 1e-4  # step norm that ends the iterations
 
 

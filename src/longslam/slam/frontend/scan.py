@@ -19,13 +19,13 @@ from longslam.geometry.cells import average_2d
 @dataclass(frozen=True)
 class ScanConfig:
     min_height: float = 0.2  # m above the floor
-    max_height: float = 1.5
+    max_height: float = 1.5  # m above the floor: higher depth points are not part of the scan
     min_range: float = 0.3  # m, horizontal; closer returns are the robot's own blind zone
-    max_range: float = 8.0  # m, horizontal
+    max_range: float = 8.0  # m, horizontal: farther returns are left out of the scan
     cell: float = 0.05  # m, averaging cell
     # Pixel stride; 0 = about 160 columns whatever the image width (2 at 320 x 240): plenty for
     # 5 cm cells, and a small image keeps every pixel.
-    stride: int = 0
+    stride: int = 0  # pixel stride of the scan; 0: about 160 columns whatever the image width
 
 
 class ScanExtractor:

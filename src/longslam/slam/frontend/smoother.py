@@ -9,9 +9,11 @@ final trajectory comes from it, so a loop correction spreads as smooth curvature
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
+from longslam.errors import InputError
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.graph.factors import FactorGraph, WheelStep
 
@@ -22,13 +24,15 @@ INFORMATION_RIDGE = 1e-6
 
 @dataclass
 class SmootherConfig:
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"optimizer": ("lm", "gn")}  # what `longslam list --params` shows
+
     bias_block: int = 10  # frames sharing one bias state
     # The wheels' lateral step, held far tighter than online: E_rot scores the direction of each
     # 10 Hz step in the previous pose's frame, and dead reckoning gets that almost exactly right
     # (0.13 deg/m at large noise = 0.05 mm sideways per 15 cm step). A correction must come as
     # heading and forward distance, never as a sideways shift of a step.
-    lateral_sigma: float = 1e-5  # m
-    iterations: int = 50
+    lateral_sigma: float = 1e-5  # m: std of a wheel step's sideways component in the smoother
+    iterations: int = 50  # most optimiser iterations of the full smoother
     # Bias states in the smoother (a Python factor per frame), or each wheel step corrected by
     # the online filter's bias estimate (GTSAM's own between factors).
     bias_states: bool = True
@@ -39,6 +43,10 @@ class SmootherConfig:
     # 1e-5 took 27 iterations for ATE 0.567 m; 3e-4 takes 5 for 0.580 m. Without bias states
     # 0.590 m.
     relative_tolerance: float = 3e-4
+
+    def __post_init__(self) -> None:
+        if self.optimizer not in self.CHOICES["optimizer"]:
+            raise InputError(f"front end: smoother.optimizer must be lm or gn, got {self.optimizer!r}")
 
 
 @dataclass

@@ -20,17 +20,17 @@ from longslam.geometry.fit import rigid_transform_2d
 
 @dataclass(frozen=True)
 class VisualConfig:
-    max_corners: int = 150
-    quality: float = 0.01
+    max_corners: int = 150  # corners tracked per frame (Shi-Tomasi)
+    quality: float = 0.01  # corner quality level, a fraction of the best corner's (OpenCV goodFeaturesToTrack)
     # Corner spacing and LK window in pixels at 320 px wide; scaled with the image width.
     min_distance: int = 7
-    window: int = 11
-    levels: int = 2
+    window: int = 11  # Lucas-Kanade window in pixels at 320 px wide
+    levels: int = 2  # Lucas-Kanade pyramid levels
     max_range: float = 4.0  # m: farther points move by under a pixel per step
     max_fb_error: float = 0.5  # px, forward-backward tracking disagreement
     inlier: float = 0.03  # m, a pair agreeing with the fitted step
     first_inlier: float = 0.08  # m, around the predicted step
-    min_inliers: int = 20
+    min_inliers: int = 20  # tracked pairs that must agree for an RGB-D step
 
 
 @dataclass

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from typing import ClassVar
 
 from longslam.errors import InputError
 from longslam.settings import check_limits
@@ -27,13 +28,16 @@ SIZE_LIMITS = {
 
 @dataclass(frozen=True)
 class KeyframeConfig:
+    # The values a text parameter takes (`longslam list --params` shows them).
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"vocabulary_index": tuple(WORD_INDEXES)}
+
     # Node creation (Rtabmap/DetectionRate, RGBD/LinearUpdate, RGBD/AngularUpdate).
-    detection_rate: float = 1.0  # Hz
+    detection_rate: float = 1.0  # Hz: at most this many new nodes per second
     linear_update: float = 0.1  # m moved since the last node
     angular_update: float = 0.1  # rad turned since the last node
     # Features: the paper used 2000 per image; Kp/MaxFeatures keeps 500 as visual words.
-    max_features: int = 2000
-    max_words: int = 500
+    max_features: int = 2000  # ORB features detected per image
+    max_words: int = 500  # features of a node kept as its visual words (Kp/MaxFeatures)
     # Hamming bits to join an existing word: ORB descriptors of one 3D point seen again mostly
     # differ by under 64 bits, unrelated ones by about 128, so 64 lets revisits share words.
     word_distance: int = 64
@@ -44,16 +48,16 @@ class KeyframeConfig:
     # Memory (Mem/STMSize, Rtabmap/MemoryThr, Rtabmap/MaxRetrieved).
     stm_size: int = 10
     wm_max_nodes: int = 150  # nodes searched for loop closure; 0 = unbounded
-    max_retrieved: int = 2
+    max_retrieved: int = 2  # long-term nodes brought back next to a loop closure, per node
     database: bool = True  # long-term memory in RUN/memory.db (needs an output folder)
     # Loop closure: appearance hypotheses verified by PnP RANSAC (Vis/MinInliers).
     loop_threshold: float = 0.15  # tf-idf cosine score a hypothesis must reach
     loop_candidates: int = 2  # best hypotheses verified per node
-    min_inliers: int = 20
+    min_inliers: int = 20  # PnP RANSAC inliers a loop transform needs to be accepted
     # Only points this high above the floor anchor a transform: repeating floor tiles and ceiling
     # panels let PnP lock onto a copy one tile away (seen on the demo route: a 1.3 m wrong loop).
     anchor_min_height: float = 0.15
-    anchor_max_height: float = 2.6
+    anchor_max_height: float = 2.6  # m: points higher than this above the floor anchor no transform
     # Polish each verified transform on 3D-3D matches (depth on both sides), as RTAB-Map's
     # Vis/EstimationType 0; measured on paper-300m: the worst loop error falls from 0.46 m to 0.09 m.
     refine_3d: bool = True
@@ -61,31 +65,31 @@ class KeyframeConfig:
     proximity: bool = True
     proximity_radius: float = 3.0  # m around the estimated pose
     proximity_max_angle: float = 0.8  # rad: only nodes that looked the same way
-    proximity_candidates: int = 1
+    proximity_candidates: int = 1  # nearby nodes verified by PnP per node (0: none)
     # RGBD/NeighborLinkRefining: consecutive nodes linked by PnP where it verifies, if the visual
     # transform is within these bounds of the odometry (fraction of the step, or 1 m; rad).
     neighbor_refining: bool = False  # measured: PnP links at 320x240 are noisier than wheel odometry
-    refine_max_offset: float = 0.3
-    refine_max_angle: float = 0.3
+    refine_max_offset: float = 0.3  # fraction of the odometry step a refined neighbour link may differ by (or 1 m)
+    refine_max_angle: float = 0.3  # rad a refined neighbour link may differ from the odometry by
     # Graph (RGBD/OptimizeMaxError): a new loop whose error exceeds this is rejected.
-    optimize_max_error: float = 3.0
+    optimize_max_error: float = 3.0  # sigmas: a new loop whose error after optimisation exceeds this is rejected
     odom_sigma_linear: float = 0.05  # odometry link std per metre travelled
     # Wheels barely slip sideways: drift is forward scale and heading, so a link's lateral std is
     # a fraction of its forward std, and the graph explains drift by turning rather than sliding.
     odom_sigma_lateral: float = 0.2
     odom_sigma_angular: float = 0.005  # odometry link yaw std per second (rad/s)
     odom_sigma_min: float = 0.01  # floor of a link's std (m, rad)
-    loop_sigma_linear: float = 0.05  # m
-    loop_sigma_angular: float = 0.02  # rad
+    loop_sigma_linear: float = 0.05  # m: std of a loop-closure link's translation
+    loop_sigma_angular: float = 0.02  # rad: std of a loop-closure link's rotation
     # Maps (Grid/CellSize, Grid/RangeMax, obstacle band from the paper).
     grid_cell: float = 0.05
     # RTAB-Map's Grid/RangeMax is 5 m; the grid takes the camera's whole range instead (8 m in
     # the paper's setup), so that every wall the camera saw is in the map.
     grid_range: float = 8.0
     grid_stride: int = 1  # pixel stride of the depth points a node's local grid is built from
-    obstacle_min_height: float = 0.2
-    obstacle_max_height: float = 1.5
-    cloud_voxel: float = 0.05
+    obstacle_min_height: float = 0.2  # m above the floor: lower depth points are floor, not obstacles
+    obstacle_max_height: float = 1.5  # m above the floor: higher depth points are left out of the grid
+    cloud_voxel: float = 0.05  # m: voxel size of the 3D map's point cloud
     cloud_stride: int = 8  # pixel stride of the depth points kept per node for the 3D map
     # Where each frame's motion comes from (longslam.slam.frontend), every field a parameter
     # (`frontend.mode=wheel`, `frontend.camera_height=1.3`...): mode "fused" (wheels with their

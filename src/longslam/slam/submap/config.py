@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from longslam.errors import InputError
 from longslam.settings import check_limits
@@ -24,15 +25,19 @@ SIZE_LIMITS = {
     "registration_max_points": (1, 1_000_000, "", "points are matched between every pair of submaps"),
     "loop_max_features": (1, 100_000, "", "features are held per keyframe"),
 }
+ROBUST_KERNELS = ("cauchy", "huber", "none")
 MAX_TRUNCATION_VOXELS = 40  # truncation / voxel_size: voxels on each side of a surface
 
 
 @dataclass(frozen=True)
 class SubmapConfig:
+    # The values a text parameter takes (`longslam list --params` shows them).
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"robust_kernel": ROBUST_KERNELS}
+
     # TSDF (the paper: voxel 0.2 m, truncation 0.8 m; Voxgraph: max_ray_length_m 16)
     voxel_size: float = 0.2
-    truncation: float = 0.8
-    max_ray_length: float = 16.0
+    truncation: float = 0.8  # m: TSDF truncation distance on each side of a surface
+    max_ray_length: float = 16.0  # m: depth is integrated up to this range
     integration_stride: int = 2  # every n-th pixel in each direction (a 0.1 m footprint at 8 m)
     # Submaps (the paper and Voxgraph: a new submap every 20 s)
     submap_interval: float = 20.0
@@ -53,32 +58,32 @@ class SubmapConfig:
     # Registration constraints between finished submaps whose bounding boxes overlap
     registration: bool = True
     registration_sampling_ratio: float = 0.5  # share of the upright iso-surface points used (see README)
-    registration_min_points: int = 100
-    registration_max_points: int = 1500
+    registration_min_points: int = 100  # iso-surface points a submap needs to be registered
+    registration_max_points: int = 1500  # most iso-surface points matched per submap pair
     registration_max_rms: float = 0.15  # metres (submaps built on drifting odometry are not rigid)
     registration_min_overlap_area: float = 4.0  # square metres of bounding-box overlap
     registration_max_correction: float = 2.0  # metres; a larger jump is taken as a wrong minimum
     registration_effective_points: float = 20.0  # scales the constraint's information
     # Odometry constraints between consecutive submaps (Voxgraph: information x, y 1; yaw 2500)
     odometry_sigma_xy: float = 1.0
-    odometry_sigma_yaw: float = 0.02
+    odometry_sigma_yaw: float = 0.02  # rad: std of the heading of an odometry constraint
     # Robust kernel on registration and loop-closure constraints
     robust_kernel: str = "cauchy"
-    robust_k: float = 2.0
+    robust_k: float = 2.0  # width of the robust kernel, in stds
     # Loop closure from visual place recognition (off, as in the paper's main runs)
     loop_closure: bool = False
     loop_keyframe_interval: float = 2.0  # seconds between keyframes kept for place recognition
-    loop_max_features: int = 500
-    loop_min_score: float = 0.15
-    loop_min_inliers: int = 20
+    loop_max_features: int = 500  # ORB features kept per place-recognition keyframe
+    loop_min_score: float = 0.15  # bag-of-words score a loop candidate must reach
+    loop_min_inliers: int = 20  # PnP RANSAC inliers a loop closure needs
     loop_min_age: float = 30.0  # seconds: candidates must be at least this much older
     loop_sigma_xy: float = 0.5  # a closure fixes two frames, but a submap built on drifting odometry is not rigid
-    loop_sigma_yaw: float = 0.05
+    loop_sigma_yaw: float = 0.05  # rad: std of a loop closure's heading
     loop_max_error: float = 3.0  # reject a closure whose error after optimisation exceeds this (sigmas)
     # The 2D map sliced from the fused TSDF
     grid_min_height: float = 0.2
-    grid_max_height: float = 1.5
-    grid_resolution: float = 0.1
+    grid_max_height: float = 1.5  # m above the floor: the top of the slice the 2D map is cut from
+    grid_resolution: float = 0.1  # m: cell size of the 2D map
     write_mesh: bool = True  # map.ply mesh (marching cubes) in the run folder, if there is one
 
     def __post_init__(self) -> None:
@@ -105,7 +110,7 @@ class SubmapConfig:
             raise InputError(f"truncation ({self.truncation}) must exceed voxel_size ({self.voxel_size})")
         if self.registration_sampling_ratio > 1:
             raise InputError(f"registration_sampling_ratio must be in (0, 1], got {self.registration_sampling_ratio}")
-        if self.robust_kernel not in ("cauchy", "huber", "none"):
+        if self.robust_kernel not in ROBUST_KERNELS:
             raise InputError(f"robust_kernel must be cauchy, huber or none, got {self.robust_kernel!r}")
         if self.grid_max_height <= self.grid_min_height:
             raise InputError("grid_max_height must exceed grid_min_height")

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from longslam.run.speed import format_real_time_factor
 from longslam.study.paper import (
     ACCURACY_METRICS, CITATION, PAPER_METHODS, PAPER_NOISE, PAPER_ROUTES, paper_accuracy, paper_memory_gb, paper_route,
 )
@@ -207,11 +208,12 @@ def runs_table(results: StudyResults) -> Table:
             if not mine:
                 continue
             ok = [r for r in mine if r["status"] == "ok"]
-            def mean(column: str) -> str:
+            def mean(column: str, form=format_number) -> str:
                 values = [r[column] for r in ok if r.get(column) is not None]
-                return format_number(float(np.mean(values))) if values else "–"
+                return form(float(np.mean(values))) if values else "–"
             table.add_row((method, ""), [Cell(f"{len(ok)} / {len(mine) - len(ok)}"), Cell(mean("elapsed_s")),
-                                         Cell(mean("method_time_s")), Cell(mean("real_time_factor")), Cell(mean("frames"))],
+                                         Cell(mean("method_time_s")), Cell(mean("real_time_factor", format_real_time_factor)),
+                                         Cell(mean("frames"))],
                           camera)
     return table
 

@@ -1,0 +1,58 @@
+"""A run repeated from its folder: the config.toml a run writes, read back (`run --config`).
+
+The file holds `[run]` (the method, the sequence) and `[params]` (every parameter the method ran
+with, defaults included; see run/folder.py). Parameters given on the command line override the
+file's, so `--config RUN/config.toml --param voxel_size=0.1` is the same run but for one value.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from longslam.errors import InputError
+from longslam.textfile import read_text
+
+TABLES = ("run", "params")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    method: str
+    sequence: str | None = None
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+def read_run_config(path: str | Path) -> RunConfig:
+    """The method, sequence and parameters of a run's config.toml; errors name the file."""
+    path = Path(path)
+    text = read_text(path, "run config", hint="a run folder's config.toml")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(f"run config {path} is not valid TOML: {err}") from None
+    unknown = sorted(set(data) - set(TABLES))
+    if unknown:
+        raise InputError(f"run config {path}: unknown table(s) {', '.join(unknown)}; expected [run] and [params]")
+    run, params = data.get("run", {}), data.get("params", {})
+    if not isinstance(run, dict) or not isinstance(run.get("method"), str) or not run["method"]:
+        raise InputError(f"run config {path}: expected [run] with method = \"NAME\"")
+    sequence = run.get("sequence")
+    if sequence is not None and not isinstance(sequence, str):
+        raise InputError(f"run config {path}: [run] sequence must be a folder path, got {sequence!r}")
+    if not isinstance(params, dict):
+        raise InputError(f"run config {path}: [params] must be a table of parameters")
+    return RunConfig(run["method"], sequence, params)
+
+
+def merged_params(config: RunConfig, given: dict[str, Any], path: str | Path) -> dict[str, Any]:
+    """The file's parameters with the command line's over them, checked against the method."""
+    from longslam.slam.catalog import check_params
+
+    try:
+        check_params(config.method, config.params, typed=True)  # a TOML file: "320" is not a number there
+    except InputError as err:
+        raise InputError(f"run config {path}: {err}") from None
+    return {**config.params, **given}
