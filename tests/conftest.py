@@ -78,6 +78,7 @@ SLOW_TESTS = {
     "test_a_file_size_limit_names_the_file", "test_named_routes_have_the_papers_lengths",
     "test_isolated_run_measures_its_own_process", "test_orbslam3_loads_the_vocabulary_and_tracks",
     "test_a_part_nothing_anchors_is_damped_not_fatal", "test_a_repeated_waypoint_is_driven_through",
+    "test_evo_reads_the_bag",
 }
 
 
