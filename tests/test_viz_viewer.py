@@ -74,6 +74,29 @@ def test_no_display_is_refused_at_once(sequence, tmp_path):
     assert list(tmp_path.iterdir()) == []  # refused before any work
 
 
+def test_a_viewer_that_dies_at_start_is_refused_before_any_work(sequence, tmp_path):
+    # a display to talk to (a Wayland socket that listens), and a viewer that cannot open a window
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "rerun").write_text("#!/bin/sh\necho 'viewer: no GPU adapter found' >&2\nexit 1\n")
+    (bin_dir / "rerun").chmod(0o755)
+    wayland = socket.socket(socket.AF_UNIX)
+    wayland.bind(str(tmp_path / "wayland-0"))
+    wayland.listen(16)
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    env.update(WAYLAND_DISPLAY=str(tmp_path / "wayland-0"), PATH=f"{bin_dir}{os.pathsep}{env.get('PATH', '')}")
+    try:
+        done, took = run_cli(sequence, tmp_path / "run", free_port(), env)
+    finally:
+        wayland.close()
+    assert done.returncode == 2, done.stderr
+    (line,) = error_lines(done)
+    assert f"the rerun viewer {bin_dir / 'rerun'} did not start" in line and "--viz run.rrd" in line
+    assert "viewer: no GPU adapter found" in done.stderr  # the viewer's own words, above
+    assert took < 40 and "Traceback" not in done.stderr
+    assert not (tmp_path / "run").exists()
+
+
 class SilentViewer:
     """A server that accepts connections and never reads: a viewer that hangs."""
 

@@ -219,6 +219,10 @@ class LiveView:
                 viewer = check_viewer()
                 if viewer is not None:
                     self.rr.spawn(executable_path=viewer, port=VIEWER_PORT, connect=False, recording=self.rec)
+                    if not _viewer_listening():  # it died at once (no GPU, a display it could not open...)
+                        raise InputError(f"--viz: the rerun viewer {viewer} did not start (nothing listens on port "
+                                         f"{VIEWER_PORT}; its own message, if any, is above); record to a file "
+                                         "instead: --viz run.rrd")
                 self.rec.connect_grpc(f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy", default_blueprint=layout)
                 self.rec.send_recording_name(name)
             except RuntimeError as err:
