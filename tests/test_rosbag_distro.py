@@ -47,6 +47,13 @@ def humble_reads(info: dict) -> None:
     topic's offered_qos_profiles is read `as<std::string>()` and, when not empty, parsed as a
     list of QoS maps whose policies are read `as<int>()`."""
     assert info["version"] >= 5  # files, compression fields
+    assert isinstance(info["storage_identifier"], str) and isinstance(info["message_count"], int)
+    assert isinstance(info["duration"]["nanoseconds"], int)
+    assert isinstance(info["starting_time"]["nanoseconds_since_epoch"], int)
+    assert all(isinstance(p, str) for p in info["relative_file_paths"])
+    assert isinstance(info["compression_format"], str) and isinstance(info["compression_mode"], str)
+    for f in info["files"]:
+        assert {"path", "starting_time", "duration", "message_count"} <= set(f)
     for topic in info["topics_with_message_count"]:
         qos = topic["topic_metadata"]["offered_qos_profiles"]
         assert isinstance(qos, str), f"{topic['topic_metadata']['name']}: offered_qos_profiles is not a string"
