@@ -15,7 +15,7 @@ from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from conftest import write_tiny_sequence  # noqa: E402
+from conftest import assert_same_sequence, write_tiny_sequence  # noqa: E402
 from longslam.cli import main  # noqa: E402
 from longslam.errors import InputError  # noqa: E402
 from longslam.geometry import base_to_camera, planar_poses  # noqa: E402
@@ -39,17 +39,6 @@ def sequence(tmp_path_factory) -> Path:
     meta = json.loads((path / "meta.json").read_text())
     (path / "meta.json").write_text(json.dumps({**meta, "noise": "large", "camera": {"camera_height": 1.25}}))
     return path
-
-
-def assert_same_sequence(a: SequenceReader, b: SequenceReader) -> None:
-    np.testing.assert_array_equal(a.timestamps, b.timestamps)
-    assert a.intrinsics == b.intrinsics and a.max_depth == b.max_depth
-    for i in range(len(a)):
-        np.testing.assert_array_equal(a.read_rgb(i), b.read_rgb(i))
-        np.testing.assert_array_equal(a.read_depth(i), b.read_depth(i))
-    for x, y in ((a.odometry, b.odometry), (a.ground_truth, b.ground_truth)):
-        np.testing.assert_array_equal(x.timestamps, y.timestamps)
-        np.testing.assert_allclose(x.poses, y.poses, atol=1e-6, rtol=0)
 
 
 @pytest.mark.parametrize("fmt, name, storage", [("ros2", "bag", "sqlite3"), ("ros2", "bag", "mcap"), ("ros1", "seq.bag", "sqlite3")])
