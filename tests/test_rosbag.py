@@ -15,7 +15,7 @@ from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from conftest import assert_same_sequence, write_tiny_sequence  # noqa: E402
+from conftest import write_tiny_sequence  # noqa: E402
 from longslam.cli import main  # noqa: E402
 from longslam.errors import InputError  # noqa: E402
 from longslam.geometry import base_to_camera, planar_poses  # noqa: E402
@@ -29,6 +29,7 @@ from longslam.run.engine import run_sequence  # noqa: E402
 from longslam.run.folder import TRAJECTORY  # noqa: E402
 from longslam.run.score import score  # noqa: E402
 from longslam.sim.noise import get_noise  # noqa: E402
+from sequence_checks import assert_same_sequence  # noqa: E402
 
 
 @pytest.fixture(scope="module")
