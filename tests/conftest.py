@@ -94,9 +94,10 @@ def one_line_error(capsys, *needles: str) -> str:
 # (a study, Ray, ORB-SLAM3). `pytest -m "not slow"` is the fast set for the edit-test loop.
 SLOW_MODULES = {
     "test_frontend", "test_keyframe", "test_maps", "test_orbslam3", "test_own_building", "test_run_safety",
-    "test_simulate", "test_study", "test_submap", "test_tum_layout", "test_viz_live",
+    "test_simulate", "test_study", "test_submap", "test_tum_layout", "test_viz_live", "test_viz_viewer",
 }
 SLOW_TESTS = {
+    "test_evo_reads_the_bag",
     "test_a_file_size_limit_names_the_file", "test_named_routes_have_the_papers_lengths",
     "test_isolated_run_measures_its_own_process", "test_orbslam3_loads_the_vocabulary_and_tracks",
     "test_a_part_nothing_anchors_is_damped_not_fatal", "test_a_repeated_waypoint_is_driven_through",

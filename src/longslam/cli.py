@@ -298,7 +298,7 @@ def cmd_export(args: argparse.Namespace) -> None:
         summary = export_sequence(
             args.sequence, args.out, fmt=args.format, depth_encoding=args.depth_encoding, storage=args.storage,
             compress=args.compress, odom_noise=args.odom_noise, camera_height=args.camera_height,
-            overwrite=args.overwrite, progress=update,
+            overwrite=args.overwrite, progress=update, distro=args.distro, topics=args.topics,
         )
     line = f"wrote {summary.path}: {summary.frames} frames, {summary.messages} messages, {summary.bytes / 1e6:.1f} MB"
     if summary.linear_variance is not None:
@@ -560,7 +560,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--depth-encoding", default="32FC1", choices=("32FC1", "16UC1"),
                    help="32FC1: metres, lossless (default); 16UC1: millimetres, half the size")
     p.add_argument("--storage", default="sqlite3", choices=("sqlite3", "mcap"), help="ROS 2 storage (default sqlite3)")
-    p.add_argument("--compress", action="store_true", help="compress: zstd per message (ros2), lz4 chunks (ros1)")
+    p.add_argument("--compress", action="store_true",
+                   help="compress: zstd chunks (ros2 mcap), zstd per message (ros2 sqlite3), lz4 chunks (ros1)")
+    p.add_argument("--distro", choices=("humble", "jazzy"),
+                   help="the ROS 2 distribution whose rosbag2 plays the bag (default humble: Jazzy plays it too)")
+    p.add_argument("--topics", default="default", choices=("default", "rtabmap", "realsense", "openni"),
+                   help="camera topic names and optical frame as that driver or SLAM system names them (default: longslam's)")
     p.add_argument("--odom-noise", metavar="LEVEL", help="noise level for the odometry covariance (default: the sequence's meta.json)")
     p.add_argument("--camera-height", type=float, help="camera above base_link in metres (default: the sequence's)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing bag")

@@ -29,6 +29,7 @@ from longslam.run.engine import run_sequence  # noqa: E402
 from longslam.run.folder import TRAJECTORY  # noqa: E402
 from longslam.run.score import score  # noqa: E402
 from longslam.sim.noise import get_noise  # noqa: E402
+from sequence_checks import assert_same_sequence  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -39,17 +40,6 @@ def sequence(tmp_path_factory) -> Path:
     meta = json.loads((path / "meta.json").read_text())
     (path / "meta.json").write_text(json.dumps({**meta, "noise": "large", "camera": {"camera_height": 1.25}}))
     return path
-
-
-def assert_same_sequence(a: SequenceReader, b: SequenceReader) -> None:
-    np.testing.assert_array_equal(a.timestamps, b.timestamps)
-    assert a.intrinsics == b.intrinsics and a.max_depth == b.max_depth
-    for i in range(len(a)):
-        np.testing.assert_array_equal(a.read_rgb(i), b.read_rgb(i))
-        np.testing.assert_array_equal(a.read_depth(i), b.read_depth(i))
-    for x, y in ((a.odometry, b.odometry), (a.ground_truth, b.ground_truth)):
-        np.testing.assert_array_equal(x.timestamps, y.timestamps)
-        np.testing.assert_allclose(x.poses, y.poses, atol=1e-6, rtol=0)
 
 
 @pytest.mark.parametrize("fmt, name, storage", [("ros2", "bag", "sqlite3"), ("ros2", "bag", "mcap"), ("ros1", "seq.bag", "sqlite3")])

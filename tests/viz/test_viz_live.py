@@ -45,9 +45,9 @@ def test_a_run_recorded_to_rrd(turning, tmp_path):
     assert "observer_time_s" not in plain and shown["observer_time_s"] > 0
 
     (recording,) = RrdReader(tmp_path / "run.rrd").recordings()
-    assert recording.application_id == "longslam" and recording.recording_id == "keyframe on seq"
+    assert recording.application_id == "longslam"  # its id and name: test_viz_viewer.py
     entities = {chunk.entity_path for chunk in RrdReader(tmp_path / "run.rrd").stream()}
-    assert {"/world/truth", "/world/estimate", "/world/odometry", "/world/final", "/world/camera",
+    assert {"/world/truth", "/world/estimate/0", "/world/odometry/0", "/world/final", "/world/camera",
             "/world/camera/image", "/world/camera/image/rgb", "/world/camera/image/depth", "/error/position",
             "/world/map/0", "/world/map/2"} <= entities
     # one camera pose and one image pair per frame; the true path as the sequence has it

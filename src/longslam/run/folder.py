@@ -5,6 +5,7 @@
     stats.json      the harness's measurements (times, memory) and the method's own stats
     config.toml     the method and the parameters it ran with (every field, defaults included)
     grid.npz        2D occupancy grid, if the method builds one
+    grid.pgm        the same grid as ROS map_server opens it, with grid.yaml (io/map_server.py)
     map.ply         3D map points, if the method builds them
     NAME.csv        rows that grow with the route, one file per table of the result
                     (loops.csv: every loop constraint; nodes.csv: keyframe's time per node)
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from longslam.io.atomic import write_text
+from longslam.io.map_server import write_map_server
 from longslam.io.ply import vertex_rows, write_ply
 from longslam.io.trajectory_files import write_tum
 from longslam.jsonable import json_default
@@ -34,6 +36,8 @@ ONLINE = "online.txt"
 STATS = "stats.json"
 CONFIG = "config.toml"
 GRID = "grid.npz"
+GRID_YAML = "grid.yaml"  # and grid.pgm beside it: map_server's format
+GRID_PGM = "grid.pgm"
 MAP = "map.ply"
 RECORD = "record.json"
 TABLE_NAME = re.compile(r"[A-Za-z0-9_-]+")
@@ -90,6 +94,7 @@ def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> Non
     write_config(out, measurements)
     if result.grid is not None:
         result.grid.save(out / GRID)
+        write_map_server(result.grid, out / GRID_YAML)
     if result.cloud is not None and len(result.cloud):
         write_point_cloud(out / MAP, np.asarray(result.cloud, dtype=np.float64))
     for name, table in result.tables.items():

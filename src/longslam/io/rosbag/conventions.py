@@ -1,28 +1,69 @@
-"""What a longslam bag holds, in one place: topics, frame names, encodings, the clock offset, and
-the odometry covariance that a sequence's noise level implies.
+"""What a longslam bag holds, in one place: topics, frame names, encodings, the clock offset, the
+ROS 2 distributions a bag is written for, and the odometry covariance a sequence's noise level implies.
 
 Frames (REP 105 / REP 103): `odom` -> `base_link` (the robot on the floor, x forward, z up) ->
-`camera_color_optical_frame` (OpenCV: x right, y down, z forward). The odometry's `odom` frame
-is longslam's world frame, in which the odometry starts at the true first pose. Ground truth is
-`world` -> `base_link` on its own topic, never on /tf (a TF tree allows one parent per frame).
+`camera_link` (the camera's body, x forward, z up, at the camera's height) -> the optical frame
+(OpenCV: x right, y down, z forward; named by the topic preset). The odometry's `odom` frame is
+longslam's world frame, in which the odometry starts at the true first pose. Ground truth is on
+/tf as `map` -> `gt_base_link` (the true pose of base_link), so it joins the TF tree where a SLAM
+system joins it: the SLAM publishes `map` -> `odom`, and at the start map, odom and the world
+coincide. It is also on /groundtruth (nav_msgs/Odometry, `map` -> `base_link`) for tools that
+read a pose topic.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from longslam.errors import InputError
 
-RGB_TOPIC = "/camera/color/image_raw"
-DEPTH_TOPIC = "/camera/depth/image_raw"  # registered to the colour camera: same frame and pixels
-CAMERA_INFO_TOPIC = "/camera/color/camera_info"
-DEPTH_INFO_TOPIC = "/camera/depth/camera_info"
+
+@dataclass(frozen=True)
+class TopicPreset:
+    """The camera's topic names and optical frame as a driver or a SLAM system's launch file
+    names them, so a bag plays into it without remapping."""
+
+    rgb: str
+    depth: str  # registered to the colour camera: same frame and pixels
+    camera_info: str
+    depth_info: str
+    optical_frame: str
+
+
+TOPIC_PRESETS = {
+    # longslam's own names
+    "default": TopicPreset("/camera/color/image_raw", "/camera/depth/image_raw", "/camera/color/camera_info",
+                           "/camera/depth/camera_info", "camera_color_optical_frame"),
+    # RTAB-Map's rgbd_mapping launch files (rgb_topic, depth_topic, camera_info_topic defaults)
+    "rtabmap": TopicPreset("/camera/rgb/image_rect_color", "/camera/depth_registered/image_raw",
+                           "/camera/rgb/camera_info", "/camera/depth_registered/camera_info", "camera_rgb_optical_frame"),
+    # realsense2_camera (ROS 2 wrapper 4.x: namespace camera, node camera) with align_depth enabled
+    "realsense": TopicPreset("/camera/camera/color/image_raw", "/camera/camera/aligned_depth_to_color/image_raw",
+                             "/camera/camera/color/camera_info", "/camera/camera/aligned_depth_to_color/camera_info",
+                             "camera_color_optical_frame"),
+    # openni(2)_launch with depth registration, what ORB-SLAM's ROS RGB-D nodes subscribe to
+    "openni": TopicPreset("/camera/rgb/image_raw", "/camera/depth_registered/image_raw", "/camera/rgb/camera_info",
+                          "/camera/depth_registered/camera_info", "camera_rgb_optical_frame"),
+}
+DEFAULT_TOPICS = "default"
+
 ODOM_TOPIC = "/odom"
 GROUND_TRUTH_TOPIC = "/groundtruth"
 META_TOPIC = "/longslam/meta"  # std_msgs/String: the sequence's meta.json and the clock offset
 
-ODOM_FRAME, BASE_FRAME, WORLD_FRAME = "odom", "base_link", "world"
-CAMERA_FRAME = "camera_color_optical_frame"
+ODOM_FRAME, BASE_FRAME, CAMERA_LINK_FRAME = "odom", "base_link", "camera_link"
+MAP_FRAME, GROUND_TRUTH_FRAME = "map", "gt_base_link"
+
+# The metadata version each distribution's rosbag2 writes (rosbag2_storage's BagMetadata) and the
+# rosbags typestore of its messages. Humble's rosbag2 (0.15) writes version 5 and reads any
+# version whose offered_qos_profiles is a YAML string with numeric policies (versions 4-8); it
+# fails on version 9's list of QoS maps ("bad conversion", ros2/rosbag2#1895, #2013). rosbags
+# writes versions 8 and 9: 8 is the newest Humble reads, and Jazzy (0.26, version 9) reads it too.
+DISTROS = {"humble": 8, "jazzy": 9}
+DEFAULT_DISTRO = "humble"  # plays on Humble and on Jazzy; a Jazzy bag plays on Jazzy only
+
 
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"

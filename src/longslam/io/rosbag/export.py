@@ -2,9 +2,11 @@
 
 Per frame: the colour image (rgb8), the depth registered to it (32FC1 metres or 16UC1 mm), a
 CameraInfo for each, the wheel odometry as nav_msgs/Odometry with the per-step covariance of
-the sequence's noise level, and odom -> base_link on /tf; once: base_link -> the camera on
-/tf_static and the sequence's meta.json on /longslam/meta; the ground truth (world -> base_link)
-on /groundtruth at its own stamps. Written under a temporary name and renamed when complete.
+the sequence's noise level, and odom -> base_link on /tf; once: base_link -> camera_link ->
+the optical frame on /tf_static and the sequence's meta.json on /longslam/meta; the ground truth
+as map -> gt_base_link on /tf and on /groundtruth, at its own stamps (frames in conventions.py).
+Topic names follow a preset (`--topics`); a ROS 2 bag is written for one distribution's rosbag2
+(`--distro`). Written under a temporary name and renamed when complete.
 """
 
 from __future__ import annotations
@@ -29,9 +31,9 @@ from longslam.io.outputs import BAG, ROS1_BAG, check_not_an_input, check_replace
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
 from longslam.io.rosbag.conventions import (
-    BASE_FRAME, CAMERA_FRAME, CAMERA_INFO, CAMERA_INFO_TOPIC, DEPTH_ENCODINGS, DEPTH_INFO_TOPIC,
-    DEPTH_TOPIC, GROUND_TRUTH_TOPIC, IMAGE, META_TOPIC, ODOM_FRAME, ODOM_TOPIC, ODOMETRY, RGB_TOPIC, STRING,
-    TF_MESSAGE, WORLD_FRAME, clock_offset, stamp_ns, step_covariance,
+    BASE_FRAME, CAMERA_INFO, CAMERA_LINK_FRAME, DEFAULT_DISTRO, DEFAULT_TOPICS, DEPTH_ENCODINGS, DISTROS,
+    GROUND_TRUTH_FRAME, GROUND_TRUTH_TOPIC, IMAGE, MAP_FRAME, META_TOPIC, ODOM_FRAME, ODOM_TOPIC, ODOMETRY, STRING,
+    TF_MESSAGE, TOPIC_PRESETS, TopicPreset, clock_offset, stamp_ns, step_covariance,
 )
 from longslam.io.rosbag.messages import ROS1, ROS2, MessageBuilder, encode_depth
 from longslam.io.sequence import SequenceReader
@@ -91,9 +93,10 @@ class _Bag:
     ros: str
     storage: str
     compress: bool
+    distro: str = DEFAULT_DISTRO  # ROS 2 only
 
     def __enter__(self) -> "_Bag":
-        self.builder = MessageBuilder(self.ros)
+        self.builder = MessageBuilder(self.ros, self.distro)
         self.count = 0
         if self.ros == ROS1:
             from rosbags.rosbag1 import Writer
@@ -105,9 +108,13 @@ class _Bag:
             from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
             plugin = StoragePlugin.MCAP if self.storage == "mcap" else StoragePlugin.SQLITE3
-            self.writer = Writer(self.path, version=Writer.VERSION_LATEST, storage_plugin=plugin)
+            self.writer = Writer(self.path, version=DISTROS[self.distro], storage_plugin=plugin)
             if self.compress:
-                self.writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
+                # MCAP compresses its chunks (zstd), as rosbag2's mcap plugin does with a
+                # compression preset, and the metadata names no compression; sqlite3 has only
+                # rosbag2's per-message zstd, which the metadata names for the player to undo.
+                mode = CompressionMode.STORAGE if self.storage == "mcap" else CompressionMode.MESSAGE
+                self.writer.set_compression(mode, CompressionFormat.ZSTD)
         self.writer.open()
         return self
 
@@ -175,11 +182,22 @@ def export_sequence(
     camera_height: float | None = None,
     overwrite: bool = False,
     progress: Callable[[int, int], None] | None = None,
+    distro: str | None = None,
+    topics: str = DEFAULT_TOPICS,
 ) -> ExportSummary:
-    """Write `sequence` as a bag at `out` (ros1: a .bag file; ros2: a folder). Returns what was written."""
+    """Write `sequence` as a bag at `out` (ros1: a .bag file; ros2: a folder, for `distro`'s
+    rosbag2, DEFAULT_DISTRO if None), its camera topics named by the preset `topics`. Returns what
+    was written."""
     require_rosbags()
     if fmt not in FORMATS:
         raise InputError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}")
+    if distro is not None and fmt == "ros1":
+        raise InputError(f"--distro {distro} applies to ROS 2 bags only (a ROS 1 bag is for Noetic)")
+    distro = DEFAULT_DISTRO if distro is None else distro
+    if distro not in DISTROS:
+        raise InputError(f"--distro {distro!r}: expected one of {', '.join(DISTROS)}")
+    if topics not in TOPIC_PRESETS:
+        raise InputError(f"--topics {topics!r}: expected one of {', '.join(TOPIC_PRESETS)}")
     if depth_encoding not in DEPTH_ENCODINGS:
         raise InputError(f"--depth-encoding {depth_encoding!r}: expected one of {', '.join(DEPTH_ENCODINGS)}")
     if storage not in STORAGES:
@@ -207,8 +225,9 @@ def export_sequence(
         staging = tmp.with_name(tmp.name + "-staging")
         staging.mkdir()
         try:
-            with _Bag(staging / out.name, ROS1 if fmt == "ros1" else ROS2, storage, compress) as bag:
-                _write(bag, reader, noise, depth_encoding, camera_in_base, base_in_camera, height, progress)
+            with _Bag(staging / out.name, ROS1 if fmt == "ros1" else ROS2, storage, compress, distro) as bag:
+                _write(bag, reader, noise, depth_encoding, camera_in_base, base_in_camera, height, progress,
+                       TOPIC_PRESETS[topics], topics)
             os.rename(staging / out.name, tmp)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
@@ -220,16 +239,22 @@ def export_sequence(
 
 def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_encoding: str,
            camera_in_base: np.ndarray, base_in_camera: np.ndarray, height: float,
-           progress: Callable[[int, int], None] | None) -> None:
+           progress: Callable[[int, int], None] | None, names: TopicPreset, preset: str) -> None:
     b = bag.builder
+    optical = names.optical_frame
+    # base_link -> camera_link: the camera's body, upright at its place on the robot (REP 103);
+    # camera_link -> optical: the rotation alone (x right, y down, z forward).
+    link_in_base = np.eye(4)
+    link_in_base[:3, 3] = camera_in_base[:3, 3]
+    optical_in_link = invert(link_in_base) @ camera_in_base
     first = float(reader.timestamps[0])
     if reader.ground_truth is not None and len(reader.ground_truth):
         first = min(first, float(reader.ground_truth.timestamps[0]))
     offset = clock_offset(first)
-    rgb_c = bag.connection(RGB_TOPIC, IMAGE)
-    depth_c = bag.connection(DEPTH_TOPIC, IMAGE)
-    info_c = bag.connection(CAMERA_INFO_TOPIC, CAMERA_INFO)
-    depth_info_c = bag.connection(DEPTH_INFO_TOPIC, CAMERA_INFO)
+    rgb_c = bag.connection(names.rgb, IMAGE)
+    depth_c = bag.connection(names.depth, IMAGE)
+    info_c = bag.connection(names.camera_info, CAMERA_INFO)
+    depth_info_c = bag.connection(names.depth_info, CAMERA_INFO)
     tf_c = bag.connection("/tf", TF_MESSAGE)
     static_c = bag.connection("/tf_static", TF_MESSAGE, latched=True)
     meta_c = bag.connection(META_TOPIC, STRING, latched=True)
@@ -241,34 +266,42 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
         "longslam_version": longslam.__version__, "clock_offset_s": offset, "meta": reader.meta,
         "max_depth": reader.max_depth, "camera_height": height, "depth_encoding": depth_encoding,
         "step_variances": None if noise is None else list(noise.step_variances()),
-        "topics": {"rgb": RGB_TOPIC, "depth": DEPTH_TOPIC, "camera_info": CAMERA_INFO_TOPIC,
+        "topic_preset": preset, **({"distro": bag.distro} if bag.ros == ROS2 else {}),
+        "frames": {"odom": ODOM_FRAME, "base": BASE_FRAME, "camera_link": CAMERA_LINK_FRAME, "optical": optical,
+                   **({"map": MAP_FRAME, "groundtruth": GROUND_TRUTH_FRAME} if gt_c is not None else {})},
+        "topics": {"rgb": names.rgb, "depth": names.depth, "camera_info": names.camera_info,
                    **({"odom": ODOM_TOPIC} if odom_c is not None else {}),
                    **({"groundtruth": GROUND_TRUTH_TOPIC} if gt_c is not None else {})},
     }
     bag.write(meta_c, first_ns, b.string(json.dumps(meta, sort_keys=True)))
-    bag.write(static_c, first_ns, b.tf([(BASE_FRAME, CAMERA_FRAME, camera_in_base, first_ns)]))
+    bag.write(static_c, first_ns, b.tf([(BASE_FRAME, CAMERA_LINK_FRAME, link_in_base, first_ns),
+                                        (CAMERA_LINK_FRAME, optical, optical_in_link, first_ns)]))
 
     if noise is not None:
         pose_cov = step_covariance(*noise.step_variances())
     gt = reader.ground_truth
     gt_next = 0
     zero_cov = np.zeros((6, 6))
+
+    def write_truth(k: int) -> None:
+        ns = stamp_ns(float(gt.timestamps[k]), offset)
+        base = gt.poses[k] @ base_in_camera
+        bag.write(gt_c, ns, b.odometry(base, ns, MAP_FRAME, BASE_FRAME, zero_cov, np.zeros(3), np.zeros(3), zero_cov))
+        bag.write(tf_c, ns, b.tf([(MAP_FRAME, GROUND_TRUTH_FRAME, base, ns)]))
     frame_dt = float(np.median(np.diff(reader.timestamps))) if len(reader) > 1 else 0.1
     previous_base, previous_t = None, 0.0
     for i in range(len(reader)):
         t = float(reader.timestamps[i])
         ns = stamp_ns(t, offset)
         while gt is not None and gt_next < len(gt) and gt.timestamps[gt_next] <= t:
-            gt_ns = stamp_ns(float(gt.timestamps[gt_next]), offset)
-            base = gt.poses[gt_next] @ base_in_camera
-            bag.write(gt_c, gt_ns, b.odometry(base, gt_ns, WORLD_FRAME, BASE_FRAME, zero_cov, np.zeros(3), np.zeros(3), zero_cov))
+            write_truth(gt_next)
             gt_next += 1
         rgb = reader.read_rgb(i)
         depth = reader.read_depth(i)
-        bag.write(rgb_c, ns, b.image(rgb, "rgb8", ns, CAMERA_FRAME))
-        bag.write(depth_c, ns, b.image(encode_depth(depth, depth_encoding), depth_encoding, ns, CAMERA_FRAME))
-        bag.write(info_c, ns, b.camera_info(reader.intrinsics, ns, CAMERA_FRAME))
-        bag.write(depth_info_c, ns, b.camera_info(reader.intrinsics, ns, CAMERA_FRAME))
+        bag.write(rgb_c, ns, b.image(rgb, "rgb8", ns, optical))
+        bag.write(depth_c, ns, b.image(encode_depth(depth, depth_encoding), depth_encoding, ns, optical))
+        bag.write(info_c, ns, b.camera_info(reader.intrinsics, ns, optical))
+        bag.write(depth_info_c, ns, b.camera_info(reader.intrinsics, ns, optical))
         if odom_c is not None:
             frame = reader.frame(i)
             base = frame.odometry @ base_in_camera
@@ -287,7 +320,5 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
         if progress is not None:
             progress(i + 1, len(reader))
     while gt is not None and gt_next < len(gt):
-        gt_ns = stamp_ns(float(gt.timestamps[gt_next]), offset)
-        base = gt.poses[gt_next] @ base_in_camera
-        bag.write(gt_c, gt_ns, b.odometry(base, gt_ns, WORLD_FRAME, BASE_FRAME, zero_cov, np.zeros(3), np.zeros(3), zero_cov))
+        write_truth(gt_next)
         gt_next += 1

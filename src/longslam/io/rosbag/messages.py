@@ -19,9 +19,9 @@ ROS1, ROS2 = "ros1", "ros2"
 _TF_MESSAGE_ROS1 = "geometry_msgs/TransformStamped[] transforms\n"
 
 
-def typestore_for(ros: str) -> Any:
-    """rosbags' message definitions for ROS 1 Noetic or ROS 2 Jazzy (tf2_msgs added for ROS 1,
-    whose store lacks it)."""
+def typestore_for(ros: str, distro: str = "jazzy") -> Any:
+    """rosbags' message definitions for ROS 1 Noetic (tf2_msgs added, which its store lacks) or
+    for a ROS 2 distribution (humble or jazzy)."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     if ros == ROS1:
@@ -29,7 +29,10 @@ def typestore_for(ros: str) -> Any:
         if TF_MESSAGE not in store.types:
             store.register(get_types_from_msg(_TF_MESSAGE_ROS1, TF_MESSAGE))
         return store
-    return get_typestore(Stores.ROS2_JAZZY)
+    stores = {"humble": Stores.ROS2_HUMBLE, "jazzy": Stores.ROS2_JAZZY}
+    if distro not in stores:
+        raise InputError(f"--distro {distro!r}: expected one of {', '.join(stores)}")
+    return get_typestore(stores[distro])
 
 
 @dataclass
@@ -37,9 +40,10 @@ class MessageBuilder:
     """Messages of one ROS version, and their serialised bytes."""
 
     ros: str
+    distro: str = "jazzy"  # ROS 2 only
 
     def __post_init__(self) -> None:
-        self.store = typestore_for(self.ros)
+        self.store = typestore_for(self.ros, self.distro)
         self.types = self.store.types
 
     def serialize(self, message: Any, msgtype: str) -> bytes:
