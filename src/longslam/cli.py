@@ -250,6 +250,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")
+    print(f"position error over time: {plot.with_name('errors.png')}")
 
 
 def cmd_list(args: argparse.Namespace) -> None:
