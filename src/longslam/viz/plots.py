@@ -38,7 +38,7 @@ def method_styles(labels: list[str]) -> dict[str, dict]:
     styles = {}
     for i, label in enumerate(methods):
         styles[label] = {"color": colours[i % len(colours)], "ls": DASHES[i % len(DASHES)],
-                         "lw": 1.2 + 1.0 * (len(methods) - 1 - i), "alpha": 0.9, "zorder": 4 + i}
+                         "lw": 1.3 + 0.7 * (len(methods) - 1 - i), "alpha": 0.9, "zorder": 4 + i}
     return styles
 
 
@@ -296,7 +296,8 @@ def plot_maps(
     xmin, xmax, ymin, ymax = view or truth.extent
     aspect = (ymax - ymin) / max(xmax - xmin, 1e-6)
     width, dpi = 5.0, 90
-    fig, axes = plt.subplots(1, len(panels), figsize=(width * len(panels), width * aspect + 0.9), squeeze=False)
+    legend_h = 0.45  # inches under the panels for the legend of the cells
+    fig, axes = plt.subplots(1, len(panels), figsize=(width * len(panels), width * aspect + 0.9 + legend_h), squeeze=False)
     pixels = 0.8 * width * dpi  # about the width of a panel's drawing area
     for ax, (name, grid) in zip(axes[0], panels.items()):
         block = max(1, round((xmax - xmin) / grid.resolution / pixels))
@@ -317,7 +318,7 @@ def plot_maps(
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
     if title:
         fig.suptitle(title)
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.tight_layout(rect=(0, legend_h / fig.get_figheight(), 1, 1))
     _save(fig, out, dpi=dpi)
 
 

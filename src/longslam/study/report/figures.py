@@ -120,7 +120,7 @@ def _route_figures(results: StudyResults, route: str, camera: str | None, truth_
         seed_text = ", ".join(p.split()[1] for p in panels)
         shown = f"route {route} ({data.length_m:.0f} m)" + (f", camera {camera}" if camera else "")
         plot_plans(truth_grid, out / name, panels, waypoints=data.waypoints, zoom_margin=6.0, errors=errors,
-                   title=f"{shown}, noise {noise}, seeds {seed_text}")
+                   title=f"{shown}, noise {noise}, seed{'s' if len(panels) > 1 else ''} {seed_text}")
         view = plan_view(truth_grid, {k: v for p in panels.values() for k, v in p.items()}, 6.0)
         interactive = trajectories_figure(truth_grid, view, truth_xy, dict(estimates), ates, data.waypoints,
                                           title=f"{shown}, noise {noise}: every seed (menu: one seed)")

@@ -84,6 +84,9 @@ def trajectories_figure(
     trace_seeds: list[int] = []
     for k, (method, runs) in enumerate(estimates.items()):
         colour = COLOURS[k % len(COLOURS)]
+        # As in the PNG (viz.plots.method_styles): the first method widest, each later one
+        # narrower and over it, so a method that follows another closely still shows.
+        width = 1.5 + 1.5 * (len(estimates) - 1 - k)
         for i, seed in enumerate(sorted(runs)):
             xy = _thin(runs[seed])
             ate = ates.get((method, seed))
@@ -91,7 +94,7 @@ def trajectories_figure(
             fig.add_trace(go.Scatter(
                 x=xy[:, 0], y=xy[:, 1], mode="lines", name=name, legendgroup=method,
                 legendgrouptitle={"text": method} if i == 0 else None,
-                line={"color": colour, "width": 1.5}, opacity=0.85,
+                line={"color": colour, "width": width},
                 hovertemplate=f"{method}, seed {seed}<br>x %{{x:.2f}} m<br>y %{{y:.2f}} m<extra></extra>"))
             trace_seeds.append(seed)
     buttons = [{"label": "all seeds", "method": "update", "args": [{"visible": [True] * (fixed + len(trace_seeds))}]}]
@@ -101,11 +104,13 @@ def trajectories_figure(
     xmin, xmax, ymin, ymax = view
     height = int(min(900, max(380, 760 * (ymax - ymin) / max(xmax - xmin, 1e-6) + 120)))
     fig.update_layout(
-        title={"text": title, "font": {"size": 14}}, height=height, margin={"l": 60, "r": 20, "t": 70, "b": 50},
+        title={"text": title, "font": {"size": 14}, "x": 0.0, "xanchor": "left"}, height=height,
+        margin={"l": 60, "r": 20, "t": 70, "b": 50},
         xaxis={"title": {"text": "x [m]"}, "range": [xmin, xmax], "constrain": "domain"},
         yaxis={"title": {"text": "y [m]"}, "range": [ymin, ymax], "scaleanchor": "x", "scaleratio": 1},
         legend={"groupclick": "toggleitem", "font": {"size": 11}}, plot_bgcolor="white",
-        updatemenus=[{"buttons": buttons, "direction": "down", "x": 0.0, "xanchor": "left", "y": 1.08, "yanchor": "bottom",
+        # The seed menu sits over the legend, clear of the title.
+        updatemenus=[{"buttons": buttons, "direction": "down", "x": 1.02, "xanchor": "left", "y": 1.0, "yanchor": "bottom",
                       "showactive": True}] if len(seeds) > 1 else [],
     )
     return fig

@@ -120,7 +120,7 @@ table.results thead th { background: #eee; text-align: center; }
 figure { margin: 1em 0 2em; } figure img { max-width: min(100%, 1100px); border: 1px solid #ddd; }
 figcaption { font-size: 13px; color: #444; }
 table.results a.cell { color: inherit; text-decoration: none; border-bottom: 1px dotted #888; }
-table.runs td.id { text-align: left; } table.runs td.status.failed { color: #b00; text-align: left; }
+table.runs td.id, table.runs td.status { text-align: left; } table.runs td.status.failed { color: #b00; }
 table.runs td.files { text-align: left; white-space: nowrap; } table.runs tr:target { background: #ffd; }
 div.plot { margin: 1em 0 .3em; max-width: 1100px; }
 pre { background: #f6f6f6; padding: .6em; overflow-x: auto; font-size: 12px; }
@@ -238,7 +238,8 @@ def render_html(report: Report, out: Path) -> str:
 
                 parts.append(f'<figure class="interactive"><div class="plot">{figure_div(fig.interactive, f"figure-{i}")}</div>'
                              f"<figcaption>{esc(fig.caption)} Interactive: zoom, pan, hover; click a legend entry "
-                             "to hide a line.</figcaption></figure>")
+                             "to hide a line; where there are several seeds, the menu shows one or all."
+                             "</figcaption></figure>")
                 continue
             data = base64.b64encode((out / fig.path).read_bytes()).decode("ascii")
             parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{esc(fig.caption)}">'

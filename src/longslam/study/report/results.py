@@ -57,9 +57,10 @@ def on_camera(run: dict[str, Any], camera: str | None) -> bool:
 
 
 def runs_anchor(route: str, noise: str, method: str, camera: str | None = None) -> str:
-    """The HTML id of a (route, camera, noise, method) group's first row."""
+    """The HTML id of a (route, camera, noise, method) group's first row in the table of every run:
+    'runs/' and the runs' key without the seed (an id may hold anything but white space)."""
     parts = [route] + ([camera] if camera else []) + [noise, method]
-    return "runs-" + "-".join(re.sub(r"[^A-Za-z0-9_.]+", "_", p) for p in parts)
+    return "runs/" + "/".join(re.sub(r"\s+", "_", p) for p in parts)
 
 
 def _ordered(first: list[str], seen: list[str]) -> list[str]:
