@@ -14,7 +14,7 @@ from longslam.study.report import StudyResults, accuracy_table, format_mean_std,
 from longslam.study.report.figures import Figure
 from longslam.study.report.render import Report, render_html, render_markdown, table_html
 from longslam.study.report.runs import every_run_table, runs_html, runs_markdown
-from longslam.study.report.tables import field_table
+from longslam.study.report.tables import field_table, paper_tables
 from longslam.study.run_log import closing_line, opening_line
 
 
@@ -64,6 +64,8 @@ def test_the_field_metrics_have_a_table_and_memory_is_in_mb_read_inside_the_run(
     assert "outside" not in memory.caption
     accuracy = accuracy_table(results)
     assert accuracy.rows[2][0].text == "0.200 ± 0.141 (n=2)"  # ATE
+    published = paper_tables()[1]  # the appendix of a study off the paper's routes: MB too
+    assert [c.text for c in published.rows[0]][:2] == ["3600", "3500"] and "in MB" in published.caption
 
 
 def _files(out: Path, run: dict, log: str | None) -> None:
@@ -149,3 +151,33 @@ def test_a_runs_log_opens_with_what_ran_and_closes_with_how_it_ended():
 def test_precision_is_the_means(values):
     mean, std = format_mean_std(values).split(" (")[0].split(" ± ")
     assert len(mean.replace("-", "").replace(".", "").lstrip("0")) == 3  # three significant digits
+
+
+def test_the_interactive_trajectories_have_every_seed_and_a_menu_for_one():
+    from longslam.gridmap import FREE, GridMap
+    from longslam.study.report.interactive import curves_figure, trajectories_figure
+
+    grid = GridMap(np.full((40, 60), FREE, dtype=np.int8), 0.1, (0.0, 0.0))
+    line = np.column_stack([np.linspace(0.5, 5.5, 50), np.full(50, 2.0)])
+    estimates = {m: {s: line + 0.01 * s for s in (0, 1, 2)} for m in ("keyframe", "submap")}
+    ates = {(m, s): 0.01 * s for m in estimates for s in (0, 1, 2)}
+    fig = trajectories_figure(grid, (0, 6, 0, 4), line, estimates, ates, np.array([[0.5, 2], [5.5, 2], [0.5, 2.1]]))
+    names = [trace.name for trace in fig.data]
+    for method in estimates:
+        for seed in (0, 1, 2):
+            assert f"{method}, seed {seed} (ATE {0.01 * seed:.3f} m)" in names
+    assert names[:2] == ["floor plan", "ground truth"] and names[-2:] == ["waypoints", "start"]  # places over the lines
+    assert list(fig.data[-2].text) == ["0, 2", "1"]
+    menu = {b.label: b.args[0]["visible"] for b in fig.layout.updatemenus[0].buttons}
+    assert list(menu) == ["all seeds", "seed 0", "seed 1", "seed 2"] and all(menu["all seeds"])
+    shown = [name for name, visible in zip(names, menu["seed 1"]) if visible]
+    assert shown == ["floor plan", "ground truth", "keyframe, seed 1 (ATE 0.010 m)", "submap, seed 1 (ATE 0.010 m)",
+                     "waypoints", "start"]
+    assert fig.layout.xaxis.title.text == "x [m]" and fig.layout.yaxis.title.text == "y [m]"
+    widths = {t.legendgroup: t.line.width for t in fig.data if t.legendgroup}
+    assert widths["keyframe"] > widths["submap"]  # the one drawn first, under, is wider
+
+    curve = np.column_stack([np.linspace(0, 8, 20), np.linspace(0, 0.1, 20)])
+    curves = curves_figure({"noise large": {"keyframe": {0: curve, 1: curve * 1.1}}, "noise small": {"keyframe": {0: curve}}},
+                           "position error [m]")
+    assert len(curves.data) == 3 and sum(bool(t.showlegend) for t in curves.data) == 1  # a line per run, one legend entry

@@ -70,36 +70,37 @@ def trajectories_figure(
     truth = _thin(truth_xy)
     fig.add_trace(go.Scatter(x=truth[:, 0], y=truth[:, 1], mode="lines", name=GROUND_TRUTH,
                              line={"color": "black", "dash": "dash", "width": 2}))
-    fixed = 2
-    if waypoints is not None and len(waypoints):
-        places = place_labels(waypoints)
-        fig.add_trace(go.Scatter(x=[p[0][0] for p in places], y=[p[0][1] for p in places], mode="markers+text",
-                                 text=[p[1] for p in places], textposition="top right", name="waypoints",
-                                 marker={"color": "#d62728", "size": 7}, textfont={"color": "#d62728"}))
-        fixed += 1
-    fig.add_trace(go.Scatter(x=[truth[0, 0]], y=[truth[0, 1]], mode="markers", name="start",
-                             marker={"color": "#2ca02c", "size": 12, "line": {"color": "black", "width": 1}}))
-    fixed += 1
     seeds = sorted({seed for runs in estimates.values() for seed in runs})
     trace_seeds: list[int] = []
     for k, (method, runs) in enumerate(estimates.items()):
         colour = COLOURS[k % len(COLOURS)]
         # As in the PNG (viz.plots.method_styles): the first method widest, each later one
         # narrower and over it, so a method that follows another closely still shows.
-        width = 1.5 + 1.5 * (len(estimates) - 1 - k)
+        width = 1.5 + 1.2 * (len(estimates) - 1 - k)
         for i, seed in enumerate(sorted(runs)):
             xy = _thin(runs[seed])
             ate = ates.get((method, seed))
             name = f"{method}, seed {seed}" + (f" (ATE {ate:.3f} m)" if ate is not None else "")
             fig.add_trace(go.Scatter(
                 x=xy[:, 0], y=xy[:, 1], mode="lines", name=name, legendgroup=method,
-                legendgrouptitle={"text": method} if i == 0 else None,
-                line={"color": colour, "width": width},
+                legendgrouptitle={"text": method} if i == 0 else None, line={"color": colour, "width": width},
                 hovertemplate=f"{method}, seed {seed}<br>x %{{x:.2f}} m<br>y %{{y:.2f}} m<extra></extra>"))
             trace_seeds.append(seed)
-    buttons = [{"label": "all seeds", "method": "update", "args": [{"visible": [True] * (fixed + len(trace_seeds))}]}]
+    # The places and the start over the lines.
+    on_top = 1
+    if waypoints is not None and len(waypoints):
+        places = place_labels(waypoints)
+        fig.add_trace(go.Scatter(x=[p[0][0] for p in places], y=[p[0][1] for p in places], mode="markers+text",
+                                 text=[p[1] for p in places], textposition="top right", name="waypoints",
+                                 marker={"color": "#d62728", "size": 7}, textfont={"color": "#d62728"}))
+        on_top += 1
+    fig.add_trace(go.Scatter(x=[truth[0, 0]], y=[truth[0, 1]], mode="markers", name="start",
+                             marker={"color": "#2ca02c", "size": 12, "line": {"color": "black", "width": 1}}))
+    below = 2  # the floor plan and the ground truth
+    buttons = [{"label": "all seeds", "method": "update",
+                "args": [{"visible": [True] * (below + len(trace_seeds) + on_top)}]}]
     for seed in seeds:
-        visible = [True] * fixed + [s == seed for s in trace_seeds]
+        visible = [True] * below + [s == seed for s in trace_seeds] + [True] * on_top
         buttons.append({"label": f"seed {seed}", "method": "update", "args": [{"visible": visible}]})
     xmin, xmax, ymin, ymax = view
     height = int(min(900, max(380, 760 * (ymax - ymin) / max(xmax - xmin, 1e-6) + 120)))
