@@ -84,6 +84,8 @@ def test_every_run_has_a_row_with_its_metrics_memory_time_status_and_links(tmp_p
     good, quiet = _run(0), _run(1)
     _files(tmp_path, good, "longslam study run ...\nfinished ok\n")
     _files(tmp_path, quiet, "")  # a study made before the logs had their lines: an empty log
+    (tmp_path / good["run_dir"] / "console.log").write_text("ORB-SLAM3 ... Loading ORB Vocabulary\n")
+    (tmp_path / quiet["run_dir"] / "console.log").write_text("")
     failed = _run(0, "crashy", "error", error="RuntimeError: crashy fails on purpose at frame 5\nmore text")
     traceback = tmp_path / "logs" / "paper-300m/small/crashy/seed-0.log"  # log_path: none recorded
     traceback.parent.mkdir(parents=True, exist_ok=True)
@@ -101,8 +103,9 @@ def test_every_run_has_a_row_with_its_metrics_memory_time_status_and_links(tmp_p
     links = {row.key: [(link.text, link.href) for link in row.links] for row in table.rows}
     folder = f"runs/{good['key']}"
     assert links[good["key"]] == [("trajectory", f"{folder}/trajectory.txt"), ("stats", f"{folder}/stats.json"),
-                                  ("config", f"{folder}/config.toml"), ("log", f"logs/{good['key']}.log")]
-    assert [text for text, _ in links[quiet["key"]]] == ["trajectory", "stats", "config"]  # its log is empty
+                                  ("config", f"{folder}/config.toml"), ("console", f"{folder}/console.log"),
+                                  ("log", f"logs/{good['key']}.log")]
+    assert [text for text, _ in links[quiet["key"]]] == ["trajectory", "stats", "config"]  # its logs are empty
     assert links[failed["key"]] == [("log", f"logs/{failed['key']}.log")]
     assert table.rows[2].status == "error: RuntimeError: crashy fails on purpose at frame 5" and not table.rows[2].ok
     for href in (h for row in links.values() for _, h in row):

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from longslam.run.console import CONSOLE_LOG
 from longslam.run.folder import CONFIG, STATS, TRAJECTORY
 from longslam.study.report.results import StudyResults, runs_anchor
 from longslam.study.report.tables import format_number
@@ -96,6 +97,10 @@ def _links(out: Path, run: dict[str, Any]) -> list[Link]:
         shown = _in_study(out, path)
         if shown:
             links.append(Link(text, shown))
+    # What native code (ORB-SLAM3's C++) printed during the run is in the run folder's console.log.
+    console = _in_study(out, run_dir and f"{run_dir}/{CONSOLE_LOG}")
+    if console and (out / console).stat().st_size > 0:
+        links.append(Link("console", console))
     log = log_link(out, run)
     if log:
         links.append(Link("log", log))
@@ -130,7 +135,8 @@ def every_run_table(results: StudyResults) -> RunsTable:
         "Every recorded run, one row each: its metrics (ATE, E_trans and E_rot as in Table 1, APE and RPE as "
         "in Table 1b, the ATE of the online trajectory), peak memory (MB, as in Table 2), the time of its "
         "process from start to end, and links to the files of its folder (final trajectory, stats.json, "
-        "config.toml) and to its log when the log holds anything. A cell of Tables 1 to 3 links to its rows.",
+        "config.toml, and console.log: what native code such as ORB-SLAM3 printed) and to its log when the log "
+        "holds anything. A cell of Tables 1 to 3 links to its rows.",
         identity, ["status"] + [heading for _, heading, _ in columns] + ["files"],
     )
     seen: set[str] = set()
