@@ -93,8 +93,8 @@ def one_line_error(capsys, *needles: str) -> str:
 # The slow set: tests that render a route, run a method end to end on one, or start processes
 # (a study, Ray, ORB-SLAM3). `pytest -m "not slow"` is the fast set for the edit-test loop.
 SLOW_MODULES = {
-    "test_frontend", "test_keyframe", "test_maps", "test_orbslam3", "test_own_building", "test_run_safety",
-    "test_simulate", "test_study", "test_submap", "test_tum_layout", "test_viz_live", "test_viz_viewer",
+    "test_frontend", "test_keyframe", "test_maps", "test_orbslam3", "test_own_building", "test_report_study",
+    "test_run_safety", "test_simulate", "test_study", "test_submap", "test_tum_layout", "test_viz_live", "test_viz_viewer",
 }
 SLOW_TESTS = {
     "test_evo_reads_the_bag",

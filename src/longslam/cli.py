@@ -338,6 +338,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")
+    print(f"position error over time: {plot.with_name('errors.png')}")
 
 
 def _list_params(method: str) -> None:

@@ -1,9 +1,14 @@
-"""The demo: the `demo` route at `large` noise, every registered method, a table and a plot."""
+"""The demo: the `demo` route at `large` noise, every registered method, a table and two figures
+(trajectories over the floor plan, position error over time)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
+from longslam.eval.metrics import ape_errors
+from longslam.eval.sync import associate
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
 from longslam.run.folder import TRAJECTORY
@@ -15,7 +20,8 @@ from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.simulate import check_seed, simulate
 from longslam.slam.catalog import get_spec, method_names
-from longslam.viz.plots import plot_plan
+from longslam.trajectory import Trajectory
+from longslam.viz.plots import plot_errors_over_time, plot_plan
 from longslam.world import load_world
 
 COLUMNS = ("method", "ATE [m]", "E_trans", "E_rot [deg/m]", "peak RSS [MB]", "real-time factor")
@@ -77,15 +83,29 @@ def run_demo(
     truth = SequenceReader(sequence).ground_truth
     for name in methods:  # once-per-machine work (a vocabulary) outside the runs' figures
         get_spec(name).prepare_for()
-    rows, paths = [], {"ground truth": truth.positions[:, :2]}
+    rows, paths, curves, ates = [], {"ground truth": truth.positions[:, :2]}, {}, {}
     for name in methods:
         run_dir = out / "runs" / name
         scores, measurements = run_and_score(name, sequence, run_dir, progress=progress, viz=_viz_target(viz, name))
         estimate = read_tum(run_dir / TRAJECTORY)
         rows.append({"method": name, **scores, **{k: measurements[k] for k in ("peak_rss_bytes", "real_time_factor")}})
         paths[name] = estimate.positions[:, :2]
+        curves[name] = error_over_time(truth, estimate)
+        ates[name] = scores["ate"]
     world = load_world(route.world)
     plot = out / "trajectories.png"
     waypoints = route.resolve(world.places)
-    plot_plan(world.occupancy, plot, paths, waypoints=waypoints, title=f"route {route.name}, noise {noise.name}, seed {seed}", zoom_margin=6.0)
+    title = f"route {route.name}, noise {noise.name}, seed {seed}"
+    plot_plan(world.occupancy, plot, paths, waypoints=waypoints, title=title, zoom_margin=6.0, errors=ates)
+    plot_errors_over_time(curves, out / ERRORS_FIGURE, title=f"position error over time (no alignment): {title}", errors=ates)
     return rows, plot
+
+
+ERRORS_FIGURE = "errors.png"
+
+
+def error_over_time(truth: Trajectory, estimate: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Time since the first matched pose (s) and position error (m, no alignment) at each pose: the
+    terms whose mean is the ATE."""
+    ref, est = associate(truth, estimate)
+    return ref.timestamps - ref.timestamps[0], ape_errors(ref, est, "translation")

@@ -171,14 +171,16 @@ def test_the_report_has_both_tables_and_the_papers_numbers(study):
     for text in (markdown, page):
         assert "Table 1: accuracy" in text and "Table 2: peak memory" in text and "Table 3: map quality" in text
         assert "Muravyev" in text and "RTAB-Map" in text and "Voxgraph" in text
-        assert "0.017 ± 0.002" in text and "8.6" in text  # the paper's numbers, Tables 1 and 2
+        assert "0.017 ± 0.002" in text and "8600" in text  # the paper's numbers, Tables 1 and 2 (8.6 GB in MB)
         assert "crashy fails on purpose" in text
     table1 = markdown.split("### Table 1")[1].split("###")[0]
-    assert re.search(r"\| odometry \| E_trans \| \*\*[0-9.]+ ± [0-9.]+\*\* \|", table1)
+    assert re.search(r"\| odometry \| E_trans \| \*\*[0-9.]+ ± [0-9.]+ \(n=2\)\*\* \|", table1)
     assert "precision, aligned" in markdown and "doubled walls" in markdown
     for name in ("trajectories-tiny-large", "ate-tiny", "memory-tiny", "maps-tiny-large", "map-tiny-large-gridded"):
         assert (out / "report_files" / f"{name}.png").is_file() and f"report_files/{name}.png" in markdown
-    assert page.count('<img src="data:image/png;base64,') == 5 and "report_files/" not in page
+    # The trajectories and the two curves are plotly figures on the page; the two maps are images.
+    assert page.count('<img src="data:image/png;base64,') == 2 and "report_files/" not in page
+    assert page.count('class="plotly-graph-div"') == 3
     # `longslam report` writes it again from the database alone.
     (out / "report.html").unlink()
     assert main(["report", str(out)]) == 0
@@ -197,13 +199,13 @@ def test_the_papers_numbers_stand_beside_ours_on_the_papers_routes():
     assert labels[:3] == ["odometry E_trans", "odometry E_rot [deg/m]", "odometry ATE [m]"]
     assert "RTAB-Map (paper) ATE [m]" in labels and "Voxgraph (paper) E_trans" in labels
     cells = dict(zip(labels, (row[0] for row in table.rows)))
-    assert cells["odometry ATE [m]"].text == "0.200 ± 0.14" and cells["odometry ATE [m]"].best
+    assert cells["odometry ATE [m]"].text == "0.200 ± 0.141 (n=2)" and cells["odometry ATE [m]"].best
     assert cells["RTAB-Map (paper) ATE [m]"].text == "0.99 ± 0.087" and not cells["RTAB-Map (paper) ATE [m]"].best
     assert cells["odometry E_trans"].best and not cells["Voxgraph (paper) E_trans"].best
     memory = memory_table(results)
-    assert [row[0].text for row in memory.rows] == ["0.200 ± 0", "3.6", "0.52"]
+    assert [row[0].text for row in memory.rows] == ["200 ± 0 (n=2)", "3600", "520"]  # MB
     assert isinstance(memory.rows[0][0], Cell) and memory.rows[0][0].best
-    assert format_mean_std([]) == "–" and format_mean_std([0.25]) == "0.250"
+    assert format_mean_std([]) == "–" and format_mean_std([0.25]) == "0.250 (n=1)"
 
 
 def test_a_killed_study_resumes_and_runs_everything_exactly_once(env):
@@ -302,9 +304,17 @@ window.addEventListener("load", () => {
   const loaded = images.filter((img) => img.complete && img.naturalWidth > 0).length;
   const tables = Array.from(document.querySelectorAll("table.results")).map(
     (t) => ({title: t.dataset.title, rows: t.querySelectorAll("tbody tr").length, height: t.offsetHeight}));
+  const plots = Array.from(document.querySelectorAll(".js-plotly-plot"));
+  const drawn = plots.filter((p) => p.querySelector("svg.main-svg") && p.querySelectorAll("path.js-line").length > 0);
+  const runs = document.querySelector("table.runs");
+  const cells = Array.from(document.querySelectorAll("table.results a.cell"));
+  const landed = cells.filter((a) => document.getElementById(decodeURIComponent(a.getAttribute("href").slice(1))));
   const marker = document.createElement("pre");
   marker.id = "check";
-  marker.textContent = JSON.stringify({images: images.length, loaded: loaded, tables: tables});
+  marker.textContent = JSON.stringify({images: images.length, loaded: loaded, tables: tables, plots: plots.length,
+    drawn: drawn.length, menus: document.querySelectorAll(".updatemenu-container").length,
+    runs: runs ? runs.querySelectorAll("tbody tr").length : 0, runLinks: runs ? runs.querySelectorAll("a").length : 0,
+    cells: cells.length, landed: landed.length});
   document.body.appendChild(marker);
 });
 </script></body>"""
@@ -324,9 +334,14 @@ def test_report_page_in_a_headless_browser(study, tmp_path):
     found = re.search(r'<pre id="check">(.*?)</pre>', dom)
     assert found, f"the page did not load: {dom[:500]}"
     check = json.loads(found.group(1).replace("&quot;", '"'))
-    assert check["images"] == 5 and check["loaded"] == 5  # every figure decoded and shown
+    assert check["images"] == 2 and check["loaded"] == 2  # every map figure decoded and shown
+    # The trajectories (with a seed menu) and the two curves, drawn by the inline plotly.js.
+    assert check["plots"] == 3 and check["drawn"] == 3 and check["menus"] >= 1
     titles = [t["title"] for t in check["tables"]]
-    assert titles[:3] == ["Table 1: accuracy", "Table 2: peak memory", "Table 3: map quality"]
+    assert titles[:4] == ["Table 1: accuracy", "Table 1b: APE and RPE", "Table 2: peak memory", "Table 3: map quality"]
+    assert "All runs" in titles and check["runs"] == 8  # every run has its row
+    assert check["runLinks"] == 4 * 4 + 4  # the good runs' trajectory, stats, config and log; the failed runs' logs
+    assert check["cells"] > 0 and check["landed"] == check["cells"]  # each cell's link lands on its runs' row
     assert "The paper's Table 1 as published" in titles and "The paper's Table 2 as published" in titles
     for table in check["tables"]:
         assert table["rows"] >= 2 and table["height"] > 20, table  # laid out on the page
@@ -373,8 +388,8 @@ def test_a_study_with_two_cameras_runs_each_records_both_and_resumes(env):
         for camera in cameras:
             assert re.search(rf"\| (odometry|gridded|) \| {camera} \|", table), (title, camera)
     table1 = markdown.split("### Table 1")[1].split("###")[0]
-    assert re.search(r"\| odometry \| small \| E_trans \| (\*\*)?[0-9.]+(\*\*)? \|", table1)
-    assert re.search(r"\|  \| wide \| E_trans \| (\*\*)?[0-9.]+(\*\*)? \|", table1)
+    assert re.search(r"\| odometry \| small \| E_trans \| (\*\*)?[0-9.]+ \(n=1\)(\*\*)? \|", table1)
+    assert re.search(r"\|  \| wide \| E_trans \| (\*\*)?[0-9.]+ \(n=1\)(\*\*)? \|", table1)
     assert "<th>camera</th>" in page and 'rowspan="3" class="camera">wide</td>' in page
     for name in ("trajectories-tiny-small-large", "trajectories-tiny-wide-large", "ate-tiny-small", "ate-tiny-wide",
                  "memory-tiny-wide", "maps-tiny-small-large", "map-tiny-wide-large-gridded"):
@@ -431,7 +446,7 @@ def test_a_camera_column_beside_the_papers_rows():
     table = accuracy_table(results)
     assert table.row_cameras == ["qvga"] * 3 + ["vga"] * 3 + [""] * 6  # the paper's rows have no camera
     ate = {camera: row[0] for camera, (_, metric), row in zip(table.row_cameras, table.row_labels, table.rows) if metric == "ATE [m]"}
-    assert ate["qvga"].text == "0.505 ± 0.0071" and ate["vga"].text == "0.205 ± 0.0071" and ate["vga"].best
+    assert ate["qvga"].text == "0.505 ± 0.007 (n=2)" and ate["vga"].text == "0.205 ± 0.007 (n=2)" and ate["vga"].best
     markdown = table_markdown(table)
     assert "| method | camera | metric | paper-300m: small |" in markdown
     assert "| odometry | qvga | ATE [m] |" not in markdown and "|  | vga | E_trans |" in markdown

@@ -68,7 +68,14 @@ def _local_child(task: Task, result_path: str, parent_pid: int) -> None:
     log = os.open(task.log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
     os.dup2(log, 1)
     os.dup2(log, 2)
+    import time
+
+    from longslam.study.run_log import closing_line, opening_line
     from longslam.study.worker import error_record, execute_run, to_json
+
+    # Without these lines a run that printed nothing left an empty log.
+    start = time.perf_counter()
+    print(opening_line(task.spec), flush=True)
 
     def load_truth():
         import numpy as np
@@ -82,6 +89,7 @@ def _local_child(task: Task, result_path: str, parent_pid: int) -> None:
     except BaseException as err:  # recorded; the study goes on
         record = error_record(err)
         print(record.traceback, file=sys.stderr, flush=True)
+    print(closing_line(record, time.perf_counter() - start), flush=True)
     tmp = f"{result_path}.tmp"
     with open(tmp, "w") as handle:
         handle.write(to_json(record))

@@ -1,6 +1,7 @@
-"""The report's figures: trajectories over the floor plan, error and memory against distance
-travelled, and each method's map beside the ground truth; per route, and per camera in a study with
-several (their files then named route-camera-...)."""
+"""The report's figures: every seed's trajectories over the floor plan, error and memory against
+distance travelled, and each method's map beside the ground truth; per route, and per camera in a
+study with several (their files then named route-camera-...). Each is a PNG (for report.md); the
+trajectories and curves are also plotly figures (for report.html, see `interactive`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import re
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +23,16 @@ FIGURES_DIR = "report_files"
 class Figure:
     path: Path  # relative to the study folder
     caption: str
+    interactive: Any = None  # a plotly figure that report.html shows instead of the PNG
+
+
+def _seed_runs(results: StudyResults, route: str, noise: str, camera: str | None = None) -> dict[str, list[dict]]:
+    """method -> its successful runs of (route, noise, camera), by seed."""
+    chosen: dict[str, list[dict]] = defaultdict(list)
+    for run in sorted(results.ok, key=lambda r: r["seed"]):
+        if (run["route"], run["noise"]) == (route, noise) and on_camera(run, camera):
+            chosen[run["method"]].append(run)
+    return {m: chosen[m] for m in results.methods if m in chosen}
 
 
 def _first_seed_runs(results: StudyResults, route: str, noise: str, camera: str | None = None) -> dict[str, dict]:
@@ -65,7 +77,8 @@ def _route_figures(results: StudyResults, route: str, camera: str | None, truth_
     from longslam.eval.map_quality import map_scores
     from longslam.gridmap import GridMap
     from longslam.io.trajectory_files import read_tum
-    from longslam.viz.plots import plot_curves_by_distance, plot_map_over_truth, plot_maps, plot_plan
+    from longslam.study.report.interactive import curves_figure, trajectories_figure
+    from longslam.viz.plots import plot_curves_by_distance, plot_map_over_truth, plot_maps, plan_view, plot_plans
     from longslam.study.prepare import load_route_data
 
     out = results.out
@@ -83,41 +96,61 @@ def _route_figures(results: StudyResults, route: str, camera: str | None, truth_
     mine = [r for r in results.ok if r["route"] == route and on_camera(r, camera)]
     noises = [n for n in results.noise if any(r["noise"] == n for r in mine)]
     for noise in noises:
-        runs = _first_seed_runs(results, route, noise, camera)
-        paths = {"ground truth": truth_xy}
-        seeds = set()
-        for method, run in runs.items():
-            try:
-                paths[f"{method}"] = read_tum(out / run["trajectory_path"]).positions[:, :2]
-                seeds.add(run["seed"])
-            except (OSError, InputError, TypeError) as err:
-                left_out.append(f"trajectory of {run['key']} left out of the trajectory figure ({err})")
-                continue
+        panels: dict[str, dict[str, np.ndarray]] = {}
+        errors: dict[str, dict[str, float]] = {}
+        estimates: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
+        ates: dict[tuple[str, int], float] = {}
+        for method, runs in _seed_runs(results, route, noise, camera).items():
+            for run in runs:
+                try:
+                    xy = read_tum(out / run["trajectory_path"]).positions[:, :2]
+                except (OSError, InputError, TypeError) as err:
+                    left_out.append(f"trajectory of {run['key']} left out of the trajectory figure ({err})")
+                    continue
+                panel = f"seed {run['seed']}"
+                panels.setdefault(panel, {"ground truth": truth_xy})[method] = xy
+                estimates[method][run["seed"]] = xy
+                if run.get("ate") is not None:
+                    errors.setdefault(panel, {})[method] = run["ate"]
+                    ates[(method, run["seed"])] = run["ate"]
+        if not panels:
+            continue
+        panels = dict(sorted(panels.items(), key=lambda item: int(item[0].split()[1])))
         name = Path(FIGURES_DIR) / f"trajectories-{tag}-{_safe(noise)}.png"
-        seed_text = ", ".join(str(s) for s in sorted(seeds))
+        seed_text = ", ".join(p.split()[1] for p in panels)
         shown = f"route {route} ({data.length_m:.0f} m)" + (f", camera {camera}" if camera else "")
-        plot_plan(truth_grid, out / name, paths, waypoints=data.waypoints, zoom_margin=6.0,
-                  title=f"{shown}, noise {noise}, seed {seed_text}")
-        figures.append(Figure(name, f"Estimated trajectories over the floor plan with the ground truth: {where}, noise {noise}, seed {seed_text}."))
+        plot_plans(truth_grid, out / name, panels, waypoints=data.waypoints, zoom_margin=6.0, errors=errors,
+                   title=f"{shown}, noise {noise}, seed{'s' if len(panels) > 1 else ''} {seed_text}")
+        view = plan_view(truth_grid, {k: v for p in panels.values() for k, v in p.items()}, 6.0)
+        interactive = trajectories_figure(truth_grid, view, truth_xy, dict(estimates), ates, data.waypoints,
+                                          title=f"{shown}, noise {noise}: every seed (menu: one seed)")
+        figures.append(Figure(name, f"Estimated trajectories over the floor plan with the ground truth: {where}, noise {noise}, "
+                                    f"one panel per seed ({seed_text}); ATE of each in its legend.", interactive))
 
     for column, ylabel, scale, what in (
         ("error_curve", "position error [m]", 1.0, "ATE (position error, no alignment)"),
         ("memory_curve", "resident memory [MB]", 1e-6, "Resident memory of the run's process"),
     ):
         panels: dict[str, dict[str, list[np.ndarray]]] = {}
+        by_seed: dict[str, dict[str, dict[int, np.ndarray]]] = {}
         for noise in noises:
             curves: dict[str, list[np.ndarray]] = defaultdict(list)
+            seeded: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
             for run in mine:
                 if run["noise"] == noise and run[column]:
                     curve = np.asarray(run[column], dtype=np.float64)
                     curve[:, 1] *= scale
                     curves[run["method"]].append(curve)
+                    seeded[run["method"]][run["seed"]] = curve
             panels[f"noise {noise}"] = {m: curves[m] for m in results.methods if m in curves}
+            by_seed[f"noise {noise}"] = {m: seeded[m] for m in results.methods if m in seeded}
         if any(panels.values()):
             kind = "ate" if column == "error_curve" else "memory"
             name = Path(FIGURES_DIR) / f"{kind}-{tag}.png"
             plot_curves_by_distance(panels, out / name, ylabel, title=where)
-            figures.append(Figure(name, f"{what} against distance travelled, {where}: mean over the seeds, band from the lowest to the highest run."))
+            interactive = curves_figure(by_seed, ylabel, title=f"{what}, {where}: each run")
+            figures.append(Figure(name, f"{what} against distance travelled, {where}: mean over the seeds, band from the "
+                                        "lowest to the highest run (on the page: each run's own line).", interactive))
 
     # The maps are shown over the walls the camera could see from the route, and the route.
     seen = truth_grid.cell_to_world(np.argwhere(data.observed)) if data.observed.shape == truth_grid.data.shape else np.zeros((0, 2))

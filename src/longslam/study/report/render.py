@@ -15,8 +15,9 @@ from longslam.study.database import DB_NAME
 from longslam.study.paper import CITATION
 from longslam.study.report.figures import Figure, make_figures
 from longslam.study.report.results import load_results
+from longslam.study.report.runs import RunsTable, every_run_table, runs_html, runs_markdown
 from longslam.study.report.tables import (
-    Table, _paper_columns, accuracy_table, map_table, memory_table, paper_tables, runs_table,
+    Table, _paper_columns, accuracy_table, field_table, map_table, memory_table, paper_tables, runs_table,
 )
 
 
@@ -92,10 +93,20 @@ def table_html(table: Table) -> str:
             row += f'<td rowspan="{camera_spans[i]}" class="camera">{esc(cameras[i])}</td>'
         if has_metric:
             row += f"<td class='metric'>{esc(metric)}</td>"
-        row += "".join(f"<td><strong>{esc(c.text)}</strong></td>" if c.best else f"<td>{esc(c.text)}</td>" for c in cells)
+        row += "".join(_cell_html(c) for c in cells)
         parts.append(row + "</tr>")
     parts.append("</tbody></table>")
     return "".join(parts)
+
+
+def _cell_html(cell) -> str:
+    """A cell, in bold if best, linked to the rows of its runs if it has any."""
+    text = html.escape(cell.text)
+    if cell.best:
+        text = f"<strong>{text}</strong>"
+    if cell.link:
+        text = f'<a class="cell" href="{html.escape(cell.link)}" title="the runs of this cell">{text}</a>'
+    return f"<td>{text}</td>"
 
 
 CSS = """
@@ -108,6 +119,10 @@ table.results th.method, table.results td.metric, table.results td.camera { text
 table.results thead th { background: #eee; text-align: center; }
 figure { margin: 1em 0 2em; } figure img { max-width: min(100%, 1100px); border: 1px solid #ddd; }
 figcaption { font-size: 13px; color: #444; }
+table.results a.cell { color: inherit; text-decoration: none; border-bottom: 1px dotted #888; }
+table.runs td.id, table.runs td.status { text-align: left; } table.runs td.status.failed { color: #b00; }
+table.runs td.files { text-align: left; white-space: nowrap; } table.runs tr:target { background: #ffd; }
+div.plot { margin: 1em 0 .3em; max-width: 1100px; }
 pre { background: #f6f6f6; padding: .6em; overflow-x: auto; font-size: 12px; }
 """
 
@@ -121,6 +136,7 @@ class Report:
     failures: list[str]
     appendix: list[Table]
     notes: list[str]
+    runs: RunsTable | None = None  # every run, one row each
 
 
 def _world_shown(world: str) -> str:
@@ -152,7 +168,7 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
         (f"Cameras: {'; '.join(f'{n}: {_camera_shown(c)}' for n, c in named.items())}. {counts}" if named
          else f"Camera {_camera_shown(config.get('camera', {}))}. {counts}"),
     ]
-    tables = [accuracy_table(results), memory_table(results)]
+    tables = [accuracy_table(results), field_table(results), memory_table(results)]
     quality = map_table(results)
     if quality is not None:
         tables.append(quality)
@@ -170,12 +186,15 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
     notes += [f"Left out: {m}." for m in missing]
     if left_out is not None:
         left_out.extend(missing)
-    return Report(f"longslam study report: {name}", intro, tables, figs, failures, appendix, notes)
+    return Report(f"longslam study report: {name}", intro, tables, figs, failures, appendix, notes,
+                  every_run_table(results))
 
 
 def render_markdown(report: Report) -> str:
     parts = [f"# {report.title}", "", *report.intro, ""]
     parts += [table_markdown(t) for t in report.tables]
+    if report.runs is not None:
+        parts.append(runs_markdown(report.runs))
     parts += [f"- {n}" for n in report.notes] + [""] if report.notes else []
     if report.failures:
         parts += ["### Failed runs", ""] + [f"- `{f}`" for f in report.failures] + [""]
@@ -200,13 +219,28 @@ def render_html(report: Report, out: Path) -> str:
     ]
     parts += [f"<p>{esc(p)}</p>" for p in report.intro]
     parts += ["<h2>Tables</h2>"] + [table_html(t) for t in report.tables]
+    if report.runs is not None:
+        parts.append(runs_html(report.runs))
     if report.notes:
         parts.append("<ul>" + "".join(f"<li>{esc(n)}</li>" for n in report.notes) + "</ul>")
     if report.failures:
         parts.append("<h3>Failed runs</h3><pre>" + esc("\n".join(report.failures)) + "</pre>")
     if report.figures:
         parts.append("<h2>Figures</h2>")
-        for fig in report.figures:
+        if any(fig.interactive is not None for fig in report.figures):
+            from longslam.study.report.interactive import plotly_js
+
+            # plotly.js once, inline: the page works offline and from a file.
+            parts.append(f'<script type="text/javascript">{plotly_js()}</script>')
+        for i, fig in enumerate(report.figures):
+            if fig.interactive is not None:
+                from longslam.study.report.interactive import figure_div
+
+                parts.append(f'<figure class="interactive"><div class="plot">{figure_div(fig.interactive, f"figure-{i}")}</div>'
+                             f"<figcaption>{esc(fig.caption)} Interactive: zoom, pan, hover; click a legend entry "
+                             "to hide a line; where there are several seeds, the menu shows one or all."
+                             "</figcaption></figure>")
+                continue
             data = base64.b64encode((out / fig.path).read_bytes()).decode("ascii")
             parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{esc(fig.caption)}">'
                          f"<figcaption>{esc(fig.caption)}</figcaption></figure>")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -53,6 +54,13 @@ class StudyResults:
 def on_camera(run: dict[str, Any], camera: str | None) -> bool:
     """Whether a run is one of `camera`'s (every run is, for camera None)."""
     return camera is None or run.get("camera_name", DEFAULT_CAMERA) == camera
+
+
+def runs_anchor(route: str, noise: str, method: str, camera: str | None = None) -> str:
+    """The HTML id of a (route, camera, noise, method) group's first row in the table of every run:
+    'runs/' and the runs' key without the seed (an id may hold anything but white space)."""
+    parts = [route] + ([camera] if camera else []) + [noise, method]
+    return "runs/" + "/".join(re.sub(r"\s+", "_", p) for p in parts)
 
 
 def _ordered(first: list[str], seen: list[str]) -> list[str]:

@@ -12,7 +12,7 @@ from longslam.run.speed import format_real_time_factor
 from longslam.study.paper import (
     ACCURACY_METRICS, CITATION, PAPER_METHODS, PAPER_NOISE, PAPER_ROUTES, paper_accuracy, paper_memory_gb, paper_route,
 )
-from longslam.study.report.results import StudyResults, on_camera
+from longslam.study.report.results import StudyResults, on_camera, runs_anchor
 
 METRIC_LABELS = {"e_trans": "E_trans", "e_rot": "E_rot [deg/m]", "ate": "ATE [m]"}
 
@@ -29,16 +29,28 @@ def format_number(value: float, significant: int = 3) -> str:
     return f"{value:.{decimals}f}"
 
 
+def _decimals(value: float, significant: int = 3) -> int:
+    """Decimal places that show `value` with `significant` digits (0 for whole numbers above that)."""
+    if value == 0 or not math.isfinite(value):
+        return 0
+    return max(0, significant - 1 - math.floor(math.log10(abs(value))))
+
+
 def format_mean_std(values: list[float]) -> str:
-    """'mean ± std' (sample std over the runs): three significant digits on the mean, two on the std;
-    the mean alone for one value, '–' for none."""
+    """'mean ± std (n=N)' (sample std over the N runs): three significant digits on the mean and the
+    std to the same decimal place, so the two read alike ('1.00 ± 0.00', '0.00943 ± 0.00010');
+    'mean (n=1)' for one value, '–' for none."""
     values = [v for v in values if v is not None and math.isfinite(v)]
     if not values:
         return "–"
     mean = float(np.mean(values))
+    n = f"(n={len(values)})"
     if len(values) == 1:
-        return format_number(mean)
-    return f"{format_number(mean)} ± {format_number(float(np.std(values, ddof=1)), 2)}"
+        return f"{format_number(mean)} {n}"
+    std = float(np.std(values, ddof=1))
+    # A mean of exactly 0 (every run 0 but one) has no digits of its own: the std's decide.
+    places = _decimals(mean) if mean != 0 else _decimals(std, 2)
+    return f"{mean:.{places}f} ± {std:.{places}f} {n}"
 
 
 @dataclass
@@ -46,6 +58,7 @@ class Cell:
     text: str
     value: float | None = None  # the mean, for choosing the best
     best: bool = False
+    link: str | None = None  # in the HTML page: the rows of the runs behind the cell ("#runs-...")
 
 
 @dataclass
@@ -91,7 +104,8 @@ def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1
     cells = []
     for route, noise in results.columns:
         values = [scale * v for v in results.values(method, route, noise, column, camera)]
-        cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
+        cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None,
+                          link=f"#{runs_anchor(route, noise, method, camera)}" if values else None))
     return cells
 
 
@@ -122,7 +136,8 @@ def _comparison_table(results: StudyResults, title: str, caption: str, metrics: 
         for key, name in PAPER_METHODS.items():
             for column, label, _ in metrics:
                 cells = _paper_cells(columns, lambda route, noise: numbers.get((key, route, noise, column)))
-                table.add_row((f"{name} (paper)", label), cells)
+                if any(c.value is not None for c in cells):  # the paper has no APE or RPE
+                    table.add_row((f"{name} (paper)", label), cells)
     table.mark_best()
     return table
 
@@ -135,19 +150,44 @@ def _has_runs(results: StudyResults, method: str, camera: str | None) -> bool:
 def accuracy_table(results: StudyResults) -> Table:
     return _comparison_table(
         results, "Table 1: accuracy",
-        "E_trans (unitless), E_rot (deg/m) and ATE (m, no alignment): mean ± std over the seeds; "
+        "E_trans (unitless), E_rot (deg/m) and ATE (m, no alignment): mean ± std over the n seeds; "
         "lower is better, the best of each column in bold.",
         [(metric, METRIC_LABELS[metric], 1.0) for metric in ACCURACY_METRICS], paper_accuracy,
     )
 
 
+FIELD_METRICS = (("ape_rmse", "APE RMSE [m]"), ("rpe_trans", "RPE trans RMSE [m]"), ("rpe_rot", "RPE rot RMSE [deg]"))
+
+
+def field_table(results: StudyResults) -> Table:
+    """The field's metrics (as evo computes them) of each method: the paper has no such numbers."""
+    align = results.config.get("align", "none")
+    return _comparison_table(
+        results, "Table 1b: APE and RPE",
+        f"The field's standard metrics, as evo computes them (alignment: {align}): APE RMSE (m) of the "
+        "positions; RPE RMSE over consecutive 1 m segments of ground-truth path, translation (m) and "
+        "rotation (deg); mean ± std over the n seeds; lower is better, the best of each column in bold.",
+        [(metric, label, 1.0) for metric, label in FIELD_METRICS], lambda: {},
+    )
+
+
+def _paper_memory_mb() -> dict:
+    """The paper's Table 2 (GB) in MB, the one memory unit of the report and the CLI."""
+    from longslam.study.paper import PaperValue
+
+    return {(*key, "peak_rss_bytes"): PaperValue(1000 * value.mean, None, format_number(1000 * value.mean))
+            for key, value in paper_memory_gb().items()}
+
+
 def memory_table(results: StudyResults) -> Table:
     return _comparison_table(
         results, "Table 2: peak memory",
-        "Peak resident memory (GB) of the process that ran the method, measured from outside it; "
-        "mean ± std over the seeds; lower is better, the best of each column in bold.",
-        [("peak_rss_bytes", "", 1e-9)],
-        lambda: {(*key, "peak_rss_bytes"): value for key, value in paper_memory_gb().items()},
+        "Peak resident memory (MB, 10^6 bytes) of the run: the highest VmHWM of the run's own process, "
+        "which runs nothing but that run, read by longslam's harness inside that process once the "
+        "method has finished and its files are written (so Python, the frame reader and writing the "
+        "files are in it; the scoring after is not); mean ± std over the n seeds; lower is better, the best of each column in bold. "
+        "The paper's rows are its Table 2 (GB) in MB.",
+        [("peak_rss_bytes", "", 1e-6)], _paper_memory_mb,
     )
 
 
@@ -185,7 +225,8 @@ def map_table(results: StudyResults) -> Table | None:
                     values = [v for r in results.ok
                               if (r["method"], r["route"], r["noise"]) == (method, route, noise) and on_camera(r, camera)
                               and (v := r.get(column)) is not None]  # studies recorded before a column have none
-                    cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None))
+                    cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None,
+                                      link=f"#{runs_anchor(route, noise, method, camera)}" if values else None))
                 if label != "precision" and label != "recall" and all(c.value is None for c in cells):
                     continue
                 table.add_row((method, label), cells, camera)
@@ -232,10 +273,13 @@ def paper_tables() -> list[Table]:
             accuracy.row_labels.append((name, METRIC_LABELS[metric]))
             accuracy.rows.append(cells)
     accuracy.mark_best()
-    memory = Table("The paper's Table 2 as published", f"{CITATION}, Table 2: memory (GB).", columns, [])
-    mem = paper_memory_gb()
+    memory = Table("The paper's Table 2 as published",
+                   f"{CITATION}, Table 2: memory, in MB (the paper gives GB) like every memory figure of this report.",
+                   columns, [])
+    mem = _paper_memory_mb()
     for key, name in PAPER_METHODS.items():
         memory.row_labels.append((name, ""))
-        memory.rows.append([Cell(mem[(key, route, noise)].text, mem[(key, route, noise)].mean) for route, noise in columns])
+        memory.rows.append([Cell(mem[(key, route, noise, "peak_rss_bytes")].text, mem[(key, route, noise, "peak_rss_bytes")].mean)
+                            for route, noise in columns])
     memory.mark_best()
     return [accuracy, memory]
