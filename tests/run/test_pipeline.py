@@ -37,6 +37,8 @@ def test_odometry_method_returns_the_odometry(sequence, tmp_path):
     assert stats["peak_rss_bytes"] >= stats["baseline_rss_bytes"] > 10_000_000
     assert abs(stats["sequence_duration_s"] - N * 0.1) < 1e-6
     assert figures["real_time_factor"] > 1.0
+    tenths = stats["step_time_mean_s_by_tenth"]  # the per-frame cost along the route, in ten parts
+    assert len(tenths) == 10 and np.mean(tenths) == pytest.approx(stats["step_time_mean_s"], rel=0.2)
     assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no temporary folder left
 
 

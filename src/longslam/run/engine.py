@@ -142,6 +142,8 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
         "step_time_mean_s": float(steps.mean()),
         "step_time_p95_s": float(np.percentile(steps, 95)),
         "step_time_max_s": float(steps.max()),
+        # The mean step over each tenth of the frames: whether the per-frame cost grows with the route.
+        "step_time_mean_s_by_tenth": [float(part.mean()) for part in np.array_split(steps, 10) if len(part)],
         # Simulated seconds per second of the method's own processing (reading frames excluded).
         "real_time_factor": duration / method_time if method_time > 0 else float("inf"),
         "peak_rss_bytes": peak_rss_bytes(),

@@ -88,3 +88,46 @@ def test_a_part_nothing_anchors_is_damped_not_fatal():
     a, b = (theirs.atPose2(gtsam.symbol("x", k)) for k in (41, last))
     theirs_shape = relative(np.array([a.x(), a.y(), a.theta()]), np.array([b.x(), b.y(), b.theta()]))
     assert np.linalg.norm(relative(out[41], out[last])[:2] - theirs_shape[:2]) < 0.02
+
+
+def _long_smoother(window: int, frames: int = 400) -> tuple[FullSmoother, np.ndarray]:
+    """`_smoother`'s problem over more frames, with loops that cross windows, solved in windows
+    of at most `window` frames (0: whole)."""
+    smoother, truth = _smoother(frames)
+    smoother.config = SmootherConfig(relative_tolerance=1e-9, iterations=100, window=window)
+    for i, j in ((100, 300), (150, 380), (20, 60)):
+        smoother.add_loop(i, j, relative(truth[i], truth[j]), np.diag([100.0, 100.0, 400.0]))
+    return smoother, truth
+
+
+def test_a_route_longer_than_the_window_is_solved_window_by_window_close_to_whole():
+    whole, truth = _long_smoother(window=0)
+    windowed, _ = _long_smoother(window=100)
+    sizes = []
+    build = windowed.build_graph
+    windowed.build_graph = lambda *a, **k: (lambda g: (sizes.append(len(g.dims)), g)[1])(build(*a, **k))
+    full, parts = whole.solve(), windowed.solve()
+    assert len(sizes) == 5 and max(sizes) <= 100 + 100 // 10 + 2  # poses and bias blocks of one window
+    error = lambda xy: np.linalg.norm(xy[:, :2] - truth[:, :2], axis=1)  # noqa: E731
+    odometry = np.array(whole.initial)
+    assert error(full).mean() < 0.2 * error(odometry).mean()
+    assert error(parts).mean() < 0.2 * error(odometry).mean()
+    assert np.abs(parts[:, :2] - full[:, :2]).max() < 0.05, np.abs(parts[:, :2] - full[:, :2]).max()
+    # The windows meet: no step at a window's end is larger than the steps around it.
+    steps = np.linalg.norm(np.diff(parts[:, :2], axis=0), axis=1)
+    assert np.abs(steps - 0.15).max() < 0.02
+
+
+def test_a_route_within_the_window_is_solved_whole():
+    within, _ = _long_smoother(window=400)
+    whole, _ = _long_smoother(window=0)
+    assert np.array_equal(within.solve(), whole.solve())
+
+
+def test_a_window_too_small_for_the_bias_blocks_is_refused():
+    import pytest
+
+    from longslam.errors import InputError
+
+    with pytest.raises(InputError, match="smoother.window"):
+        SmootherConfig(window=5)

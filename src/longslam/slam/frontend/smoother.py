@@ -15,6 +15,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.slam.frontend.filter import MotionNoise
+from longslam.geometry.planar import compose_xyyaw, relative_xyyaw
 from longslam.slam.graph.factors import FactorGraph, WheelStep
 
 
@@ -43,10 +44,18 @@ class SmootherConfig:
     # 1e-5 took 27 iterations for ATE 0.567 m; 3e-4 takes 5 for 0.580 m. Without bias states
     # 0.590 m.
     relative_tolerance: float = 3e-4
+    # Most frames in one solve (0: no limit). A longer route is solved window by window, so that
+    # the finish's memory stays that of one window: each window alone, then the chain of the
+    # windows' ends with the loop constraints, then each window with its ends held on the chain.
+    # 8,000 is more than paper-1km's 6,912 frames: the paper's routes are solved whole, as before.
+    window: int = 8000
 
     def __post_init__(self) -> None:
         if self.optimizer not in self.CHOICES["optimizer"]:
             raise InputError(f"front end: smoother.optimizer must be lm or gn, got {self.optimizer!r}")
+        if self.window != 0 and self.window < 2 * self.bias_block:
+            raise InputError(f"front end: smoother.window must be 0 (no limit) or at least twice bias_block "
+                             f"({2 * self.bias_block} frames), got {self.window}")
 
 
 @dataclass
@@ -90,21 +99,114 @@ class FullSmoother:
         n = len(self.initial)
         if n == 0:
             return np.zeros((0, 3))
-        out, self.iterations = self.build_graph().solve(
-            n, iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
-            damping=self.config.optimizer != "gn")
+        window = self.config.window
+        if window == 0 or n <= window:
+            out, self.iterations = self._solve(self.build_graph(), 0, n - 1)
+            return out
+        return self._solve_in_windows(window)
+
+    def _solve(self, graph: FactorGraph, first: int, last: int) -> tuple[np.ndarray, int]:
+        return graph.solve(range(first, last + 1), iterations=self.config.iterations,
+                           relative_tolerance=self.config.relative_tolerance, damping=self.config.optimizer != "gn")
+
+    def _solve_in_windows(self, window: int) -> np.ndarray:
+        """Window by window, so that no solve holds more than `window` frames:
+
+        1. each window alone (its frames' factors and the loops inside it), from its start's online
+           pose;
+        2. the skeleton (`_skeleton`): the windows' ends and every loop constraint's two frames,
+           chained by the first solves' steps between them, with the loop constraints;
+        3. each window again, from its first solve moved onto the skeleton, its two ends held at
+           the skeleton's poses, and each loop constraint with one frame in it tying that frame to
+           the other frame's skeleton pose (held there), with the constraint's own information."""
+        n = len(self.initial)
+        ends = list(range(0, n - 1, window - 1)) + [n - 1]
+        first_pass = np.empty((n, 3))
+        self.iterations = 0
+        for a, b in zip(ends[:-1], ends[1:]):
+            first_pass[a:b + 1], taken = self._solve(self.build_graph(a, b), a, b)
+            self.iterations = max(self.iterations, taken)
+        skeleton = self._skeleton(ends, first_pass)
+        out = np.empty((n, 3))
+        for a, b in zip(ends[:-1], ends[1:]):
+            moved = np.array([compose_xyyaw(skeleton[a], relative_xyyaw(first_pass[a], p)) for p in first_pass[a:b + 1]])
+            graph = self.build_graph(a, b, fixed={a: skeleton[a], b: skeleton[b]}, initial=moved)
+            held: set[int] = set()
+            for i, j, delta, info in self.loops:
+                if (a <= i <= b) != (a <= j <= b):  # the frame outside is held at its skeleton pose
+                    outside = j if a <= i <= b else i
+                    if outside not in held:
+                        held.add(outside)
+                        graph.add_pose(outside, skeleton[outside])
+                        graph.prior_pose(outside, skeleton[outside], np.array([1e-4, 1e-4, 1e-5]))
+                    graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
+            out[a:b + 1], taken = self._solve(graph, a, b)
+            self.iterations = max(self.iterations, taken)
         return out
 
-    def build_graph(self) -> FactorGraph:
-        """The factor graph over every frame, with its initial values."""
+    def _skeleton(self, ends: list[int], first_pass: np.ndarray) -> dict[int, np.ndarray]:
+        """Poses of the windows' ends and of every loop constraint's frames: a chain of the first
+        pass's steps between consecutive ones (each within one window; sigmas from
+        `_chain_sigmas`), and the loop constraints between their own frames."""
+        nodes = sorted(set(ends) | {f for i, j, _, _ in self.loops for f in (i, j)})
+        node_of = {k: node for node, k in enumerate(nodes)}
+        graph = FactorGraph()
+        for node, k in enumerate(nodes):
+            graph.add_pose(node, first_pass[k])
+        graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
+        for node, (p, q) in enumerate(zip(nodes[:-1], nodes[1:])):
+            graph.between(node, node + 1, relative_xyyaw(first_pass[p], first_pass[q]), sigmas=self._chain_sigmas(p, q))
+        for i, j, delta, info in self.loops:
+            graph.between(node_of[i], node_of[j], delta, information=info, ridge=INFORMATION_RIDGE)
+        poses, _ = graph.solve(range(len(nodes)), iterations=self.config.iterations,
+                               relative_tolerance=self.config.relative_tolerance, damping=True)
+        return {k: poses[node] for node, k in enumerate(nodes)}
+
+    def _chain_sigmas(self, a: int, b: int) -> np.ndarray:
+        """Sigmas of a window's step from frame a to frame b: each frame's step sigmas (wheel and
+        visual combined as independent measurements, or the constant-velocity ones), their
+        variances summed, a heading variance turned into sideways variance over the distance still
+        to go, and the wheel biases' prior uncertainty over the window. An approximation of the
+        window's marginal, on the loose side: only the chain of the windows' ends uses it."""
+        nz = self.noise
+        variance = np.zeros(3)
+        for k in range(a + 1, b + 1):
+            rec = self.records[k]
+            sources = []
+            if rec.wheel_sigmas is not None:
+                sources.append(np.asarray(rec.wheel_sigmas, dtype=np.float64) ** 2)
+            elif rec.cv_step is not None:
+                sources.append(np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]) ** 2)
+            if rec.visual is not None:
+                sources.append(np.asarray(rec.visual[1], dtype=np.float64) ** 2)
+            if not sources:
+                continue
+            step = 1.0 / np.sum([1.0 / np.maximum(v, 1e-18) for v in sources], axis=0)
+            remaining = float(np.hypot(*(self.initial[b][:2] - self.initial[k][:2])))
+            variance += step + np.array([0.0, step[2] * remaining ** 2, 0.0])
+        # A window alone may not see its wheel biases (nothing but the loops ties its heading):
+        # its step carries their uncertainty, once per frame, fully correlated.
+        frames, length = b - a, float(np.hypot(*(self.initial[b][:2] - self.initial[a][:2])))
+        yaw = frames * nz.bias_yaw_init
+        variance += np.array([(frames * nz.bias_forward_init) ** 2, (yaw * length / 2.0) ** 2, yaw ** 2])
+        return np.sqrt(np.maximum(variance, 1e-12))
+
+    def build_graph(self, first: int = 0, last: int | None = None, fixed: dict[int, np.ndarray] | None = None,
+                    initial: np.ndarray | None = None) -> FactorGraph:
+        """The factor graph over frames `first`..`last` (default every frame), from the online
+        poses (or `initial`, one per frame of the range): held at the start's online pose, or at
+        the `fixed` poses (a window's ends)."""
         n = len(self.initial)
+        last = n - 1 if last is None else last
         nz = self.noise
         graph = FactorGraph()
-        for k, p in enumerate(self.initial):
-            graph.add_pose(k, p)
-        graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
+        for k in range(first, last + 1):
+            start = self.initial[k] if initial is None else initial[k - first]
+            graph.add_pose(k, start if fixed is None or k not in fixed else fixed[k])
+        for k, pose in (fixed or {first: self.initial[first]}).items():
+            graph.prior_pose(k, pose, np.array([1e-4, 1e-4, 1e-5]))
         blocks_used: set[int] = set()
-        for k in range(1, n):
+        for k in range(first + 1, last + 1):
             rec = self.records[k]
             if rec.wheel is not None:
                 sig = np.array(rec.wheel_sigmas, dtype=np.float64)
@@ -124,19 +226,22 @@ class FullSmoother:
             if rec.visual is not None:
                 step, sigmas = rec.visual
                 graph.between(k - 1, k, step, sigmas=sigmas)
-            if rec.scan is not None:
+            if rec.scan is not None and rec.scan[0] >= first:
                 anchor, meas, info = rec.scan
                 graph.between(anchor, k, meas, information=info, ridge=INFORMATION_RIDGE)
         if blocks_used:
             blocks = sorted(blocks_used)
-            last = np.zeros(2)
+            value = np.zeros(2)
             for b in range(blocks[0], blocks[-1] + 1):
-                last = self.bias_init.get(b, last)
-                graph.add_bias(b, last)
-            graph.prior_bias(blocks[0], np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
+                value = self.bias_init.get(b, value)
+                graph.add_bias(b, value)
+            # The route's first block starts from no bias; a later window's, from the online filter's.
+            start = np.zeros(2) if first == 0 else self.bias_init.get(blocks[0], np.zeros(2))
+            graph.prior_bias(blocks[0], start, np.array([nz.bias_forward_init, nz.bias_yaw_init]))
             walk = np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
             for b in range(blocks[0], blocks[-1]):
                 graph.bias_walk(b, b + 1, walk)
         for i, j, delta, info in self.loops:
-            graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
+            if first <= i <= last and first <= j <= last:
+                graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
         return graph

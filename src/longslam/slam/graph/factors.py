@@ -107,13 +107,14 @@ class FactorGraph:
                                           lambda this, v, h, step=step: wheel_error(step, this, v, h)))
 
     # --- solving
-    def solve(self, poses: int, *, iterations: int, relative_tolerance: float,
+    def solve(self, poses: int | range, *, iterations: int, relative_tolerance: float,
               damping: bool = True) -> tuple[np.ndarray, int]:
-        """Poses 0..`poses`-1 optimised, (poses, 3), and the iterations taken."""
+        """Poses 0..`poses`-1 (or the keys of a range) optimised, (poses, 3), and the iterations taken."""
         result, taken = levenberg_marquardt(self.graph, self.values, self.dims, iterations=iterations,
                                             relative_tolerance=relative_tolerance, damping=damping)
-        out = np.empty((poses, 3))
-        for k in range(poses):
+        keys = range(poses) if isinstance(poses, int) else poses
+        out = np.empty((len(keys), 3))
+        for row, k in enumerate(keys):
             p = result.atPose2(X(k))
-            out[k] = (p.x(), p.y(), p.theta())
+            out[row] = (p.x(), p.y(), p.theta())
         return out, taken
