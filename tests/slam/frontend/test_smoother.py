@@ -100,19 +100,21 @@ def _long_smoother(window: int, frames: int = 400) -> tuple[FullSmoother, np.nda
     return smoother, truth
 
 
-def test_a_route_longer_than_the_window_is_solved_window_by_window_close_to_whole():
+def test_a_route_longer_than_the_window_is_solved_window_by_window():
+    # A hard case for windows: the online poses are the raw biased wheels (the front end's are
+    # already corrected by its filter), and only the loops across windows show the heading bias.
     whole, truth = _long_smoother(window=0)
     windowed, _ = _long_smoother(window=100)
     sizes = []
     build = windowed.build_graph
     windowed.build_graph = lambda *a, **k: (lambda g: (sizes.append(len(g.dims)), g)[1])(build(*a, **k))
     full, parts = whole.solve(), windowed.solve()
-    assert len(sizes) == 5 and max(sizes) <= 100 + 100 // 10 + 2  # poses and bias blocks of one window
+    # Two solves of each of the 5 windows, none over one window's poses and bias blocks.
+    assert len(sizes) == 10 and max(sizes) <= 100 + 100 // 10 + 2
     error = lambda xy: np.linalg.norm(xy[:, :2] - truth[:, :2], axis=1)  # noqa: E731
     odometry = np.array(whole.initial)
-    assert error(full).mean() < 0.2 * error(odometry).mean()
-    assert error(parts).mean() < 0.2 * error(odometry).mean()
-    assert np.abs(parts[:, :2] - full[:, :2]).max() < 0.05, np.abs(parts[:, :2] - full[:, :2]).max()
+    assert error(full).mean() < 0.02 * error(odometry).mean()
+    assert error(parts).mean() < 0.1 * error(odometry).mean(), (error(parts).mean(), error(full).mean())
     # The windows meet: no step at a window's end is larger than the steps around it.
     steps = np.linalg.norm(np.diff(parts[:, :2], axis=0), axis=1)
     assert np.abs(steps - 0.15).max() < 0.02
