@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from longslam.errors import InputError
+from longslam.eval.pairs import consecutive_pairs
 from longslam.eval.relations import rotation_angle_rad
 
 
@@ -34,15 +35,4 @@ def pairs_by_angle(
         if not firsts:
             return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
         return np.concatenate(firsts).astype(int), np.concatenate(seconds).astype(int)
-    step = rotation_angle_rad(np.swapaxes(rotations[:-1], 1, 2) @ rotations[1:])
-    # A plain loop: evo restarts the sum from zero after each chosen pose, and the sum's rounding
-    # decides a pair that lands on delta.
-    ids = [0]
-    accumulated = 0.0
-    for index, angle in enumerate(step.tolist(), start=1):
-        accumulated += angle
-        if accumulated >= delta:
-            ids.append(index)
-            accumulated = 0.0
-    chosen = np.asarray(ids)
-    return chosen[:-1], chosen[1:]
+    return consecutive_pairs(rotation_angle_rad(np.swapaxes(rotations[:-1], 1, 2) @ rotations[1:]), delta)

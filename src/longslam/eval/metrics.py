@@ -20,6 +20,7 @@ import numpy as np
 from longslam.errors import InputError, TrajectoryError, UnknownNameError
 from longslam.eval.align import align_trajectory
 from longslam.eval.angle_pairs import pairs_by_angle
+from longslam.eval.pairs import consecutive_pairs
 from longslam.eval.sync import require_same_length
 from longslam.geometry import invert
 from longslam.trajectory import Trajectory
@@ -216,18 +217,7 @@ def pairs_by_path(
     # squares in another order and differs in the last bit for about 1 step in 10. A stacked
     # matmul goes through the same dot kernel.
     step = np.sqrt((displacement[:, None, :] @ displacement[:, :, None])[:, 0, 0])
-    # A plain loop on purpose: evo sums the steps one by one from zero after each chosen pose, and
-    # a constant-speed ground truth (steps of 0.1 m: ten of them sum to 0.9999999999999999) lands
-    # on delta exactly, where any other summation order would pick different poses.
-    ids = [0]
-    path = 0.0
-    for index, length in enumerate(step.tolist(), start=1):
-        path += length
-        if path >= delta:
-            ids.append(index)
-            path = 0.0
-    chosen = np.asarray(ids)
-    return chosen[:-1], chosen[1:]
+    return consecutive_pairs(step, delta)
 
 
 def _all_pairs_by_path(distances: np.ndarray, delta: float, tol: float) -> tuple[np.ndarray, np.ndarray]:
