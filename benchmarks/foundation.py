@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.eval.metrics import evaluate
+from longslam.eval.evaluation import evaluate
 from longslam.simulate import rendered_sequence
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route

@@ -13,7 +13,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from longslam.cli import main
-from longslam.eval.metrics import evaluate
+from longslam.eval.evaluation import evaluate
 from longslam.geometry import planar_poses
 from longslam.trajectory import Trajectory
 

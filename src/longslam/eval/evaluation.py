@@ -30,7 +30,7 @@ DEFAULT_T_MAX_DIFF = 0.01  # seconds, evo's --t_max_diff default
 
 @dataclass(frozen=True)
 class Evaluation:
-    scores: dict[str, Any]  # flat and JSON-ready: see `longslam.eval.metrics.evaluate`
+    scores: dict[str, Any]  # flat and JSON-ready: see `evaluate`
     reference: Trajectory  # associated
     estimate: Trajectory  # associated, as given
     aligned: Trajectory  # the estimate after the alignment (the estimate itself for 'none')
@@ -65,7 +65,7 @@ def evaluate_full(
     t_max_diff: float | None = None,
     t_offset: float = 0.0,
 ) -> Evaluation:
-    """`longslam.eval.metrics.evaluate` with the arrays behind its scores."""
+    """`evaluate` with the arrays behind its scores."""
     if t_max_diff is not None or t_offset != 0.0:
         reference, estimate = associate(reference, estimate, DEFAULT_T_MAX_DIFF if t_max_diff is None else t_max_diff,
                                         t_offset)
@@ -133,3 +133,48 @@ def evaluate_full(
     }
     return Evaluation(scores, reference, estimate, aligned, ape_errors, rpe_values, rpe_ids,
                       None if mode == "none" else _sim3(rotation, translation, scale))
+
+
+def evaluate(
+    reference: Trajectory,
+    estimate: Trajectory,
+    align: str | bool = "none",
+    delta: float = 1.0,
+    min_step: float = MIN_STEP,
+    *,
+    delta_unit: str = "m",
+    all_pairs: bool = False,
+    delta_tol: float = 0.1,
+    pairs_from_reference: bool = True,
+    pose_relation: str = "trans_part",
+    correct_scale: bool = False,
+    align_origin: bool = False,
+    n_to_align: int = -1,
+    t_max_diff: float | None = None,
+    t_offset: float = 0.0,
+) -> dict:
+    """All metrics of one run as a flat, JSON-ready dict (no NaN); units in `longslam.eval.units`.
+
+    The options are `longslam evaluate`'s, which are evo_ape's / evo_rpe's (see
+    `longslam.eval.evaluation`): `align` is a mode of `longslam.eval.align.ALIGN_MODES` or True
+    (se3); `correct_scale`, `align_origin`, `n_to_align` as evo's; `pose_relation` one of
+    `longslam.eval.relations.RPE_RELATIONS`; RPE pairs `delta` apart in `delta_unit` (f frames,
+    m metres of path, d / r degrees / radians of rotation), consecutive or `all_pairs` (within
+    `delta_tol` * delta), chosen on the reference unless `pairs_from_reference` is False. Given
+    `t_max_diff` or `t_offset`, poses are first matched by timestamp (evo's defaults 0.01 s, 0 s);
+    otherwise they must be associated already.
+
+    The paper's ate, e_trans, e_rot never use alignment nor the pose relation; e_trans and e_rot
+    are None when no ground-truth step moves `min_step` (every step skipped). ape_* (rmse, mean,
+    median, std, min, max) and rpe_* are statistics under the pose relation (APE takes trans_part
+    for the RPE-only point_distance_error_ratio); rpe_trans (m) and rpe_rot (deg) are always the
+    RMSEs of the translation part and the rotation angle over the same pairs. The rpe_ figures
+    are None when no pair is found (a path shorter than delta). path_length is the ground
+    truth's over the associated poses.
+    """
+    return evaluate_full(
+        reference, estimate, align, delta, min_step, delta_unit=delta_unit, all_pairs=all_pairs,
+        delta_tol=delta_tol, pairs_from_reference=pairs_from_reference, pose_relation=pose_relation,
+        correct_scale=correct_scale, align_origin=align_origin, n_to_align=n_to_align, t_max_diff=t_max_diff,
+        t_offset=t_offset,
+    ).scores

@@ -49,7 +49,7 @@ def score(
     by_index: bool = False, what: str = "the estimate", min_step: float = MIN_STEP, offset: float = 0.0,
     **options: Any,
 ) -> dict[str, Any]:
-    """The paper's metrics and the field's (see `eval.metrics.evaluate`) of `estimate` against
+    """The paper's metrics and the field's (see `eval.evaluation.evaluate`) of `estimate` against
     `truth`, poses matched by timestamp (`max_diff` and `offset` in seconds, evo's --t_max_diff
     and --t_offset) or by index. A metric that overflowed is an error: it measures nothing, and
     JSON could not hold it."""

@@ -6,7 +6,7 @@ import pytest
 from longslam.settings import from_mapping
 
 from longslam.errors import InputError
-from longslam.eval.metrics import evaluate
+from longslam.eval.evaluation import evaluate
 from longslam.frame import Frame, Intrinsics
 from longslam.geometry import base_to_camera, planar_from_camera_poses
 from longslam.geometry import compose_xyyaw as compose

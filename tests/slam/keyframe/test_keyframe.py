@@ -5,7 +5,7 @@ import pytest
 from scipy import ndimage
 
 from longslam.errors import InputError
-from longslam.eval.metrics import evaluate
+from longslam.eval.evaluation import evaluate
 from longslam.frame import Frame
 from longslam.gridmap import OCCUPIED
 from longslam.io.sequence import SequenceReader
