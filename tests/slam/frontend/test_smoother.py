@@ -1,5 +1,7 @@
 """The front end's batch smoother: our Levenberg-Marquardt loop against GTSAM's own optimizer."""
 
+from dataclasses import replace
+
 import gtsam
 import numpy as np
 
@@ -58,11 +60,11 @@ def test_a_part_nothing_anchors_is_damped_not_fatal():
     # Newton's system is singular (GTSAM raises IndeterminateLinearSystemException); damped
     # steps solve it, as GTSAM's Levenberg-Marquardt would.
     smoother, truth = _smoother()
-    smoother.records[41].wheel = None
+    smoother.records[41] = replace(smoother.records[41], wheel=None)
     smoother.loops.clear()
     for k, rec in enumerate(smoother.records):
         if rec.scan is not None and rec.scan[0] <= 40 < k:
-            rec.scan = None
+            smoother.records[k] = replace(rec, scan=None)
     built = smoother.build_graph()
     graph, values = built.graph, built.values
     try:
@@ -133,3 +135,31 @@ def test_a_window_too_small_for_the_bias_blocks_is_refused():
 
     with pytest.raises(InputError, match="smoother.window"):
         SmootherConfig(window=5)
+
+
+def test_the_frame_store_gives_back_what_it_was_given_in_a_fraction_of_the_objects_memory():
+    from longslam.slam.frontend.frame_store import CHUNK, FrameRecord, FrameStore
+
+    store = FrameStore()
+    rng = np.random.default_rng(0)
+    given = []
+    for k in range(CHUNK + 5):  # across a chunk's end
+        record = FrameRecord(
+            WheelStep(*rng.normal(size=3), bool(k % 2)) if k % 3 else None,
+            rng.normal(size=3) if k % 3 else None, rng.normal(size=3) if k % 3 == 0 else None,
+            (k - 1, rng.normal(size=3), rng.normal(size=(3, 3))) if k % 4 else None,
+            (rng.normal(size=3), rng.normal(size=3)) if k % 5 else None, rng.normal(size=2) if k % 2 else None)
+        store.append(rng.normal(size=3), record)
+        given.append(record)
+    for k in (0, 1, 2, 3, CHUNK - 1, CHUNK, CHUNK + 4):
+        back, record = store[k], given[k]
+        assert back.wheel == record.wheel
+        for name in ("wheel_sigmas", "cv_step", "bias"):
+            a, b = getattr(back, name), getattr(record, name)
+            assert (a is None) == (b is None) and (a is None or np.array_equal(a, b))
+        assert (back.scan is None) == (record.scan is None)
+        if record.scan is not None:
+            assert back.scan[0] == record.scan[0] and all(np.array_equal(x, y) for x, y in zip(back.scan[1:], record.scan[1:]))
+        assert (back.visual is None) == (record.visual is None)
+    assert np.asarray(store.poses).shape == (CHUNK + 5, 3)
+    assert store.nbytes <= 2 * CHUNK * 40 * 8  # 320 bytes a frame, in whole chunks

@@ -15,6 +15,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.slam.frontend.filter import MotionNoise
+from longslam.slam.frontend.frame_store import FrameRecord, FrameStore
 from longslam.geometry.planar import compose_xyyaw, relative_xyyaw
 from longslam.slam.graph.factors import FactorGraph, WheelStep
 
@@ -58,16 +59,6 @@ class SmootherConfig:
                              f"({2 * self.bias_block} frames), got {self.window}")
 
 
-@dataclass
-class _Record:
-    wheel: WheelStep | None
-    wheel_sigmas: np.ndarray | None
-    cv_step: np.ndarray | None  # constant-velocity prediction used without wheels
-    scan: tuple[int, np.ndarray, np.ndarray] | None  # anchor frame, relative measurement, body information
-    visual: tuple[np.ndarray, np.ndarray] | None = None  # step from the previous frame, its stds
-    bias: np.ndarray | None = None  # the online filter's wheel biases after this frame
-
-
 class FullSmoother:
     """Batch smoother over every frame: a factor graph of slam/graph, solved by its solver loop."""
 
@@ -75,18 +66,18 @@ class FullSmoother:
         self.noise = noise
         self.config = config or SmootherConfig()
         self.use_bias = use_bias
-        self.initial: list[np.ndarray] = []
-        self.records: list[_Record] = []
+        # Every frame's online pose (`initial`) and factors (`records`), in flat arrays.
+        self.records = FrameStore()
+        self.initial = self.records.poses
         self.loops: list[tuple[int, int, np.ndarray, np.ndarray]] = []
         self.bias_init: dict[int, np.ndarray] = {}
 
     def add_frame(self, online_pose: np.ndarray, wheel: WheelStep | None, wheel_sigmas: np.ndarray | None,
                   cv_step: np.ndarray | None, scan: tuple[int, np.ndarray, np.ndarray] | None,
                   bias: np.ndarray | None, visual: tuple[np.ndarray, np.ndarray] | None = None) -> None:
-        k = len(self.initial)
-        self.initial.append(np.asarray(online_pose, dtype=np.float64).copy())
-        self.records.append(_Record(wheel, wheel_sigmas, cv_step, scan, visual,
-                                    None if bias is None else np.asarray(bias, dtype=np.float64).copy()))
+        k = len(self.records)
+        self.records.append(np.asarray(online_pose, dtype=np.float64),
+                            FrameRecord(wheel, wheel_sigmas, cv_step, scan, visual, bias))
         block = k // self.config.bias_block
         if bias is not None and block not in self.bias_init:
             self.bias_init[block] = np.asarray(bias, dtype=np.float64).copy()
