@@ -11,6 +11,8 @@ estimate), so an estimate that stalls or jumps does not change which segments ar
 
 from __future__ import annotations
 
+import inspect
+
 from dataclasses import dataclass
 from typing import Any
 
@@ -135,24 +137,7 @@ def evaluate_full(
                       None if mode == "none" else _sim3(rotation, translation, scale))
 
 
-def evaluate(
-    reference: Trajectory,
-    estimate: Trajectory,
-    align: str | bool = "none",
-    delta: float = 1.0,
-    min_step: float = MIN_STEP,
-    *,
-    delta_unit: str = "m",
-    all_pairs: bool = False,
-    delta_tol: float = 0.1,
-    pairs_from_reference: bool = True,
-    pose_relation: str = "trans_part",
-    correct_scale: bool = False,
-    align_origin: bool = False,
-    n_to_align: int = -1,
-    t_max_diff: float | None = None,
-    t_offset: float = 0.0,
-) -> dict:
+def evaluate(reference: Trajectory, estimate: Trajectory, *args: Any, **options: Any) -> dict:
     """All metrics of one run as a flat, JSON-ready dict (no NaN); units in `longslam.eval.units`.
 
     The options are `longslam evaluate`'s, which are evo_ape's / evo_rpe's (see
@@ -172,9 +157,8 @@ def evaluate(
     are None when no pair is found (a path shorter than delta). path_length is the ground
     truth's over the associated poses.
     """
-    return evaluate_full(
-        reference, estimate, align, delta, min_step, delta_unit=delta_unit, all_pairs=all_pairs,
-        delta_tol=delta_tol, pairs_from_reference=pairs_from_reference, pose_relation=pose_relation,
-        correct_scale=correct_scale, align_origin=align_origin, n_to_align=n_to_align, t_max_diff=t_max_diff,
-        t_offset=t_offset,
-    ).scores
+    return evaluate_full(reference, estimate, *args, **options).scores
+
+
+# The same parameters as evaluate_full, for help() and for the CLI test that holds them together.
+evaluate.__signature__ = inspect.signature(evaluate_full).replace(return_annotation=dict)
