@@ -42,7 +42,7 @@ def _another(path: str, default: typing.Any) -> typing.Any:
     if isinstance(default, int):
         return default + 1
     if isinstance(default, float):
-        return default * 1.5
+        return default * 1.5 if default else 0.001  # a switch that is off at 0 (nonholonomic_sigma)
     if isinstance(default, tuple):
         return tuple(v * 1.5 for v in default)
     raise AssertionError(f"no other value for frontend.{path}={default!r}: add one to OTHER_WORD")

@@ -163,3 +163,36 @@ def test_the_frame_store_gives_back_what_it_was_given_in_a_fraction_of_the_objec
         assert (back.visual is None) == (record.visual is None)
     assert np.asarray(store.poses).shape == (CHUNK + 5, 3)
     assert store.nbytes <= 2 * CHUNK * 40 * 8  # 320 bytes a frame, in whole chunks
+
+
+def test_without_wheels_a_nonholonomic_hold_takes_the_sideways_scatter_out_of_the_steps():
+    # Visual steps only (no wheels), their sideways part scattered by 1 cm a frame, as tracked
+    # corners give; the truth drives arcs (as the simulator's follower does), whose twists have no
+    # sideways part.
+    rng = np.random.default_rng(5)
+    frames = 120
+    truth = [np.zeros(3)]
+    for k in range(1, frames):
+        arc = gtsam.Pose2.Expmap(np.array([0.15, 0.0, 0.03 * np.sin(k / 15.0)]))
+        truth.append(compose(truth[-1], np.array([arc.x(), arc.y(), arc.theta()])))
+    truth = np.array(truth)
+
+    def solved(hold: float) -> np.ndarray:
+        smoother = FullSmoother(MotionNoise(), SmootherConfig(nonholonomic_sigma=hold, relative_tolerance=1e-9), use_bias=False)
+        online = truth[0].copy()
+        for k in range(frames):
+            visual = None
+            if k:
+                step = relative(truth[k - 1], truth[k]) + rng.normal(0, [0.002, 0.01, 0.0005])
+                online = compose(online, step)
+                visual = (step, np.array([0.01, 0.02, 0.002]))
+            smoother.add_frame(online.copy(), None, None, None, None, None, visual)
+        return smoother.solve()
+
+    def sideways(poses: np.ndarray) -> np.ndarray:  # each step's twist, y part (m)
+        return np.array([gtsam.Pose2.Logmap(gtsam.Pose2(*relative(a, b)))[1] for a, b in zip(poses[:-1], poses[1:])])
+
+    free, held = solved(0.0), solved(1e-3)
+    assert np.abs(sideways(truth)).max() < 1e-9
+    assert np.abs(sideways(free)).mean() > 0.003  # the scatter stays without the hold
+    assert np.abs(sideways(held)).mean() < 0.1 * np.abs(sideways(free)).mean()

@@ -34,6 +34,9 @@ class SmootherConfig:
     # (0.13 deg/m at large noise = 0.05 mm sideways per 15 cm step). A correction must come as
     # heading and forward distance, never as a sideways shift of a step.
     lateral_sigma: float = 1e-5  # m: std of a wheel step's sideways component in the smoother
+    # Without wheel odometry, each step's sideways motion (the y of its twist, which is zero on
+    # any arc a wheeled base drives) held to this std in metres; 0: off, as for a hand-held camera.
+    nonholonomic_sigma: float = 0.0
     iterations: int = 50  # most optimiser iterations of the full smoother
     # Bias states in the smoother (a Python factor per frame), or each wheel step corrected by
     # the online filter's bias estimate (GTSAM's own between factors).
@@ -54,6 +57,8 @@ class SmootherConfig:
     def __post_init__(self) -> None:
         if self.optimizer not in self.CHOICES["optimizer"]:
             raise InputError(f"front end: smoother.optimizer must be lm or gn, got {self.optimizer!r}")
+        if not self.nonholonomic_sigma >= 0:
+            raise InputError(f"front end: smoother.nonholonomic_sigma must be >= 0 m (0: off), got {self.nonholonomic_sigma}")
         if self.window != 0 and self.window < 2 * self.bias_block:
             raise InputError(f"front end: smoother.window must be 0 (no limit) or at least twice bias_block "
                              f"({2 * self.bias_block} frames), got {self.window}")
@@ -214,6 +219,10 @@ class FullSmoother:
                     graph.wheel(k - 1, k, corrected, sig)
             elif rec.cv_step is not None:
                 graph.between(k - 1, k, rec.cv_step, sigmas=np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]))
+            if rec.wheel is None and self.config.nonholonomic_sigma > 0:
+                # The step's twist (Logmap of the relative pose) has no sideways part: forward and
+                # turn are left free (a std of 1 km and 1000 rad), only y is held.
+                graph.between(k - 1, k, np.zeros(3), sigmas=np.array([1e3, self.config.nonholonomic_sigma, 1e3]))
             if rec.visual is not None:
                 step, sigmas = rec.visual
                 graph.between(k - 1, k, step, sigmas=sigmas)
