@@ -53,4 +53,7 @@ def projector_shadow(depth: np.ndarray, intrinsics: Intrinsics, baseline: float)
     # The smallest projector column among the pixels to the right of each pixel.
     right_min = np.minimum.accumulate(u_projector[:, ::-1], axis=1)[:, ::-1]
     right_min = np.concatenate([right_min[:, 1:], np.full((z.shape[0], 1), np.inf, np.float32)], axis=1)
-    return (z > 0) & (right_min < u_projector - 0.5)  # half a pixel: the edge pixel itself is lit
+    # Pixels are compared at their centres, the edge lies half a pixel beyond the nearer surface's
+    # last centre: so "further left" is by more than -0.5 px (a band d_fg - d_bg pixels wide), and
+    # a surface lit along its length (each pixel d changing by less than half a pixel) stays lit.
+    return (z > 0) & (right_min < u_projector + 0.5)
