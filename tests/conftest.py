@@ -72,7 +72,7 @@ def one_line_error(capsys, *needles: str) -> str:
 # (a study, Ray, ORB-SLAM3). `pytest -m "not slow"` is the fast set for the edit-test loop.
 SLOW_MODULES = {
     "test_frontend", "test_keyframe", "test_maps", "test_orbslam3", "test_own_building", "test_run_safety",
-    "test_simulate", "test_study", "test_submap", "test_tum_layout", "test_viz_live",
+    "test_simulate", "test_sensor_study", "test_study", "test_submap", "test_tum_layout", "test_viz_live",
 }
 SLOW_TESTS = {
     "test_a_file_size_limit_names_the_file", "test_named_routes_have_the_papers_lengths",
