@@ -134,3 +134,10 @@ def test_one_sensor_has_no_sensor_column():
     results = StudyResults(Path("."), {}, runs, runs, ["paper-300m"], ["large"], ["odometry"])
     assert accuracy_table(results).row_cameras == []
     assert "| method | metric |" in table_markdown(accuracy_table(results))
+
+
+def test_the_shipped_sensors_study_loads():
+    root = Path(__file__).resolve().parents[1]
+    config = load_study(root / "studies" / "sensors.toml", ["odometry", "keyframe", "submap", "orbslam3"])
+    assert config.sensors == ("ideal", "kinect-v1", "realsense-d435") and config.seeds == (0, 1, 2)
+    assert config.grid_text() == "1 route x 3 sensors x 1 noise level x 4 methods x 3 seeds = 36 runs"
