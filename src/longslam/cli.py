@@ -134,8 +134,11 @@ def cmd_simulate(args: argparse.Namespace) -> None:
 
     check_not_an_input(args.out, _given_files([args.route, args.world, args.places]), "sequence folder")
     route = get_route(args.route, _world(args, args.world))
+    from longslam.sim.sensors import get_sensor
+
     noise = get_noise(args.noise)
-    out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite)
+    sensor = get_sensor(args.sensor)  # before any rendering: a typo costs nothing
+    out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite, sensor=sensor)
     meta = SequenceReader(out).meta  # renders cached before meta had world_name: the route's world
     name = meta.get("world_name") or world_label(route.world)
     print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}")
@@ -374,6 +377,7 @@ def cmd_list(args: argparse.Namespace) -> None:
         return
     from longslam.sim.noise import NOISE_LEVELS
     from longslam.sim.routes import ROUTES
+    from longslam.sim.sensors import sensor_names
     from longslam.sim.tours import EXAMPLES as TOUR_EXAMPLES
     from longslam.slam.catalog import method_names
     from longslam.world import WORLDS
@@ -384,6 +388,7 @@ def cmd_list(args: argparse.Namespace) -> None:
           "of the world's places), e.g. " + ", ".join(TOUR_EXAMPLES))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
     print("methods:     ", ", ".join(method_names()), "(parameters: longslam list --params METHOD)")
+    print("sensors:     ", ", ".join(sensor_names()))
 
 
 def cmd_study(args: argparse.Namespace) -> None:
@@ -516,7 +521,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--route", required=True, help="route name (see `longslam list`) or a waypoint file")
     _world_args(p, None)
     p.add_argument("--noise", default="none", help="odometry noise level (none, small, medium, large, xlarge)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise")
+    p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise and of the sensor's")
+    p.add_argument("--sensor", default="ideal", help="sensor model: ideal (perfect colour and depth), kinect-v1, "
+                                                     "realsense-d435, or a plugin's (see `longslam list`)")
     p.add_argument("--out", required=True, help="sequence folder to write")
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     _camera_args(p)
@@ -636,7 +643,7 @@ def build_parser() -> argparse.ArgumentParser:
     _camera_args(p)
     p.set_defaults(func=cmd_vocabulary_build)
 
-    p = sub.add_parser("list", help="list worlds, routes, noise levels and methods, or a method's parameters")
+    p = sub.add_parser("list", help="list worlds, routes, noise levels, methods and sensors, or a method's parameters")
     p.add_argument("--params", dest="params_of", metavar="METHOD",
                    help="list the method's parameters: default, allowed values and what each does")
     p.set_defaults(func=cmd_list)

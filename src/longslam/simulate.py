@@ -2,8 +2,9 @@
 
 Rendering is deterministic for a (world, route, camera, follower), so the frames are stored
 once, as a TUM RGB-D sequence without odometry, under a key made from those settings. A
-sequence for a (noise level, seed) is that rendering plus its own odometry, drawn per frame by
-the noise model; its frames are hard links to the cached ones.
+sequence for a (noise level, sensor, seed) is that rendering plus its own odometry, drawn per
+frame by the noise model; with the ideal sensor its frames are hard links to the cached ones,
+with any other the sensor model's output of them, written anew.
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import BiasNoise
 from longslam.sim.routes import Route
+from longslam.sim.sensors import IDEAL, SensorModel, get_sensor
+from longslam.sim.sensors.stream import camera_motions, sensed_frames
 from longslam.trajectory import Trajectory
 from longslam.world import load_world, world_key
 from longslam.world.reference import MeshSpec, is_mesh_ref, world_identity
@@ -167,8 +170,11 @@ def simulate(
     follower: FollowerSettings = FollowerSettings(),
     overwrite: bool = False,
     progress: bool = True,
+    sensor: SensorModel | str = IDEAL,
 ) -> Path:
-    """Write a sequence for (route, noise, seed) to `out`, rendering the route only if not cached."""
+    """Write a sequence for (route, noise, sensor, seed) to `out`, rendering the route only if not
+    cached. The sensor model (a name or a model) draws from the same seed as the odometry."""
+    sensor = get_sensor(sensor) if isinstance(sensor, str) else sensor
     out = check_output_folder(out, "sequence folder")
     mesh = MeshSpec.from_ref(route.world).path if is_mesh_ref(route.world) else None
     check_not_an_input(out, {"mesh file": mesh, "render cache": cache_root()}, "sequence folder")
@@ -186,10 +192,28 @@ def simulate(
         noise_angular_std_deg=noise.angular_std_deg,
         noise_redraw_period_s=noise.redraw_period,
         seed=seed,
+        sensor=sensor.name,
+        sensor_model=sensor.describe(),
         longslam_version=longslam.__version__,
     )
-    derive_sequence(rendered, out, odometry, meta, overwrite=overwrite)
+    if sensor.is_ideal:
+        derive_sequence(rendered, out, odometry, meta, overwrite=overwrite)
+    else:
+        write_sensed_sequence(reader, out, sensor, seed, odometry, meta, overwrite=overwrite, progress=progress)
     return out
+
+
+def write_sensed_sequence(reader: SequenceReader, out: Path, sensor: SensorModel, seed: int, odometry: Trajectory,
+                          meta: dict, overwrite: bool = False, progress: bool = True) -> None:
+    """The rendered frames of `reader` as `sensor` delivers them, with `odometry`, into `out`."""
+    truth = reader.ground_truth
+    assert truth is not None, "a rendered sequence always has ground truth"
+    frames = sensed_frames(reader, sensor, seed, camera_motions(truth))
+    with SequenceWriter(out, reader.intrinsics, reader.max_depth, meta, overwrite=overwrite) as writer:
+        for frame in tqdm(frames, total=len(reader), desc=f"sensor {sensor.name}", unit="frame", disable=not progress, leave=False):
+            writer.add(frame.timestamp, frame.rgb, frame.depth)
+        writer.set_ground_truth(truth)
+        writer.set_odometry(odometry)
 
 
 def frames_with_odometry(reader: SequenceReader, odometry: Trajectory) -> Iterator[Frame]:

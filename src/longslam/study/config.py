@@ -11,6 +11,9 @@
     align = "none"                  # alignment for APE/RPE and map quality: none, se3, sim3
     map_tolerance_cells = 2         # map quality: occupied cells count as matched within this
 
+    sensors = ["ideal", "kinect-v1"] # optional: sensor models, an axis of the study (default: ideal
+                                    # alone, with no sensor in the run keys and folders)
+
     [camera]                        # optional: width, height, fov, max_depth, camera_height
     width = 320
 
@@ -54,7 +57,7 @@ from longslam.world.reference import same_world, world_label, world_ref
 
 TOP_KEYS = (
     "name", "world", "routes", "noise", "methods", "seeds", "align", "map_tolerance_cells",
-    "camera", "cameras", "follower", "params", "variants",
+    "camera", "cameras", "follower", "params", "variants", "sensors",
 )
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
@@ -103,6 +106,9 @@ class StudyConfig:
     # The [cameras.*] axis; empty for a study with one (unnamed) [camera], whose runs keep the
     # keys and folders they had before cameras could be named.
     cameras: tuple[CameraEntry, ...] = ()
+    # The `sensors` axis; empty for a study without one (the ideal sensor), whose runs keep the
+    # keys and folders they had before sensors were an axis.
+    sensors: tuple[str, ...] = ()
 
     def camera_axis(self) -> list[tuple[str, CameraSettings]]:
         """(name, settings) of each camera of the study; the name is "" for a `[camera]` study."""
@@ -110,15 +116,21 @@ class StudyConfig:
             return [(c.name, c.settings) for c in self.cameras]
         return [("", self.camera)]
 
+    def sensor_axis(self) -> list[str]:
+        """The sensor of each run: the study's sensors, or [""] (the ideal sensor) without them."""
+        return list(self.sensors) or [""]
+
     @property
     def run_count(self) -> int:
         """How many runs the study plans: one per route, camera, noise level, method and seed."""
-        return len(self.routes) * len(self.camera_axis()) * len(self.noise) * len(self.methods) * len(self.seeds)
+        return (len(self.routes) * len(self.camera_axis()) * len(self.sensor_axis()) * len(self.noise)
+                * len(self.methods) * len(self.seeds))
 
     def grid_text(self) -> str:
         """The grid and its run count, counted without planning a run: '2 routes x 4 noise levels x
         3 methods x 5 seeds = 120 runs' (a camera axis shown when the study names cameras)."""
         parts = [(len(self.routes), "route")] + ([(len(self.cameras), "camera")] if self.cameras else [])
+        parts += [(len(self.sensors), "sensor")] if self.sensors else []
         parts += [(len(self.noise), "noise level"), (len(self.methods), "method"), (len(self.seeds), "seed")]
         return " x ".join(f"{n} {w}{'' if n == 1 else 's'}" for n, w in parts) + f" = {self.run_count} runs"
 
@@ -139,6 +151,8 @@ class StudyConfig:
         }
         if self.cameras:  # absent for one [camera], so such a study's stored description is unchanged
             described["cameras"] = {c.name: asdict(c.settings) for c in self.cameras}
+        if self.sensors:  # absent without the axis, as cameras are
+            described["sensors"] = list(self.sensors)
         return described
 
 
@@ -253,10 +267,11 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     except InputError as err:
         raise r.error("follower", str(err)) from None
 
+    sensors = _sensors(r, data) if "sensors" in data else []
     config = StudyConfig(
         name=name, world=world, routes=tuple(routes), noise=tuple(noise), methods=tuple(methods),
         seeds=tuple(seeds), camera=camera, follower=follower, align=align,
-        map_tolerance_cells=float(tolerance), source=str(path), cameras=tuple(cameras),
+        map_tolerance_cells=float(tolerance), source=str(path), cameras=tuple(cameras), sensors=tuple(sensors),
     )
     if config.run_count > MAX_RUNS:
         raise StudyConfigError(f"study file {path}: {config.grid_text()}, more than a study may plan ({MAX_RUNS}); "
@@ -302,6 +317,18 @@ def _cameras(r: _Reader, data: dict) -> list[CameraEntry]:
                 raise r.error(key, f"has the same settings as cameras.{other.name}; give each camera its own")
         entries.append(CameraEntry(name, settings))
     return entries
+
+
+def _sensors(r: _Reader, data: dict) -> list[str]:
+    from longslam.sim.sensors import sensor_names
+
+    names = sensor_names()
+    sensors = r.string_list(data, "sensors", names, "sensor")
+    for i, name in enumerate(sensors):
+        if not CAMERA_NAME.fullmatch(name):  # a sensor's name is a folder of the study too
+            raise r.error(f"sensors[{i}]", f"sensor {name!r} cannot be a folder name: 1 to 64 letters, digits, '_', '.' "
+                                           "or '-', starting with a letter or digit")
+    return sensors
 
 
 def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:

@@ -3,7 +3,8 @@
 Table `runs` has one row per run key (`route/noise/method/seed-N`, or `route/camera/noise/method/
 seed-N` in a study with named cameras; its primary key, so a run is there at most once): its
 configuration (`camera_name` is the camera's name, "camera" for the one camera of a `[camera]`
-study and for every run recorded before cameras had names; `camera` holds its settings), status
+study and for every run recorded before cameras had names; `camera` holds its settings; `sensor` is the sensor model, "ideal" for a study without a
+sensors axis and for every run recorded before sensors were one), status
 ('ok' or 'error' with the error text), the headline metrics as columns (ate, e_trans, e_rot,
 peak_rss_bytes, map_precision, ...), the full metrics, curves against distance travelled and
 harness figures as JSON text, and the paths of its files relative to the study folder. Table `study` holds the study's configuration.
@@ -22,6 +23,7 @@ from typing import Any
 from longslam.errors import InputError
 from longslam.run.folder import RUN_FILES
 from longslam.study.record import HEADLINE, JSON_PARTS, RunRecord
+from longslam.sim.sensors.catalog import IDEAL
 from longslam.study.spec import DEFAULT_CAMERA
 
 DB_NAME = "results.sqlite"
@@ -36,6 +38,7 @@ SPEC_COLUMNS = {
     "align": "TEXT", "config_hash": "TEXT", "spec": "TEXT",
     # `camera` was the settings (JSON) before cameras had names, so the name has a column of its own.
     "camera_name": "TEXT",
+    "sensor": "TEXT",
 }
 OUTCOME_COLUMNS = {
     "status": "TEXT NOT NULL", "error": "TEXT", "traceback": "TEXT",
@@ -121,6 +124,7 @@ class ResultsDB:
             "key": spec.key, "study": spec.study, "world": spec.world, "route": spec.route, "noise": spec.noise,
             "method": spec.method, "method_name": spec.method_name, "params": spec.params, "seed": spec.seed,
             "camera": spec.camera, "camera_name": getattr(spec, "camera_name", "") or DEFAULT_CAMERA,
+            "sensor": getattr(spec, "sensor", "") or IDEAL,
             "follower": spec.follower, "align": spec.align,
             "config_hash": spec.config_hash, "spec": spec.describe(),
             "status": record.status, "error": record.error, "traceback": record.traceback,
@@ -140,12 +144,14 @@ class ResultsDB:
 
     def runs(self, status: str | None = None) -> list[dict[str, Any]]:
         """Every run (or those with `status`) as dicts, JSON columns decoded, in key order."""
-        query = "SELECT * FROM runs" + (" WHERE status = ?" if status else "") + " ORDER BY route, camera_name, noise, method, seed"
+        query = "SELECT * FROM runs" + (" WHERE status = ?" if status else "") + " ORDER BY route, camera_name, sensor, noise, method, seed"
         out = []
         for row in self._conn.execute(query, (status,) if status else ()):
             item = dict(row)
             if item.get("camera_name") is None:  # recorded before cameras had names: the study's one camera
                 item["camera_name"] = DEFAULT_CAMERA
+            if item.get("sensor") is None:  # recorded before sensors were an axis: the ideal sensor
+                item["sensor"] = IDEAL
             for column in JSON_COLUMNS:
                 if item.get(column) is not None:
                     try:

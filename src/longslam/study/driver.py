@@ -1,8 +1,9 @@
-"""Run a study: every (route, camera, noise level, method, seed), in parallel, resumable.
+"""Run a study: every (route, camera, sensor, noise level, method, seed), in parallel, resumable.
 
     DIR/results.sqlite    one row per finished run (see `longslam.study.database`)
     DIR/runs/<route>/<noise>/<method>/seed-<n>/   trajectory.txt, online.txt, stats.json, grid.npz...
     DIR/runs/<route>/<camera>/<noise>/<method>/seed-<n>/   the same, in a study with named cameras
+    DIR/runs/<route>/[<camera>/]<sensor>/<noise>/<method>/seed-<n>/   in a study with a sensors axis
     DIR/logs/...          each local run's stdout and stderr
     DIR/report.md, DIR/report.html
 

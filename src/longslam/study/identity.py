@@ -25,6 +25,7 @@ def _grid(config: dict[str, Any]) -> dict[str, Any]:
         "noise": sorted(config.get("noise", [])),
         "methods": sorted((m.get("label"), m.get("method")) for m in config.get("methods", [])),
         "seeds": sorted(config.get("seeds", [])),
+        "sensors": sorted(config.get("sensors", [])),
     }
 
 
@@ -32,8 +33,9 @@ def _summary(config: dict[str, Any]) -> str:
     routes = ", ".join(r.get("name", "?") for r in config.get("routes", []))
     methods = ", ".join(m.get("label", "?") for m in config.get("methods", []))
     seeds = config.get("seeds", [])
+    sensors = f"; sensors {', '.join(config['sensors'])}" if config.get("sensors") else ""
     return (f"study {config.get('name')!r} (routes {routes}; noise {', '.join(config.get('noise', []))}; "
-            f"methods {methods}; {len(seeds)} seed{'' if len(seeds) == 1 else 's'})")
+            f"methods {methods}{sensors}; {len(seeds)} seed{'' if len(seeds) == 1 else 's'})")
 
 
 def stored_study(out: Path) -> dict[str, Any] | None:
@@ -100,4 +102,7 @@ def merged(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
     result["noise"] = union("noise", lambda n: n)
     result["methods"] = union("methods", lambda m: m.get("label"))
     result["seeds"] = union("seeds", lambda s: s)
+    if old.get("sensors") or new.get("sensors"):
+        # A folder without the axis holds the ideal sensor's runs under keys without a sensor.
+        result["sensors"] = union("sensors", lambda s: s)
     return result

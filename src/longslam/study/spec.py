@@ -1,4 +1,4 @@
-"""The runs of a study: one per (route, camera, noise level, method, seed), as plain picklable data."""
+"""The runs of a study: one per (route, camera, sensor, noise level, method, seed), as plain picklable data."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from typing import Any
 
 from longslam.sim.camera import CameraSettings
 from longslam.sim.follower import FollowerSettings
+from longslam.sim.sensors.catalog import IDEAL
 from longslam.sim.routes import Route
 from longslam.study.config import StudyConfig
 
@@ -35,6 +36,7 @@ class RunSpec:
     align: str = "none"
     map_tolerance_cells: float = 2.0
     camera_name: str = ""  # a [cameras.NAME] of the study; "" for the one camera of a [camera] study
+    sensor: str = ""  # a sensor of the study's `sensors`; "" for a study without them (the ideal sensor)
 
     @property
     def key(self) -> str:
@@ -42,7 +44,8 @@ class RunSpec:
         # A [camera] study's runs keep the keys they had before cameras could be named, so an
         # old study folder resumes into the same rows and folders.
         camera = f"{self.camera_name}/" if self.camera_name else ""
-        return f"{self.route}/{camera}{self.noise}/{self.method}/seed-{self.seed}"
+        sensor = f"{self.sensor}/" if self.sensor else ""
+        return f"{self.route}/{camera}{sensor}{self.noise}/{self.method}/seed-{self.seed}"
 
     @property
     def config_hash(self) -> str:
@@ -54,6 +57,9 @@ class RunSpec:
         # Nor does naming or renaming its camera: the settings are hashed, and the name is in the
         # key. This also keeps every hash of a study from before cameras could be named.
         described.pop("camera_name")
+        # The ideal sensor, named or not, is the frames as rendered: the hashes from before sensors.
+        if described["sensor"] in ("", IDEAL):
+            described.pop("sensor")
         described["world"] = world_identity(self.world)  # a mesh by its content: moving the file is no change
         text = json.dumps(described, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -72,13 +78,18 @@ class RunSpec:
     def follower_settings(self) -> FollowerSettings:
         return FollowerSettings(**self.follower)
 
+    @property
+    def sensor_name(self) -> str:
+        """The sensor model the run sees its frames through."""
+        return self.sensor or IDEAL
+
 
 def plan_runs(config: StudyConfig) -> list[RunSpec]:
     """Every run of the study, seed by seed: a study stopped early has whole seeds done."""
     runs = []
     for seed in config.seeds:
         for route in config.routes:
-            for (camera_name, camera), noise in product(config.camera_axis(), config.noise):
+            for (camera_name, camera), sensor, noise in product(config.camera_axis(), config.sensor_axis(), config.noise):
                 for entry in config.methods:
                     runs.append(
                         RunSpec(
@@ -96,6 +107,7 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
                             align=config.align,
                             map_tolerance_cells=config.map_tolerance_cells,
                             camera_name=camera_name,
+                            sensor=sensor,
                         )
                     )
     return runs

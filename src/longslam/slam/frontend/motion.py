@@ -31,6 +31,7 @@ from longslam.frame import Frame, Intrinsics
 from longslam.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
 from longslam.memory_release import release_free_memory
 from longslam.slam.api import Table
+from longslam.slam.depth_trust import DepthTrust, trusted_depth, trusted_range
 from longslam.slam.graph import Edge
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
@@ -96,6 +97,7 @@ class FrontEndConfig:
     registration: RegistrationConfig = field(default_factory=RegistrationConfig)
     noise: MotionNoise = field(default_factory=MotionNoise)
     smoother: SmootherConfig = field(default_factory=SmootherConfig)
+    depth_trust: DepthTrust = field(default_factory=DepthTrust)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -138,7 +140,10 @@ class FrontEnd:
         self._visual_used = False
         self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0,
                        "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
-                       "scans_unmatched": 0, "scan_points": 0, "loops": 0}
+                       "scans_unmatched": 0, "scan_points": 0, "loops": 0,
+                       "depth_limited": 0, "depth_too_noisy": 0}
+        self._range_sum = 0.0  # of the trusted ranges of the frames whose depth was limited
+        self._depth: np.ndarray | None = None
 
     # --- per frame ---------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
@@ -216,6 +221,17 @@ class FrontEnd:
 
     def _fused_step(self, k: int, frame: Frame, wheel: WheelStep | None) -> np.ndarray:
         cfg = self.config
+        # Scans and tracked corners only where the frame's own depth noise allows (depth_trust).
+        limit = trusted_range(frame.depth, cfg.depth_trust)
+        self._depth = trusted_depth(frame.depth, limit)
+        if limit is not None:
+            self.counts["depth_limited"] += 1
+            self._range_sum += limit
+            if limit < cfg.depth_trust.min_range:  # nothing to register on: the wheels alone
+                self.counts["depth_too_noisy"] += 1
+                self._depth = np.zeros_like(self._depth)
+            clean = frame
+            frame = Frame(clean.index, clean.timestamp, lambda: clean.rgb, self._depth, clean.odometry, clean.intrinsics)
         flt = self._filter
         cv_step = None
         visual = None
@@ -245,7 +261,7 @@ class FrontEnd:
         else:
             self._gates.first(frame)
         predicted = flt.pose
-        scan = self._extract(frame.depth)
+        scan = self._extract(self._depth)
         self.counts["scan_points"] += len(scan)
         scan_factor = None
         if self._map.tree is not None:
@@ -337,6 +353,8 @@ class FrontEnd:
         out["odometry_source"] = ("wheels" if self._has_wheels else
                                   "none: visual steps and scan registration (constant velocity where tracking fails)")
         out["ms_per_frame"] = 1000.0 * self._time / max(self.counts["frames"], 1)
+        if self.counts["depth_limited"]:
+            out["trusted_range_mean_m"] = self._range_sum / self.counts["depth_limited"]
         if self._filter is not None and self._has_wheels and self.config.mode == "fused":
             out["bias_final"] = [float(b) for b in self._filter.bias]
         return out

@@ -35,7 +35,7 @@ def _seed_runs(results: StudyResults, route: str, noise: str, camera: str | None
     return {m: chosen[m] for m in results.methods if m in chosen}
 
 
-def _first_seed_runs(results: StudyResults, route: str, noise: str, camera: str | None = None) -> dict[str, dict]:
+def _first_seed_runs(results: StudyResults, route: str, noise: str, camera: object | None = None) -> dict[str, dict]:
     chosen: dict[str, dict] = {}
     for run in sorted(results.ok, key=lambda r: r["seed"]):
         if (run["route"], run["noise"]) == (route, noise) and on_camera(run, camera) and run["method"] not in chosen:
@@ -71,9 +71,10 @@ def make_figures(results: StudyResults, left_out: list[str] | None = None) -> li
     return figures
 
 
-def _route_figures(results: StudyResults, route: str, camera: str | None, truth_grid,
+def _route_figures(results: StudyResults, route: str, camera: object | None, truth_grid,
                    left_out: list[str]) -> list[Figure]:
-    """The figures of one route: of one camera's runs, or of all (camera None, one camera)."""
+    """The figures of one route: of one row group's runs (a camera and/or a sensor), or of all
+    (camera None: one camera and one sensor)."""
     from longslam.eval.map_quality import map_scores
     from longslam.gridmap import GridMap
     from longslam.io.trajectory_files import read_tum
@@ -85,10 +86,10 @@ def _route_figures(results: StudyResults, route: str, camera: str | None, truth_
     figures: list[Figure] = []
     # Names and titles have the camera only when there are several: a one-camera study's
     # figures keep their names.
-    tag = f"{_safe(route)}-{_safe(camera)}" if camera else _safe(route)
-    where = f"route {route}, camera {camera}" if camera else f"route {route}"
+    tag = f"{_safe(route)}-{_safe(str(camera).replace(', ', '-'))}" if camera else _safe(route)
+    where = f"route {route}, {results.group_title} {camera}" if camera else f"route {route}"
     try:
-        data = load_route_data(out, route, results.camera_folder(camera or results.cameras[0]))
+        data = load_route_data(out, route, results.camera_folder(results.camera_of(camera)))
     except (OSError, InputError, ValueError, KeyError) as err:
         left_out.append(f"no figures of {where}: its ground truth in the study folder's routes/ cannot be read ({err})")
         return figures
@@ -118,7 +119,7 @@ def _route_figures(results: StudyResults, route: str, camera: str | None, truth_
         panels = dict(sorted(panels.items(), key=lambda item: int(item[0].split()[1])))
         name = Path(FIGURES_DIR) / f"trajectories-{tag}-{_safe(noise)}.png"
         seed_text = ", ".join(p.split()[1] for p in panels)
-        shown = f"route {route} ({data.length_m:.0f} m)" + (f", camera {camera}" if camera else "")
+        shown = f"route {route} ({data.length_m:.0f} m)" + (f", {results.group_title} {camera}" if camera else "")
         plot_plans(truth_grid, out / name, panels, waypoints=data.waypoints, zoom_margin=6.0, errors=errors,
                    title=f"{shown}, noise {noise}, seed{'s' if len(panels) > 1 else ''} {seed_text}")
         view = plan_view(truth_grid, {k: v for p in panels.values() for k, v in p.items()}, 6.0)

@@ -34,7 +34,7 @@ def _row_cameras(table: Table) -> list[str] | None:
 def table_markdown(table: Table) -> str:
     has_metric = any(label[1] for label in table.row_labels)
     cameras = _row_cameras(table)
-    header = (["method"] + (["camera"] if cameras else []) + (["metric"] if has_metric else [])
+    header = (["method"] + ([table.group_title] if cameras else []) + (["metric"] if has_metric else [])
               + [_column_title(c) for c in table.columns])
     lines = [f"### {table.title}", "", table.caption, "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     previous = previous_camera = None
@@ -77,7 +77,7 @@ def table_html(table: Table) -> str:
              f'<table class="results" data-title="{esc(table.title)}"><thead>']
     if any(route for route, _ in routes):
         parts.append(f'<tr><th colspan="{lead}"></th>' + "".join(f'<th colspan="{n}">{esc(r)}</th>' for r, n in routes) + "</tr>")
-    parts.append("<tr><th>method</th>" + ("<th>camera</th>" if cameras else "") + ("<th>metric</th>" if has_metric else "")
+    parts.append("<tr><th>method</th>" + (f"<th>{esc(table.group_title)}</th>" if cameras else "") + ("<th>metric</th>" if has_metric else "")
                  + "".join(f"<th>{esc(noise)}</th>" for _, noise in table.columns) + "</tr></thead><tbody>")
     counts: dict[str, int] = defaultdict(int)
     for method, _ in table.row_labels:
@@ -164,7 +164,9 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
     intro = [
         f"Study `{name}` ({config.get('source', '')}): world {_world_shown(config.get('world', '?'))}, "
         f"routes {', '.join(results.routes)}, noise levels {', '.join(results.noise)}, "
-        f"methods {', '.join(results.methods)}, seeds {', '.join(map(str, seeds))}.",
+        f"methods {', '.join(results.methods)}, "
+        + (f"sensors {', '.join(results.sensors)}, " if config.get("sensors") else "")
+        + f"seeds {', '.join(map(str, seeds))}.",
         (f"Cameras: {'; '.join(f'{n}: {_camera_shown(c)}' for n, c in named.items())}. {counts}" if named
          else f"Camera {_camera_shown(config.get('camera', {}))}. {counts}"),
     ]

@@ -8,8 +8,21 @@ from pathlib import Path
 from typing import Any
 
 from longslam.errors import InputError
+from longslam.sim.sensors.catalog import IDEAL
 from longslam.study.database import DB_NAME, ResultsDB, check_results_tables
 from longslam.study.spec import DEFAULT_CAMERA
+
+
+@dataclass(frozen=True)
+class RowGroup:
+    """The runs of one camera and/or one sensor, in a study whose tables are split by them (None:
+    that axis is not split)."""
+
+    camera: str | None = None
+    sensor: str | None = None
+
+    def __str__(self) -> str:
+        return ", ".join(part for part in (self.camera, self.sensor) if part is not None)
 
 
 @dataclass
@@ -22,6 +35,7 @@ class StudyResults:
     noise: list[str]
     methods: list[str]
     cameras: list[str] = field(default_factory=lambda: [DEFAULT_CAMERA])
+    sensors: list[str] = field(default_factory=lambda: [IDEAL])
 
     @property
     def columns(self) -> list[tuple[str, str]]:
@@ -35,31 +49,66 @@ class StudyResults:
         return len(self.cameras) > 1 or len(self.config.get("cameras", {})) > 1
 
     @property
-    def row_cameras(self) -> list[str | None]:
-        """The cameras a method's rows are split into: each camera, or [None] for all runs at once."""
-        return list(self.cameras) if self.by_camera else [None]
+    def by_sensor(self) -> bool:
+        """Whether the tables and figures are split by sensor: the study has more than one."""
+        return len(self.sensors) > 1 or len(self.config.get("sensors", [])) > 1
+
+    @property
+    def row_cameras(self) -> list[RowGroup | None]:
+        """The groups a method's rows are split into: each camera and/or sensor, or [None] for all
+        runs at once."""
+        if not (self.by_camera or self.by_sensor):
+            return [None]
+        cameras = list(self.cameras) if self.by_camera else [None]
+        sensors = list(self.sensors) if self.by_sensor else [None]
+        return [RowGroup(c, s) for c in cameras for s in sensors]
+
+    @property
+    def group_title(self) -> str:
+        """The heading of the tables' group column: 'camera', 'sensor' or 'camera, sensor'."""
+        return ", ".join(name for name, split in (("camera", self.by_camera), ("sensor", self.by_sensor)) if split)
+
+    def group_of(self, run: dict[str, Any]) -> RowGroup | None:
+        """The row group a run belongs to (see `row_cameras`)."""
+        if not (self.by_camera or self.by_sensor):
+            return None
+        return RowGroup(run.get("camera_name", DEFAULT_CAMERA) if self.by_camera else None,
+                        (run.get("sensor") or IDEAL) if self.by_sensor else None)
+
+    def camera_of(self, group: "RowGroup | str | None") -> str:
+        """The camera of a row group (the study's first when the group does not split cameras)."""
+        camera = group.camera if isinstance(group, RowGroup) else group
+        return camera or self.cameras[0]
 
     def camera_folder(self, camera: str) -> str:
         """The camera's part of the study's folders: its name for named cameras ([cameras.NAME]),
         "" for the one camera of a [camera] study (whose folders have no camera in them)."""
         return camera if self.config.get("cameras") else ""
 
-    def values(self, method: str, route: str, noise: str, column: str, camera: str | None = None) -> list[float]:
+    def values(self, method: str, route: str, noise: str, column: str, camera: "RowGroup | str | None" = None) -> list[float]:
         """A database column of the successful runs of (method, route, noise); of one camera's
         runs if `camera` is given."""
         return [r[column] for r in self.ok if (r["method"], r["route"], r["noise"]) == (method, route, noise)
                 and r[column] is not None and on_camera(r, camera)]
 
 
-def on_camera(run: dict[str, Any], camera: str | None) -> bool:
-    """Whether a run is one of `camera`'s (every run is, for camera None)."""
-    return camera is None or run.get("camera_name", DEFAULT_CAMERA) == camera
+def on_camera(run: dict[str, Any], camera: "RowGroup | str | None") -> bool:
+    """Whether a run is one of `camera`'s: a camera's name, or a row group of a camera and/or a
+    sensor (every run is, for None)."""
+    if camera is None:
+        return True
+    if isinstance(camera, RowGroup):
+        return ((camera.camera is None or run.get("camera_name", DEFAULT_CAMERA) == camera.camera)
+                and (camera.sensor is None or (run.get("sensor") or IDEAL) == camera.sensor))
+    return run.get("camera_name", DEFAULT_CAMERA) == camera
 
 
-def runs_anchor(route: str, noise: str, method: str, camera: str | None = None) -> str:
-    """The HTML id of a (route, camera, noise, method) group's first row in the table of every run:
-    'runs/' and the runs' key without the seed (an id may hold anything but white space)."""
-    parts = [route] + ([camera] if camera else []) + [noise, method]
+def runs_anchor(route: str, noise: str, method: str, camera: "RowGroup | str | None" = None) -> str:
+    """The HTML id of a (route, camera and/or sensor, noise, method) group's first row in the table
+    of every run: 'runs/' and the runs' key without the seed (an id may hold anything but white
+    space)."""
+    group = [p for p in (camera.camera, camera.sensor) if p] if isinstance(camera, RowGroup) else ([camera] if camera else [])
+    parts = [route] + group + [noise, method]
     return "runs/" + "/".join(re.sub(r"\s+", "_", p) for p in parts)
 
 
@@ -82,4 +131,5 @@ def load_results(out: str | Path) -> StudyResults:
     noise = _ordered(list(config.get("noise", [])), [r["noise"] for r in runs])
     methods = _ordered([m["label"] for m in config.get("methods", [])], [r["method"] for r in runs])
     cameras = _ordered(list(config.get("cameras", {})), [r["camera_name"] for r in runs]) or [DEFAULT_CAMERA]
-    return StudyResults(out, config, runs, ok, routes, noise, methods, cameras)
+    sensors = _ordered(list(config.get("sensors", [])), [r.get("sensor") or IDEAL for r in runs]) or [IDEAL]
+    return StudyResults(out, config, runs, ok, routes, noise, methods, cameras, sensors)

@@ -122,14 +122,16 @@ def _order(results: StudyResults):
         return values.index(value) if value in values else len(values)
 
     return lambda r: (index(results.routes, r["route"]), index(results.cameras, r.get("camera_name", "")),
-                      index(results.noise, r["noise"]), index(results.methods, r["method"]), r["seed"])
+                      index(results.sensors, r.get("sensor") or "ideal"), index(results.noise, r["noise"]),
+                      index(results.methods, r["method"]), r["seed"])
 
 
 def every_run_table(results: StudyResults) -> RunsTable:
     out = results.out
     with_maps = any(r.get("map_precision") is not None for r in results.ok)
     columns = METRICS + (MAP_METRICS if with_maps else ()) + FIGURES
-    identity = ["route"] + (["camera"] if results.by_camera else []) + ["noise", "method", "seed"]
+    identity = (["route"] + (["camera"] if results.by_camera else []) + (["sensor"] if results.by_sensor else [])
+                + ["noise", "method", "seed"])
     table = RunsTable(
         "All runs",
         "Every recorded run, one row each: its metrics (ATE, E_trans and E_rot as in Table 1, APE and RPE as "
@@ -141,14 +143,15 @@ def every_run_table(results: StudyResults) -> RunsTable:
     )
     seen: set[str] = set()
     for run in sorted(results.runs, key=_order(results)):
-        camera = run.get("camera_name") if results.by_camera else None
-        anchor = runs_anchor(run["route"], run["noise"], run["method"], camera)
+        group = results.group_of(run)
+        anchor = runs_anchor(run["route"], run["noise"], run["method"], group)
         ok = run["status"] == "ok"
         error = (run.get("error") or "").splitlines()[0] if not ok and run.get("error") else ""
         status = "ok" if ok else f"{run['status']}: {error[:ERROR_SHOWN]}" + ("…" if len(error) > ERROR_SHOWN else "")
         table.rows.append(RunRow(
             key=run["key"], status=status, ok=ok,
-            identity=[run["route"]] + ([camera or ""] if results.by_camera else []) + [run["noise"], run["method"], str(run["seed"])],
+            identity=([run["route"]] + ([group.camera or ""] if results.by_camera else [])
+                      + ([group.sensor or ""] if results.by_sensor else []) + [run["noise"], run["method"], str(run["seed"])]),
             cells=[_value(run, column, scale) for column, _, scale in columns],
             links=_links(out, run),
             anchor=None if anchor in seen else anchor,

@@ -71,12 +71,14 @@ class Table:
     # Each row's camera, in a study with several ("" for the paper's rows); empty otherwise, and
     # then the table has no camera column.
     row_cameras: list[str] = field(default_factory=list)
+    group_title: str = "camera"  # the heading of that column: camera, sensor, or camera, sensor
 
-    def add_row(self, label: tuple[str, str], cells: list[Cell], camera: str | None = None) -> None:
+    def add_row(self, label: tuple[str, str], cells: list[Cell], camera: object | None = None) -> None:
+        """One row; `camera` is its camera's name or row group (shown as text), None for none."""
         self.row_labels.append(label)
         self.rows.append(cells)
         if camera is not None or self.row_cameras:
-            self.row_cameras += [""] * (len(self.rows) - 1 - len(self.row_cameras)) + [camera or ""]
+            self.row_cameras += [""] * (len(self.rows) - 1 - len(self.row_cameras)) + ["" if camera is None else str(camera)]
 
     def mark_best(self, higher_is_better: bool = False, reversed_metrics: tuple[str, ...] = ()) -> None:
         """Bold the best mean of each column among the rows of each metric (the metrics named in
@@ -98,7 +100,7 @@ def _paper_columns(columns: list[tuple[str, str]]) -> bool:
     return any(paper_route(route) and noise in PAPER_NOISE for route, noise in columns)
 
 
-def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0, camera: str | None = None) -> list[Cell]:
+def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0, camera: object | None = None) -> list[Cell]:
     """A method's mean ± std of one database column (of one camera's runs if `camera` is given),
     per (route, noise) column of the table."""
     cells = []
@@ -124,7 +126,7 @@ def _comparison_table(results: StudyResults, title: str, caption: str, metrics: 
     the paper's published rows where the table has the paper's routes. `paper_numbers()` gives
     {(paper method, route, noise, column): value}."""
     columns = results.columns
-    table = Table(title, caption, columns, [])
+    table = Table(title, caption, columns, [], group_title=results.group_title or "camera")
     for method in results.methods:
         for camera in results.row_cameras:
             if not _has_runs(results, method, camera):
@@ -142,7 +144,7 @@ def _comparison_table(results: StudyResults, title: str, caption: str, metrics: 
     return table
 
 
-def _has_runs(results: StudyResults, method: str, camera: str | None) -> bool:
+def _has_runs(results: StudyResults, method: str, camera: object | None) -> bool:
     """A method has rows for every camera it ran with (a camera it never ran with, none)."""
     return camera is None or any(r["method"] == method and on_camera(r, camera) for r in results.runs)
 
@@ -213,7 +215,7 @@ def map_table(results: StudyResults) -> Table | None:
         "loses only the first pair), and the share of those walls the aligned map shows twice, a corridor "
         "width apart (a fake corridor; lower is better); mean ± std over the seeds; the best of each "
         "column in bold.",
-        results.columns, [],
+        results.columns, [], group_title=results.group_title or "camera",
     )
     for method in with_maps:
         for camera in results.row_cameras:
@@ -242,6 +244,7 @@ def runs_table(results: StudyResults) -> Table:
         "own processing time, the real-time factor (simulated seconds per second of the method's "
         "processing) and the frames per run.",
         [("", "runs ok / failed"), ("", "time per run [s]"), ("", "method time [s]"), ("", "real-time factor"), ("", "frames")], [],
+        group_title=results.group_title or "camera",
     )
     for method in results.methods:
         for camera in results.row_cameras:

@@ -1,0 +1,74 @@
+"""A sensor model applied on the fly to a sequence's clean frames, frame by frame and lazily: a
+frame's images are made noisy only when a method first looks at them, from a generator of that
+frame's own, so skipping frames (or starting late) changes no other frame."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+
+import numpy as np
+
+from longslam.errors import InputError
+from longslam.frame import Frame
+from longslam.sim.sensors.base import FrameMotion, SensorModel, frame_rng
+from longslam.trajectory import Trajectory
+
+
+def camera_motions(truth: Trajectory) -> list[FrameMotion]:
+    """Each frame's true angular and linear velocity in its camera frame, from the step to the
+    next frame (the last frame takes the step before it)."""
+    poses = np.asarray(truth.poses, dtype=np.float64)
+    stamps = np.asarray(truth.timestamps, dtype=np.float64)
+    n = len(poses)
+    if n < 2:
+        return [FrameMotion.still(float(t)) for t in stamps]
+    rel = np.einsum("nji,njk->nik", poses[:-1, :3, :3], poses[1:, :3, :3])  # R_i^T R_{i+1}
+    dt = np.maximum(np.diff(stamps), 1e-9)
+    skew = 0.5 * np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], axis=1)
+    sin = np.linalg.norm(skew, axis=1)
+    angle = np.arctan2(sin, np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
+    scale = np.divide(angle, sin, out=np.ones_like(angle), where=sin > 1e-12)
+    angular = skew * scale[:, None] / dt[:, None]
+    moved = np.einsum("nji,nj->ni", poses[:-1, :3, :3], poses[1:, :3, 3] - poses[:-1, :3, 3])
+    linear = moved / dt[:, None]
+    angular = np.vstack([angular, angular[-1:]])
+    linear = np.vstack([linear, linear[-1:]])
+    return [FrameMotion(float(t), a, v) for t, a, v in zip(stamps, angular, linear)]
+
+
+def _checked(sensor: SensorModel, frame: Frame, rgb, depth) -> tuple[np.ndarray, np.ndarray]:
+    """The model's output, refused with its name if it is not images of the frame's shape."""
+    shape = (frame.intrinsics.height, frame.intrinsics.width)
+    rgb, depth = np.asarray(rgb), np.asarray(depth)
+    where = f"sensor {sensor.name!r}, frame {frame.index}"
+    if rgb.dtype != np.uint8 or rgb.shape != shape + (3,):
+        raise InputError(f"{where}: sense() returned rgb {rgb.dtype} {rgb.shape}; expected uint8 {shape + (3,)}")
+    if depth.dtype != np.float32 or depth.shape != shape:
+        raise InputError(f"{where}: sense() returned depth {depth.dtype} {depth.shape}; expected float32 {shape}")
+    if not np.all(np.isfinite(depth)) or (depth.size and depth.min() < 0):
+        raise InputError(f"{where}: sense() returned depth with NaN, inf or negative values; expected metres >= 0, 0 for no return")
+    return rgb, depth
+
+
+def sensed_frame(clean: Frame, sensor: SensorModel, seed: int, motion: FrameMotion) -> Frame:
+    """`clean` as `sensor` delivers it (itself for the ideal sensor); its images made on first use."""
+    if sensor.is_ideal:
+        return clean
+    made: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def both() -> tuple[np.ndarray, np.ndarray]:
+        if not made:
+            rng = frame_rng(sensor.name, seed, clean.index)
+            rgb, depth = sensor.sense(clean.rgb, clean.depth, clean.intrinsics, motion, rng)
+            made.append(_checked(sensor, clean, rgb, depth))
+        return made[0]
+
+    return Frame(clean.index, clean.timestamp, lambda: both()[0], lambda: both()[1], clean.odometry, clean.intrinsics)
+
+
+def sensed_frames(frames: Iterable[Frame], sensor: SensorModel, seed: int, motions: list[FrameMotion]) -> Iterator[Frame]:
+    """Each frame as `sensor` delivers it; `motions` per frame index (from `camera_motions`)."""
+    for frame in frames:
+        if not 0 <= frame.index < len(motions):
+            raise InputError(f"frame {frame.index} has no true camera motion ({len(motions)} frames of ground truth)")
+        yield sensed_frame(frame, sensor, seed, motions[frame.index])
