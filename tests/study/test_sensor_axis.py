@@ -115,7 +115,7 @@ def test_the_report_has_a_sensor_column():
     quality = map_table(results)
     precision = {g: row[0].text for g, (_, metric), row in zip(quality.row_cameras, quality.row_labels, quality.rows)
                  if metric == "precision"}
-    assert precision == {"ideal": "0.900 ± 0", "kinect-v1": "0.600 ± 0"}
+    assert precision == {"ideal": "0.900 ± 0.000 (n=2)", "kinect-v1": "0.600 ± 0.000 (n=2)"}
 
 
 def test_cameras_and_sensors_together_split_the_rows_by_both():
