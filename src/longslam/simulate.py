@@ -210,7 +210,7 @@ def write_sensed_sequence(reader: SequenceReader, out: Path, sensor: SensorModel
     assert truth is not None, "a rendered sequence always has ground truth"
     frames = sensed_frames(reader, sensor, seed, camera_motions(truth))
     with SequenceWriter(out, reader.intrinsics, reader.max_depth, meta, overwrite=overwrite) as writer:
-        for frame in tqdm(frames, total=len(reader), desc=f"sensor {sensor.name}", unit="frame", disable=not progress, leave=False):
+        for frame in bar(frames, total=len(reader), desc=f"sensor {sensor.name}", unit="frame", disable=not progress, leave=False):
             writer.add(frame.timestamp, frame.rgb, frame.depth)
         writer.set_ground_truth(truth)
         writer.set_odometry(odometry)
