@@ -98,6 +98,11 @@ SLOW_MODULES = {
     "test_viz_live", "test_viz_viewer",
 }
 SLOW_TESTS = {
+    # processes: a study, the demo, Ray, the CLI in a subprocess; or a render
+    "test_a_study_shows_its_run_count_first", "test_non_ascii_paths_under_a_c_locale_and_paths_that_are_not_utf8",
+    "test_the_demo_and_a_study_prepare_each_method_before_its_runs", "test_a_render_cleans_partials_in_its_cache",
+    "test_ray_address_that_refuses_is_a_clear_error_and_creates_nothing", "test_ray_init_that_hangs_is_given_up",
+    "test_evaluate_into_a_closed_pipe_is_quiet", "test_report_says_which_figures_it_left_out_and_why",
     "test_evo_reads_the_bag",
     "test_a_file_size_limit_names_the_file", "test_named_routes_have_the_papers_lengths",
     "test_isolated_run_measures_its_own_process", "test_orbslam3_loads_the_vocabulary_and_tracks",
