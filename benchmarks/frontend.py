@@ -29,7 +29,8 @@ from longslam.run.score import score
 from longslam.settings import from_mapping, parse_key_values
 from longslam.frame import Frame
 from longslam.io.sequence import SequenceReader
-from longslam.geometry import planar_from_camera_poses, relative_xyyaw, wrap_angle
+from longslam.eval.diagnose import loop_errors
+from longslam.geometry import planar_from_camera_poses
 from longslam.slam.api import MethodContext
 from longslam.slam.catalog import create_method
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
@@ -58,16 +59,12 @@ def run(path: Path, config: FrontEndConfig, no_odometry: bool) -> dict:
     return out
 
 
-def wrong_loops(reader: SequenceReader, constraints: list, camera_height: float) -> tuple[int, float, float]:
+def wrong_loops(reader: SequenceReader, constraints: np.ndarray, camera_height: float) -> tuple[int, float, float]:
     """Constraints off by more than 0.5 m or 5 deg from the ground truth; the worst errors."""
     gt = planar_from_camera_poses(reader.ground_truth.poses, camera_height)
-    wrong, worst_m, worst_deg = 0, 0.0, 0.0
-    for i, j, *delta in constraints:
-        d = np.asarray(delta) - relative_xyyaw(gt[int(i)], gt[int(j)])
-        e, ey = float(np.hypot(d[0], d[1])), float(np.degrees(abs(wrap_angle(d[2]))))
-        worst_m, worst_deg = max(worst_m, e), max(worst_deg, ey)
-        wrong += e > 0.5 or ey > 5.0
-    return wrong, worst_m, worst_deg
+    found = loop_errors(gt, constraints)
+    return (sum(lp.wrong for lp in found), max((lp.error_m for lp in found), default=0.0),
+            max((lp.error_deg for lp in found), default=0.0))
 
 
 def run_method(path: Path, method: str, frontend: str) -> dict:
@@ -85,7 +82,7 @@ def run_method(path: Path, method: str, frontend: str) -> dict:
     loops = result.tables.get("loops")
     if loops is not None:
         out["fed"] = len(loops.rows)
-        out["wrong"], out["worst_m"], out["worst_deg"] = wrong_loops(reader, loops.rows.tolist(), stats["camera_height"])
+        out["wrong"], out["worst_m"], out["worst_deg"] = wrong_loops(reader, loops.rows, stats["camera_height"])
     return out
 
 

@@ -18,16 +18,9 @@ from longslam.run.engine import run_sequence
 rerun = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
+from rrd_checks import rows  # noqa: E402
 
-def rows(path: Path, entity: str, column: str) -> list:
-    """Every value logged to `entity`'s `column`, in the order logged."""
-    out = []
-    for chunk in RrdReader(path).stream():
-        if chunk.entity_path == entity:
-            batch = chunk.to_record_batch()
-            if column in batch.schema.names:
-                out += batch.column(column).to_pylist()
-    return out
+
 
 
 @pytest.fixture(scope="module")

@@ -28,6 +28,8 @@ from longslam.trajectory import Trajectory
 rerun = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
+from rrd_checks import rows  # noqa: E402
+
 import longslam.viz.live as live  # noqa: E402
 
 RUN_FILES = {"trajectory.txt", "online.txt", "stats.json", "config.toml"}
@@ -174,14 +176,6 @@ def test_a_viewer_closed_in_the_middle_of_a_run(sequence, tmp_path, monkeypatch)
         stop()
 
 
-def rows(path: Path, entity: str, column: str) -> list:
-    out = []
-    for chunk in RrdReader(path).stream():
-        if chunk.entity_path == entity:
-            batch = chunk.to_record_batch()
-            if column in batch.schema.names:
-                out += batch.column(column).to_pylist()
-    return out
 
 
 def test_each_recording_has_its_own_id_a_name_and_a_blueprint(sequence, tmp_path):
