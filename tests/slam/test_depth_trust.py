@@ -12,10 +12,10 @@ import pytest
 from longslam.frame import Frame
 from longslam.geometry import camera_poses_from_planar
 from longslam.sim.sensors import FrameMotion, KinectV1, RealSenseD435, frame_rng
-from longslam.slam.depth_trust import DepthTrust, inverse_depth_noise, trusted_depth, trusted_range
+from longslam.slam.depth_trust import DepthTrust, inverse_depth_noise, scan_weight, trusted_depth, trusted_range
 from longslam.slam.frontend import FrontEnd
 
-from test_sensors import K, TEXTURED_HALF, _wall, render
+from flat_walls import K, TEXTURED_HALF, _wall, render
 
 
 @pytest.fixture(scope="module")
@@ -68,9 +68,36 @@ def test_the_front_end_limits_noisy_frames_and_not_clean_ones(wall_2m):
         for i in range(6):
             front.step(Frame(i, 0.1 * i, rgb, d, poses[i], K))
         stats = front.stats
-        counts[name] = (stats["depth_limited"], stats["depth_too_noisy"], stats["scan_points"] > 0)
+        counts[name] = (stats["depth_limited"], stats["depth_too_noisy"], stats["scans_weighted"], stats["scan_points"] > 0)
         if name == "d435":
             assert stats["trusted_range_mean_m"] == pytest.approx(math.sqrt(3.0), rel=0.1)
-    # Clean depth is used as it is; the Kinect's to about 4 m; the D435's 1.7 m is too short to
-    # register on (min_range 2.5 m), so its frames give the front end no scan at all.
-    assert counts == {"clean": (0, 0, True), "kinect": (6, 0, True), "d435": (6, 6, False)}
+    # Clean depth is used as it is. The Kinect's is limited to about 4 m and its scans weighted
+    # down; the D435's 1.7 m is too short to register on (min_range 2.5 m), so its frames give
+    # the front end no scan at all.
+    assert counts == {"clean": (0, 0, 0, True), "kinect": (6, 0, 6, True), "d435": (6, 6, 6, False)}
+
+
+def test_scan_weight_is_one_for_exact_depth_and_falls_with_the_noise():
+    trust = DepthTrust()
+    assert scan_weight(None, trust) == 1.0  # exact depth: the registration exactly as before
+    assert scan_weight(trust.scan_noise_half, trust) == pytest.approx(0.5)
+    kinect = scan_weight(1.7e-3, trust)  # a Kinect v1's inverse-depth noise
+    assert kinect == pytest.approx(1.0 / (1.0 + (1.7e-3 / 5e-5) ** 2))
+    assert scan_weight(1e-2, trust) < kinect < scan_weight(1e-3, trust) < 1.0
+    assert scan_weight(1.7e-3, DepthTrust(scan_noise_half=0.0)) == 1.0
+    assert scan_weight(1.7e-3, DepthTrust(use=False)) == 1.0
+
+
+def test_a_weighted_scan_informs_the_registration_less():
+    from longslam.slam.frontend.local_map import LocalMap
+    from longslam.slam.frontend.registration import register
+
+    wall = np.column_stack([np.full(60, 2.0), np.linspace(-1.5, 1.5, 60)])
+    floor = np.column_stack([np.linspace(0.5, 2.0, 30), np.full(30, -1.5)])
+    local = LocalMap()
+    local.insert(np.zeros(3), np.vstack([wall, floor]))
+    scan = np.vstack([wall, floor])
+    full = register(scan, np.array([0.02, 0.01, 0.0]), local)
+    light = register(scan, np.array([0.02, 0.01, 0.0]), local, weight=0.01)
+    assert full.ok and light.ok
+    np.testing.assert_allclose(light.hessian, 0.01 * full.hessian, rtol=1e-6)

@@ -31,7 +31,7 @@ from longslam.frame import Frame, Intrinsics
 from longslam.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
 from longslam.memory_release import release_free_memory
 from longslam.slam.api import Table
-from longslam.slam.depth_trust import DepthTrust, trusted_depth, trusted_range
+from longslam.slam.depth_trust import DepthTrust, measured_noise, range_for_noise, scan_weight, trusted_depth
 from longslam.slam.graph import Edge
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
@@ -141,7 +141,7 @@ class FrontEnd:
         self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0,
                        "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
                        "scans_unmatched": 0, "scan_points": 0, "loops": 0,
-                       "depth_limited": 0, "depth_too_noisy": 0}
+                       "depth_limited": 0, "depth_too_noisy": 0, "scans_weighted": 0}
         self._range_sum = 0.0  # of the trusted ranges of the frames whose depth was limited
         self._depth: np.ndarray | None = None
 
@@ -222,7 +222,11 @@ class FrontEnd:
     def _fused_step(self, k: int, frame: Frame, wheel: WheelStep | None) -> np.ndarray:
         cfg = self.config
         # Scans and tracked corners only where the frame's own depth noise allows (depth_trust).
-        limit = trusted_range(frame.depth, cfg.depth_trust)
+        sigma_w = measured_noise(frame.depth, cfg.depth_trust)
+        limit = range_for_noise(sigma_w, cfg.depth_trust)
+        weight = scan_weight(sigma_w, cfg.depth_trust)
+        if weight < 1.0:
+            self.counts["scans_weighted"] += 1
         self._depth = trusted_depth(frame.depth, limit)
         if limit is not None:
             self.counts["depth_limited"] += 1
@@ -265,7 +269,7 @@ class FrontEnd:
         self.counts["scan_points"] += len(scan)
         scan_factor = None
         if self._map.tree is not None:
-            reg = register(scan, predicted, self._map, flt.pose_information(), cfg.registration)
+            reg = register(scan, predicted, self._map, flt.pose_information(), cfg.registration, weight)
             if not reg.ok:
                 self.counts["scans_unmatched"] += 1
             else:

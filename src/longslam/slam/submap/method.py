@@ -155,7 +155,7 @@ class SubmapMethod:
         self.counts.frames += 1
         if self._vocabulary is not None and updates and frame.timestamp - self._last_keyframe_time >= self.config.loop_keyframe_interval:
             self._last_keyframe_time = frame.timestamp
-            self._loop_closure(frame, active, in_submap)
+            self._loop_closure(frame, active, in_submap, depth)
         self._pose_in_active = in_submap
         pose = self._world_pose(active.index, in_submap)
         self._stamps.append(float(frame.timestamp))
@@ -243,12 +243,13 @@ class SubmapMethod:
                 self.counts.rejection_reasons[key] = self.counts.rejection_reasons.get(key, 0) + 1
 
     # --- loop closure ------------------------------------------------------------------------------
-    def _loop_closure(self, frame: Frame, active: Submap, in_submap: np.ndarray) -> None:
+    def _loop_closure(self, frame: Frame, active: Submap, in_submap: np.ndarray, depth: np.ndarray) -> None:
+        """Look for a loop from this frame (its trusted `depth`) to an older submap's keyframe."""
         from longslam.slam import features as feature_module
         from longslam.slam.place_recognition import verify
 
         c = self.config
-        feats = feature_module.extract(frame.rgb, frame.depth, frame.intrinsics, max_features=c.loop_max_features)
+        feats = feature_module.extract(frame.rgb, depth, frame.intrinsics, max_features=c.loop_max_features)
         if len(feats) == 0:
             return
         old = [i for i, k in enumerate(self._keyframes) if frame.timestamp - k.time >= c.loop_min_age and k.submap < active.index - 1]
