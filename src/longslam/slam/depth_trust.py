@@ -33,10 +33,8 @@ class DepthTrust:
     min_range: float = 2.5  # m: trusted range under which a frame's step is the wheels' alone
     min_pixels: int = 500  # fewer valid triples than this: too little to measure, depth used as it is
     stride: int = 2  # every this many image rows sampled to measure the noise
-    # 1/m: inverse-depth noise (0.8 mm at 4 m) at which a scan registration's information is
-    # halved (`scan_weight`; 0: never). A Kinect v1 measures 1.7e-3, a D435 1e-2, rendered depth
-    # below 1e-5 (exact: weight 1).
-    scan_noise_half: float = 5e-5
+    # A Kinect v1 measures 1.7e-3 1/m, a D435 1e-2, rendered depth below 1e-5 (exact: weight 1).
+    scan_noise_half: float = 5e-5  # 1/m: inverse-depth noise at which a scan's information is halved (0: never)
 
 
 def inverse_depth_noise(depth: np.ndarray, stride: int = 2) -> tuple[float, int] | None:

@@ -38,6 +38,7 @@ from longslam.slam.frontend.registration import RegistrationConfig, information_
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
 from longslam.slam.frontend.visual import VisualConfig, VisualOdometry
 from longslam.slam.frontend.visual_gates import GateBounds, VisualGates
+from longslam.slam.frontend.wall_axes import WallAxes, WallAxesConfig
 from longslam.slam.frontend.filter import BiasFilter, MotionNoise
 from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
 from longslam.slam.graph.factors import WheelStep
@@ -98,6 +99,7 @@ class FrontEndConfig:
     noise: MotionNoise = field(default_factory=MotionNoise)
     smoother: SmootherConfig = field(default_factory=SmootherConfig)
     depth_trust: DepthTrust = field(default_factory=DepthTrust)
+    wall_axes: WallAxesConfig = field(default_factory=WallAxesConfig)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -141,7 +143,8 @@ class FrontEnd:
         self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0,
                        "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
                        "scans_unmatched": 0, "scan_points": 0, "loops": 0,
-                       "depth_limited": 0, "depth_too_noisy": 0, "scans_weighted": 0}
+                       "depth_limited": 0, "depth_too_noisy": 0, "scans_weighted": 0, "wall_headings": 0}
+        self._axes = WallAxes(self.config.wall_axes) if self.config.wall_axes.use else None
         self._range_sum = 0.0  # of the trusted ranges of the frames whose depth was limited
         self._depth: np.ndarray | None = None
 
@@ -287,6 +290,11 @@ class FrontEnd:
                         scan_factor = (anchor, relative(self._online[anchor], reg.pose),
                                        cfg.scan_information_scale * information_in_body(reg.hessian, reg.pose[2]))
         pose = flt.pose
+        if self._axes is not None and len(scan):
+            heading = self._axes.heading(k, float(pose[2]), scan)
+            if heading is not None:
+                self.counts["wall_headings"] += 1
+                self._smoother.add_heading(k, heading, np.radians(cfg.wall_axes.sigma_deg))
         last = self._last_insert
         if len(scan) and (last is None or np.hypot(*(pose[:2] - last[:2])) >= cfg.insert_distance
                           or abs(wrap_angle(pose[2] - last[2])) >= cfg.insert_angle):
@@ -359,6 +367,10 @@ class FrontEnd:
         out["ms_per_frame"] = 1000.0 * self._time / max(self.counts["frames"], 1)
         if self.counts["depth_limited"]:
             out["trusted_range_mean_m"] = self._range_sum / self.counts["depth_limited"]
+        if self._axes is not None:
+            # Measured wall directions: the first sets the axes, `gated` were off them (a wing).
+            out["wall_directions"] = {"measured": self._axes.measured, "gated": self._axes.gated,
+                                      "axes_deg": None if self._axes.axes is None else float(np.degrees(self._axes.axes))}
         if self._filter is not None and self._has_wheels and self.config.mode == "fused":
             out["bias_final"] = [float(b) for b in self._filter.bias]
         return out

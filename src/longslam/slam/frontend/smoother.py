@@ -77,6 +77,7 @@ class FullSmoother:
         self.records = FrameStore()
         self.initial = self.records.poses
         self.loops: list[tuple[int, int, np.ndarray, np.ndarray]] = []
+        self.headings: list[tuple[int, float, float]] = []  # (frame, yaw, std): the walls' heading factors
         self.bias_init: dict[int, np.ndarray] = {}
 
     def add_frame(self, online_pose: np.ndarray, wheel: WheelStep | None, wheel_sigmas: np.ndarray | None,
@@ -88,6 +89,10 @@ class FullSmoother:
         block = k // self.config.bias_block
         if bias is not None and block not in self.bias_init:
             self.bias_init[block] = np.asarray(bias, dtype=np.float64).copy()
+
+    def add_heading(self, k: int, yaw: float, sigma: float) -> None:
+        """Frame k's heading is `yaw` within `sigma` (rad), its position free (wall_axes.py)."""
+        self.headings.append((int(k), float(yaw), float(sigma)))
 
     def add_loop(self, i: int, j: int, delta: np.ndarray, information: np.ndarray) -> None:
         self.loops.append((int(i), int(j), np.asarray(delta, dtype=np.float64), np.asarray(information, dtype=np.float64)))
@@ -246,4 +251,7 @@ class FullSmoother:
         for i, j, delta, info in self.loops:
             if first <= i <= last and first <= j <= last:
                 graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
+        for k, yaw, sigma in self.headings:
+            if first <= k <= last and (fixed is None or k not in fixed):
+                graph.prior_heading(k, self.initial[k], yaw, sigma)
         return graph

@@ -82,6 +82,12 @@ class FactorGraph:
     def prior_pose(self, k: int, xyyaw: np.ndarray, sigmas: np.ndarray) -> None:
         self.graph.add(gtsam.PriorFactorPose2(X(k), gtsam.Pose2(*xyyaw), noise.diagonal(sigmas)))
 
+    def prior_heading(self, k: int, xyyaw: np.ndarray, yaw: float, sigma: float, huber: float = 1.0) -> None:
+        """Pose k's heading is `yaw` within `sigma`, under a Huber kernel (in stds); its position
+        is left free (a std of 1 km about `xyyaw`'s)."""
+        model = noise.diagonal(np.array([1e3, 1e3, sigma]))
+        self.graph.add(gtsam.PriorFactorPose2(X(k), gtsam.Pose2(xyyaw[0], xyyaw[1], yaw), noise.robust(model, "huber", huber)))
+
     def prior_bias(self, b: int, value: np.ndarray, sigmas: np.ndarray) -> None:
         self.graph.add(gtsam.PriorFactorPoint2(B(b), gtsam.Point2(*value), noise.diagonal(sigmas)))
 

@@ -1,0 +1,115 @@
+"""The building's wall directions as a heading reference: an optional structural prior.
+
+Most buildings are drawn on a grid: their long walls are parallel or at right angles to each
+other. A scan that sees a straight wall therefore measures the robot's heading modulo 90 degrees
+against the walls seen at the start, with no loop closure, however far the route has gone. The
+front end measures the dominant wall direction of a scan every few frames; the first measurement
+fixes the building's axes (in the estimate's own frame, so nothing about the world is assumed),
+and each later one within `gate_deg` of them becomes a heading factor in the final smoother.
+
+A wall further than `gate_deg` from the axes (a wing built at 30 degrees) is not taken for one of
+them: it gives no factor. Off by default: a building with no dominant grid, or a route through
+curved rooms, gets nothing from it, and a wrong axis would pull every heading.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+QUARTER = 0.5 * math.pi
+
+
+@dataclass(frozen=True)
+class WallAxesConfig:
+    use: bool = False  # heading factors from the walls' directions in the final smoother
+    every: int = 10  # frames between two measurements (one wall seen by many frames is one view)
+    neighbours: int = 6  # scan points whose spread gives a point's local direction
+    radius: float = 0.25  # m: the neighbours' farthest distance
+    straightness: float = 0.05  # a neighbourhood's smaller over larger spread (eigenvalue) at most: a line
+    peak_width_deg: float = 2.0  # a point's direction within this of the peak is along it
+    min_points: int = 40  # points along the peak direction a measurement needs
+    min_share: float = 0.5  # of the scan's straight points along the peak direction
+    gate_deg: float = 3.0  # a wall direction further than this from the axes is not one of them
+    sigma_deg: float = 1.0  # heading std of one measurement in the final smoother
+
+    def __post_init__(self) -> None:
+        from longslam.errors import InputError
+
+        if self.every < 1:
+            raise InputError(f"front end: wall_axes.every must be at least 1 frame, got {self.every}")
+        if not 0 < self.sigma_deg:
+            raise InputError(f"front end: wall_axes.sigma_deg must be > 0, got {self.sigma_deg}")
+        if not 0 < self.gate_deg < 45:
+            raise InputError(f"front end: wall_axes.gate_deg must be in (0, 45) degrees, got {self.gate_deg}")
+
+
+def fold(angle: float | np.ndarray) -> float | np.ndarray:
+    """An angle modulo 90 degrees, in [-45, 45) degrees (radians)."""
+    return np.mod(np.asarray(angle) + 0.5 * QUARTER, QUARTER) - 0.5 * QUARTER
+
+
+def wall_direction(scan_xy: np.ndarray, config: WallAxesConfig = WallAxesConfig()) -> tuple[float, int] | None:
+    """The dominant direction (radians, modulo 90 degrees, in [-45, 45)) of the straight walls in
+    a 2D scan (N, 2) and the number of points along it; None if no direction dominates."""
+    pts = np.asarray(scan_xy, dtype=np.float64)
+    if len(pts) < max(config.min_points, config.neighbours):
+        return None
+    dist, idx = cKDTree(pts).query(pts, k=config.neighbours, distance_upper_bound=config.radius)
+    full = np.all(np.isfinite(dist), axis=1)
+    if not np.any(full):
+        return None
+    near = pts[idx[full]]  # (M, k, 2)
+    d = near - near.mean(axis=1, keepdims=True)
+    cxx, cyy, cxy = (d[..., 0] ** 2).mean(1), (d[..., 1] ** 2).mean(1), (d[..., 0] * d[..., 1]).mean(1)
+    half = np.sqrt(0.25 * (cxx - cyy) ** 2 + cxy ** 2)
+    big, small = 0.5 * (cxx + cyy) + half, 0.5 * (cxx + cyy) - half
+    straight = small <= config.straightness * np.maximum(big, 1e-12)
+    if straight.sum() < config.min_points:
+        return None
+    along = fold(0.5 * np.arctan2(2.0 * cxy[straight], (cxx - cyy)[straight]))
+    # The peak of a 1-degree histogram (wrapping at +-45), then the points within peak_width of
+    # it, averaged on the circle of 4 x angle (where 90 degrees apart is the same direction).
+    bins = np.floor((np.degrees(along) + 45.0)).astype(int) % 90
+    counts = np.bincount(bins, minlength=90)
+    window = counts + np.roll(counts, 1) + np.roll(counts, -1)
+    peak = math.radians(int(np.argmax(window)) + 0.5 - 45.0)
+    members = np.abs(fold(along - peak)) <= math.radians(config.peak_width_deg)
+    count = int(members.sum())
+    if count < config.min_points or count < config.min_share * len(along):
+        return None
+    mean = math.atan2(np.sin(4.0 * along[members]).sum(), np.cos(4.0 * along[members]).sum()) / 4.0
+    return float(fold(mean)), count
+
+
+class WallAxes:
+    """The building's axes, from the first measurement, and the heading each later one gives."""
+
+    def __init__(self, config: WallAxesConfig) -> None:
+        self.config = config
+        self.axes: float | None = None  # world direction of the walls, modulo 90 degrees (rad)
+        self.measured = 0
+        self.gated = 0  # measurements too far from the axes: another direction (a wing)
+
+    def heading(self, frame: int, yaw: float, scan_xy: np.ndarray) -> float | None:
+        """The heading (rad, near `yaw`) that would put this scan's walls on the axes; None when the
+        frame is not a measuring one, its walls show no direction, or it is off the axes."""
+        cfg = self.config
+        if frame % cfg.every:
+            return None
+        found = wall_direction(scan_xy, cfg)
+        if found is None:
+            return None
+        world = float(fold(yaw + found[0]))
+        self.measured += 1
+        if self.axes is None:
+            self.axes = world
+            return None
+        off = float(fold(world - self.axes))
+        if abs(off) > math.radians(cfg.gate_deg):
+            self.gated += 1
+            return None
+        return yaw - off
