@@ -116,6 +116,17 @@ class BiasFilter:
         self.cov = (np.eye(5) - gain @ h) @ self.cov
         self.cov = 0.5 * (self.cov + self.cov.T)
 
+    def update_heading(self, yaw: float, sigma: float) -> None:
+        """Fuse a measurement of the heading alone (rad, within `sigma`): the walls' direction."""
+        h = np.zeros((1, 5))
+        h[0, 2] = 1.0
+        s = float(self.cov[2, 2]) + sigma ** 2
+        gain = self.cov @ h.T / s
+        self.state += (gain * wrap_angle(yaw - self.state[2]))[:, 0]
+        self.state[2] = wrap_angle(self.state[2])
+        self.cov = (np.eye(5) - gain @ h) @ self.cov
+        self.cov = 0.5 * (self.cov + self.cov.T)
+
     def widen_forward_bias(self, std: float) -> None:
         """The forward bias may have jumped: add `std`^2 to its variance."""
         self.cov[3, 3] += std ** 2

@@ -293,8 +293,12 @@ class FrontEnd:
         if self._axes is not None and len(scan):
             heading = self._axes.heading(k, float(pose[2]), scan)
             if heading is not None:
+                # Online too, so the heading the next measurement is gated against stays on the axes.
+                sigma = float(np.radians(cfg.wall_axes.sigma_deg))
                 self.counts["wall_headings"] += 1
-                self._smoother.add_heading(k, heading, np.radians(cfg.wall_axes.sigma_deg))
+                flt.update_heading(heading, sigma)
+                pose = flt.pose
+                self._smoother.add_heading(k, heading, sigma)
         last = self._last_insert
         if len(scan) and (last is None or np.hypot(*(pose[:2] - last[:2])) >= cfg.insert_distance
                           or abs(wrap_angle(pose[2] - last[2])) >= cfg.insert_angle):
