@@ -84,6 +84,9 @@ class SubmapConfig:
     grid_min_height: float = 0.2
     grid_max_height: float = 1.5  # m above the floor: the top of the slice the 2D map is cut from
     grid_resolution: float = 0.1  # m: cell size of the 2D map
+    # Clear the 2D map's cells the camera saw through, by 2D rays from each frame's depth kept per
+    # submap (free_space.py): the TSDF's band behind a thin wall otherwise draws it 0.2-0.7 m into the room in front.
+    grid_free_space: bool = True
     write_mesh: bool = True  # map.ply mesh (marching cubes) in the run folder, if there is one
 
     def __post_init__(self) -> None:
