@@ -101,3 +101,11 @@ def test_the_rays_clear_a_thin_walls_back_side_band_in_front_of_it():
     assert len(inner) and np.all((inner[:, 0] > 2.0 - RES - 1e-9) & (inner[:, 0] < 2.2 + RES + 1e-9))
     assert np.any(np.abs(inner[:, 0] - 2.0) <= RES)  # the near face stays
     assert np.all(carved.values_at([[x, 0.05] for x in (0.55, 1.05, 1.45, 1.75)]) == FREE)
+
+
+def test_a_negative_margin_is_an_input_error_naming_the_parameter():
+    from longslam.errors import InputError
+    from longslam.slam.submap.config import SubmapConfig
+
+    with pytest.raises(InputError, match="grid_free_space_margin must be >= 0, got -1"):
+        SubmapConfig(grid_free_space_margin=-1)

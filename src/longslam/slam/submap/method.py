@@ -331,7 +331,7 @@ class SubmapMethod:
             # The submaps' rays at their final origins, as the TSDF's voxels were fused.
             free = fuse_free_space(((s.free_space.finish(), final[self._submap_frame[s.index]]) for s in self.submaps),
                                    c.grid_resolution)
-            grid = carve(grid, free)
+            grid = carve(grid, free, c.grid_free_space_margin)
         mesh_path = None
         if c.write_mesh and self.context.output_dir:
             mesh_path = write_mesh(fused, Path(self.context.output_dir) / "mesh.ply")
