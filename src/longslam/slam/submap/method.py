@@ -18,7 +18,9 @@
   first frame, so the map moves with the final trajectory.
 - The global map: the optimised submaps fused into one TSDF, its iso-surface points as the
   result's cloud (the run engine writes it as map.ply), a marching-cubes mesh (mesh.ply in the run
-  folder), and a 2D grid sliced between 0.2 and 1.5 m above the floor.
+  folder), and a 2D grid sliced between 0.2 and 1.5 m above the floor, cleared where the
+  submaps' 2D rays saw through (`free_space`: the TSDF's band behind a thin wall draws it into
+  the room in front).
 - Poses are planar, (x, y, yaw) with z the floor's: Voxgraph's (x, y, z, yaw) on a robot that
   drives on one floor.
 """
