@@ -41,7 +41,9 @@ class SubmapFreeSpace:
         self._votes: GridVotes | None = GridVotes(self.cell)
         self.cells: LocalGrid | None = None  # the decided cells, once finished
 
-    def add(self, depth: np.ndarray, intrinsics: Intrinsics, camera_in_base: np.ndarray, robot_in_submap: np.ndarray) -> None:
+    def add(
+        self, depth: np.ndarray, intrinsics: Intrinsics, camera_in_base: np.ndarray, robot_in_submap: np.ndarray,
+    ) -> None:
         """Vote one depth image taken with the robot at (x, y, yaw) `robot_in_submap`."""
         if self._votes is None:
             raise RuntimeError("a finished submap's free space takes no more frames")
