@@ -216,6 +216,10 @@ class GridVotes:
         # NaN: never seen. float32 halves the bytes of the former pair of int32 counts.
         self._odds = np.zeros((0, 0), np.float32)
 
+    @property
+    def nbytes(self) -> int:
+        return int(self._odds.nbytes)
+
     def _cells(self, cells: np.ndarray, pose: np.ndarray) -> np.ndarray:
         return np.floor(_cells_to_world([cells], pose[None], self.cell) / self.cell).astype(np.int64)
 

@@ -84,6 +84,12 @@ class SubmapConfig:
     grid_min_height: float = 0.2
     grid_max_height: float = 1.5  # m above the floor: the top of the slice the 2D map is cut from
     grid_resolution: float = 0.1  # m: cell size of the 2D map
+    # Clear the 2D map's cells the camera saw through, by 2D rays from each frame's depth kept per
+    # submap (free_space.py): the TSDF's band behind a thin wall otherwise draws it 0.2-0.7 m into the room in front.
+    grid_free_space: bool = True
+    # Cells (of the grid) around a cell the rays ended on that they never clear: the wall's face, and the
+    # TSDF's wall where submaps placed a little apart saw it at different places.
+    grid_free_space_margin: int = 1
     write_mesh: bool = True  # map.ply mesh (marching cubes) in the run folder, if there is one
 
     def __post_init__(self) -> None:
@@ -98,6 +104,8 @@ class SubmapConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value <= 0:
                 raise InputError(f"submap parameter {name} must be positive, got {value!r}")
+        if self.grid_free_space_margin < 0:
+            raise InputError(f"submap parameter grid_free_space_margin must be >= 0, got {self.grid_free_space_margin!r}")
         for name in ("registration_min_overlap_area", "loop_min_score", "loop_min_age"):
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:

@@ -18,7 +18,9 @@
   first frame, so the map moves with the final trajectory.
 - The global map: the optimised submaps fused into one TSDF, its iso-surface points as the
   result's cloud (the run engine writes it as map.ply), a marching-cubes mesh (mesh.ply in the run
-  folder), and a 2D grid sliced between 0.2 and 1.5 m above the floor.
+  folder), and a 2D grid sliced between 0.2 and 1.5 m above the floor, cleared where the
+  submaps' 2D rays saw through (`free_space`: the TSDF's band behind a thin wall draws it into
+  the room in front).
 - Poses are planar, (x, y, yaw) with z the floor's: Voxgraph's (x, y, z, yaw) on a robot that
   drives on one floor.
 """
@@ -39,6 +41,7 @@ from longslam.slam.depth_trust import trusted_depth, trusted_range
 from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.frontend import FrontEnd
 from longslam.slam.submap.config import SubmapConfig
+from longslam.slam.submap.free_space import SubmapFreeSpace, carve, fuse_free_space
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
 from longslam.slam.submap.registration import RegistrationSettings, register
@@ -57,6 +60,7 @@ class Submap:
     finished: bool = False
     points: np.ndarray | None = None  # (N, 3) float32 iso-surface sample for registration
     box: tuple[np.ndarray, np.ndarray] | None = None  # 2D (min, max) corners in the submap frame
+    free_space: SubmapFreeSpace | None = None  # 2D rays for the grid (grid_free_space)
 
 
 @dataclass
@@ -151,6 +155,10 @@ class SubmapMethod:
             )
         if updates == 0:
             self.counts.frames_without_depth += 1
+        elif active.free_space is not None:
+            # For the 2D map only: nothing here feeds registration or the trajectory.
+            active.free_space.add(depth, frame.intrinsics, self._mount.camera_in_base,
+                                  self._mount.to_planar(in_submap[None])[0])
         active.frames += 1
         self.counts.frames += 1
         if self._vocabulary is not None and updates and frame.timestamp - self._last_keyframe_time >= self.config.loop_keyframe_interval:
@@ -177,7 +185,11 @@ class SubmapMethod:
             self.graph.add_edge(previous.index, index, origin, information=info, kind=ODOMETRY)
         else:
             self.graph.add_node(index, origin)
-        submap = Submap(index, time, TSDF(c.voxel_size, c.truncation))
+        free_space = None
+        if c.grid_free_space:
+            free_space = SubmapFreeSpace(c.grid_resolution, self._max_depth, c.grid_min_height, c.grid_max_height,
+                                         c.integration_stride)
+        submap = Submap(index, time, TSDF(c.voxel_size, c.truncation), free_space=free_space)
         self.submaps.append(submap)
         return submap
 
@@ -189,6 +201,8 @@ class SubmapMethod:
         points, normals = submap.tsdf.surface_points()
         bounds = submap.tsdf.bounds()
         submap.tsdf.compact()
+        if submap.free_space is not None:
+            submap.free_space.finish()
         submap.finished = True
         if bounds is not None:
             submap.box = (bounds[0][:2].astype(np.float64), bounds[1][:2].astype(np.float64))
@@ -289,6 +303,8 @@ class SubmapMethod:
             "registration_points": int(sum(s.points.nbytes for s in finished if s.points is not None)),
             "frame_poses": int(len(self._in_submap) * (12 * 8 + 8 + 8)),
         }
+        if spaces := [s.free_space for s in self.submaps if s.free_space is not None]:
+            out["free_space"] = int(sum(f.nbytes for f in spaces))
         if self._vocabulary is not None:
             out["loop_keyframes"] = int(sum(k.features.nbytes for k in self._keyframes))
             out["vocabulary"] = int(self._vocabulary.nbytes)
@@ -314,6 +330,11 @@ class SubmapMethod:
         fused = fuse_submaps([(s.tsdf, origins[s.index]) for s in self.submaps], c.voxel_size, c.truncation, release=True)
         cloud, _ = fused.surface_points(with_normals=False)
         grid = grid_from_tsdf(fused, cloud, self._mount.floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)
+        if c.grid_free_space:
+            # The submaps' rays at their final origins, as the TSDF's voxels were fused.
+            free = fuse_free_space(((s.free_space.finish(), final[self._submap_frame[s.index]]) for s in self.submaps),
+                                   c.grid_resolution)
+            grid = carve(grid, free, c.grid_free_space_margin)
         mesh_path = None
         if c.write_mesh and self.context.output_dir:
             mesh_path = write_mesh(fused, Path(self.context.output_dir) / "mesh.ply")
