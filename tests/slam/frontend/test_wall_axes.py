@@ -49,35 +49,57 @@ def test_a_round_room_has_no_dominant_direction():
 
 def test_later_scans_turn_the_heading_onto_the_first_scans_axes():
     rng = np.random.default_rng(3)
-    axes = WallAxes(WallAxesConfig(use=True, every=1))
+    axes = WallAxes(WallAxesConfig(use=True, every=1, settle=1))
     scan = _corridor_corner(rng)
-    assert axes.heading(0, 0.0, scan) is None  # the first measurement sets the axes
+    [(frame, heading)] = axes.measure(0, 0.0, scan)  # the first measurement sets the axes
+    assert frame == 0 and abs(math.degrees(heading)) < 0.2
     # Facing world +y, with 1.5 degrees of heading error: the robot sees world-aligned walls
     # at -90 degrees (its scan depends on the truth alone) and believes they are at -88.5.
     truth_yaw, believed = math.radians(90.0), math.radians(91.5)
     seen = _rotated(_corridor_corner(rng), -90.0)
-    heading = axes.heading(1, believed, seen)
-    assert heading is not None
+    [(frame, heading)] = axes.measure(1, believed, seen)
+    assert frame == 1
     assert math.degrees(heading - truth_yaw) == pytest.approx(0.0, abs=0.2)
+
+
+def test_the_axes_are_the_settling_measurements_mean_and_they_get_their_factors_then():
+    rng = np.random.default_rng(6)
+    axes = WallAxes(WallAxesConfig(use=True, every=1, settle=4))
+    turns = [0.6, -0.4, 0.2, 30.0]  # three looks at the axes a little off, one at a 30-degree wing
+    got = [axes.measure(k, 0.0, _rotated(_corridor_corner(rng), t)) for k, t in enumerate(turns)]
+    assert got[:3] == [[], [], []]
+    assert math.degrees(axes.axes) == pytest.approx(np.mean(turns[:3]), abs=0.1)
+    assert [k for k, _ in got[3]] == [0, 1, 2] and axes.gated == 1
+
+
+def test_the_gate_widens_with_the_online_headings_std():
+    rng = np.random.default_rng(7)
+    axes = WallAxes(WallAxesConfig(use=True, every=1, settle=1))
+    axes.measure(0, 0.0, _corridor_corner(rng))
+    turned = _rotated(_corridor_corner(rng), -6.0)  # the heading 6 degrees off
+    assert axes.measure(1, 0.0, turned) == []  # outside the 3-degree gate
+    assert len(axes.measure(2, 0.0, turned, yaw_std=math.radians(1.5))) == 1  # 3 + 3 x 1.5 degrees
+    wing = _rotated(_corridor_corner(rng), 30.0)
+    assert axes.measure(3, 0.0, wing, yaw_std=math.radians(20.0)) == []  # never past max_gate_deg
 
 
 def test_a_wing_at_30_degrees_gives_no_heading():
     rng = np.random.default_rng(4)
-    axes = WallAxes(WallAxesConfig(use=True, every=1))
-    axes.heading(0, 0.0, _corridor_corner(rng))
-    assert axes.heading(1, 0.0, _rotated(_corridor_corner(rng), 30.0)) is None
+    axes = WallAxes(WallAxesConfig(use=True, every=1, settle=1))
+    axes.measure(0, 0.0, _corridor_corner(rng))
+    assert axes.measure(1, 0.0, _rotated(_corridor_corner(rng), 30.0)) == []
     assert axes.gated == 1 and axes.measured == 2
 
 
 def test_only_every_nth_frame_measures():
     rng = np.random.default_rng(5)
     axes = WallAxes(WallAxesConfig(use=True, every=10))
-    assert axes.heading(3, 0.0, _corridor_corner(rng)) is None and axes.measured == 0
-    axes.heading(10, 0.0, _corridor_corner(rng))
+    assert axes.measure(3, 0.0, _corridor_corner(rng)) == [] and axes.measured == 0
+    axes.measure(10, 0.0, _corridor_corner(rng))
     assert axes.measured == 1
 
 
-@pytest.mark.parametrize("field, value", [("every", 0), ("sigma_deg", 0.0), ("gate_deg", 45.0)])
+@pytest.mark.parametrize("field, value", [("every", 0), ("sigma_deg", 0.0), ("gate_deg", 20.0), ("settle", 0)])
 def test_bad_settings_are_refused(field, value):
     with pytest.raises(InputError, match=f"wall_axes.{field}"):
         WallAxesConfig(**{field: value})

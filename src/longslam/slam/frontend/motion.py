@@ -291,14 +291,13 @@ class FrontEnd:
                                        cfg.scan_information_scale * information_in_body(reg.hessian, reg.pose[2]))
         pose = flt.pose
         if self._axes is not None and len(scan):
-            heading = self._axes.heading(k, float(pose[2]), scan)
-            if heading is not None:
-                # Online too, so the heading the next measurement is gated against stays on the axes.
-                sigma = float(np.radians(cfg.wall_axes.sigma_deg))
+            sigma = float(np.radians(cfg.wall_axes.sigma_deg))
+            for frame_k, heading in self._axes.measure(k, float(pose[2]), scan, float(np.sqrt(flt.cov[2, 2]))):
                 self.counts["wall_headings"] += 1
-                flt.update_heading(heading, sigma)
-                pose = flt.pose
-                self._smoother.add_heading(k, heading, sigma)
+                self._smoother.add_heading(frame_k, heading, sigma)
+                if frame_k == k:  # online too, so the next measurement is gated against a held heading
+                    flt.update_heading(heading, sigma)
+                    pose = flt.pose
         last = self._last_insert
         if len(scan) and (last is None or np.hypot(*(pose[:2] - last[:2])) >= cfg.insert_distance
                           or abs(wrap_angle(pose[2] - last[2])) >= cfg.insert_angle):

@@ -3,12 +3,14 @@
 Most buildings are drawn on a grid: their long walls are parallel or at right angles to each
 other. A scan that sees a straight wall therefore measures the robot's heading modulo 90 degrees
 against the walls seen at the start, with no loop closure, however far the route has gone. The
-front end measures the dominant wall direction of a scan every few frames; the first measurement
-fixes the building's axes (in the estimate's own frame, so nothing about the world is assumed),
-and each later one within `gate_deg` of them becomes a heading factor in the final smoother.
+front end measures the dominant wall direction of a scan every few frames; the first `settle`
+measurements, near the start where the heading is still good, fix the building's axes (in the
+estimate's own frame, so nothing about the world is assumed), and each measurement within the
+gate of them becomes a heading factor in the online filter and the final smoother.
 
-A wall further than `gate_deg` from the axes (a wing built at 30 degrees) is not taken for one of
-them: it gives no factor. Off by default: a building with no dominant grid, or a route through
+A wall further than the gate from the axes (a wing built at 30 degrees) is not taken for one of
+them: it gives no factor. The gate is `gate_deg` widened by `gate_sigmas` times the online
+heading's std, so a heading that drifted where no wall was seen (a hall) is still caught. Off by default: a building with no dominant grid, or a route through
 curved rooms, gets nothing from it, and a wrong axis would pull every heading.
 """
 
@@ -33,7 +35,10 @@ class WallAxesConfig:
     peak_width_deg: float = 2.0  # a point's direction within this of the peak is along it
     min_points: int = 40  # points along the peak direction a measurement needs
     min_share: float = 0.5  # of the scan's straight points along the peak direction
+    settle: int = 10  # measurements whose mean direction fixes the axes (one scan's can be a degree off)
     gate_deg: float = 3.0  # a wall direction further than this from the axes is not one of them
+    gate_sigmas: float = 3.0  # the gate widened by this many of the online heading's stds
+    max_gate_deg: float = 15.0  # the widened gate's limit: a wing at 30 degrees stays out
     sigma_deg: float = 1.0  # heading std of one measurement in the final smoother
 
     def __post_init__(self) -> None:
@@ -43,8 +48,11 @@ class WallAxesConfig:
             raise InputError(f"front end: wall_axes.every must be at least 1 frame, got {self.every}")
         if not 0 < self.sigma_deg:
             raise InputError(f"front end: wall_axes.sigma_deg must be > 0, got {self.sigma_deg}")
-        if not 0 < self.gate_deg < 45:
-            raise InputError(f"front end: wall_axes.gate_deg must be in (0, 45) degrees, got {self.gate_deg}")
+        if not 0 < self.gate_deg <= self.max_gate_deg < 45:
+            raise InputError(f"front end: wall_axes.gate_deg and max_gate_deg must be 0 < gate_deg <= max_gate_deg < 45 "
+                             f"degrees, got {self.gate_deg} and {self.max_gate_deg}")
+        if self.settle < 1:
+            raise InputError(f"front end: wall_axes.settle must be at least 1 measurement, got {self.settle}")
 
 
 def fold(angle: float | np.ndarray) -> float | np.ndarray:
@@ -85,31 +93,53 @@ def wall_direction(scan_xy: np.ndarray, config: WallAxesConfig = WallAxesConfig(
     return float(fold(mean)), count
 
 
+def mean_direction(angles: np.ndarray) -> float:
+    """The mean of directions modulo 90 degrees (rad, in [-45, 45))."""
+    a = np.asarray(angles, dtype=np.float64)
+    return float(fold(math.atan2(np.sin(4.0 * a).sum(), np.cos(4.0 * a).sum()) / 4.0))
+
+
 class WallAxes:
-    """The building's axes, from the first measurement, and the heading each later one gives."""
+    """The building's axes, from the first measurements, and the heading each one gives."""
 
     def __init__(self, config: WallAxesConfig) -> None:
         self.config = config
         self.axes: float | None = None  # world direction of the walls, modulo 90 degrees (rad)
         self.measured = 0
         self.gated = 0  # measurements too far from the axes: another direction (a wing)
+        self._settling: list[tuple[int, float, float]] = []  # (frame, yaw, world direction)
 
-    def heading(self, frame: int, yaw: float, scan_xy: np.ndarray) -> float | None:
-        """The heading (rad, near `yaw`) that would put this scan's walls on the axes; None when the
-        frame is not a measuring one, its walls show no direction, or it is off the axes."""
+    def measure(self, frame: int, yaw: float, scan_xy: np.ndarray, yaw_std: float = 0.0) -> list[tuple[int, float]]:
+        """Heading factors, (frame, heading in rad near that frame's yaw), that this frame's scan
+        gives: none on a frame that does not measure or whose walls show no direction, or while
+        the axes are settling; when they settle, the settling measurements' own."""
         cfg = self.config
         if frame % cfg.every:
-            return None
+            return []
         found = wall_direction(scan_xy, cfg)
         if found is None:
-            return None
+            return []
         world = float(fold(yaw + found[0]))
         self.measured += 1
         if self.axes is None:
-            self.axes = world
-            return None
+            self._settling.append((frame, yaw, world))
+            if len(self._settling) < cfg.settle:
+                return []
+            worlds = np.array([w for _, _, w in self._settling])
+            # The mean of the largest group within the gate of one of them: a wing or a box at an
+            # angle among the settling measurements does not pull the axes.
+            near = np.abs(fold(worlds[:, None] - worlds[None, :])) <= math.radians(cfg.gate_deg)
+            self.axes = mean_direction(worlds[near[int(np.argmax(near.sum(axis=1)))]])
+            settled, self._settling = self._settling, []
+            return [f for f in (self._factor(k, y, w, 0.0) for k, y, w in settled) if f is not None]
+        factor = self._factor(frame, yaw, world, yaw_std)
+        return [] if factor is None else [factor]
+
+    def _factor(self, frame: int, yaw: float, world: float, yaw_std: float) -> tuple[int, float] | None:
+        cfg = self.config
+        gate = min(math.radians(cfg.gate_deg) + cfg.gate_sigmas * yaw_std, math.radians(cfg.max_gate_deg))
         off = float(fold(world - self.axes))
-        if abs(off) > math.radians(cfg.gate_deg):
+        if abs(off) > gate:
             self.gated += 1
             return None
-        return yaw - off
+        return frame, yaw - off
