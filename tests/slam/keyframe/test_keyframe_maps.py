@@ -48,7 +48,8 @@ def batch_maps(poses: np.ndarray, data: dict) -> tuple[np.ndarray, np.ndarray]:
 
 def test_streamed_maps_equal_the_batch_maps_to_the_bit(tmp_path):
     poses, data = nodes(80, 1500)
-    grid, cloud = assemble_maps(list(data), lambda i: poses[i], data.__getitem__, MOUNT, CELL, VOXEL, scratch_dir=tmp_path)
+    grid, cloud = assemble_maps(list(data), lambda i: poses[i], data.__getitem__, MOUNT, CELL, VOXEL, scratch_dir=tmp_path,
+                                grid_reach=2.0)
     grid_data, expected = batch_maps(poses, data)
     assert np.array_equal(grid.data, grid_data)
     assert cloud.dtype == np.float32 and cloud.tobytes() == expected.tobytes()
@@ -71,5 +72,5 @@ def test_the_maps_never_hold_every_node_at_once(tmp_path):
     poses, data = nodes(150, 4000)
     batch = traced_peak(lambda: batch_maps(poses, data))
     streamed = traced_peak(lambda: assemble_maps(list(data), lambda i: poses[i], data.__getitem__, MOUNT, CELL, VOXEL,
-                                                 scratch_dir=tmp_path))
+                                                 scratch_dir=tmp_path, grid_reach=2.0))
     assert streamed < 0.35 * batch, f"streamed peak {streamed / 1e6:.1f} MB, batch {batch / 1e6:.1f} MB"

@@ -21,14 +21,20 @@ def assemble_maps(
     grid_cell: float,
     cloud_voxel: float,
     scratch_dir: str | Path | None = None,
+    grid_reach: float | None = None,
 ) -> tuple[GridMap, np.ndarray]:
     """The 2D occupancy grid (local grids at their nodes' poses) and the voxel-filtered 3D cloud.
 
     Nodes are taken one at a time (from RAM or long-term memory), and neither the grid nor the
     cloud holds every node's data at once: the grid keeps its vote counts, the cloud streams
     through `VoxelStream` (scratch files under `scratch_dir`), which gives the batch filter's
-    cloud to the bit."""
+    cloud to the bit. `grid_reach` (m), how far a local grid reaches from its node, sizes the
+    grid's array once from the nodes' positions."""
     votes = GridVotes(grid_cell)
+    if grid_reach is not None and node_ids:
+        xy = np.array([estimate(node_id)[:2] for node_id in node_ids], dtype=np.float64)
+        reach = grid_reach + 2 * grid_cell  # a cell's centre, rotated, lands a cell beyond
+        votes.reserve(xy.min(axis=0) - reach, xy.max(axis=0) + reach)
     with VoxelStream(cloud_voxel, scratch_dir) as cloud:
         for node_id in node_ids:
             grid, points = grid_and_points(node_id)

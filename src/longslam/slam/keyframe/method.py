@@ -224,7 +224,8 @@ class KeyframeMethod:
         map_bytes = self.memory_bytes()
         census = self.memory.census()
         grid_map, cloud = assemble_maps(sorted(self.nodes), lambda node_id: final[self._node_frame[node_id]], self.memory.grid_and_points,
-                                        self._mount, self.config.grid_cell, self.config.cloud_voxel, scratch_dir=self.db_path.parent)
+                                        self._mount, self.config.grid_cell, self.config.cloud_voxel,
+                                        scratch_dir=self.db_path.parent, grid_reach=self.config.grid_range)
 
         # The database ends holding every node at its optimised pose, so a user can reopen it.
         self.memory.flush()
