@@ -100,9 +100,16 @@ class VoxelStream:
         if self._spent:
             raise RuntimeError("VoxelStream.result called twice: the slab files are gone")
         self._spent = True
-        centroids = []
-        for s in sorted(self._on_disk | set(self._buffers)):
-            centroids.append(average_3d(self._slab_points(s), self.voxel).astype(np.float32))
-            self._buffers.pop(s, None)
-            self._path(s).unlink(missing_ok=True)  # frees the disk as the result fills
-        return np.concatenate(centroids) if centroids else np.zeros((0, 3), np.float32)
+        # Each slab's centroids go to one more scratch file, read back whole at the end: a list
+        # of them and its concatenation would hold the cloud twice.
+        out, count = self._dir / "centroids.f32", 0
+        with open(out, "wb") as f:
+            for s in sorted(self._on_disk | set(self._buffers)):
+                centroids = average_3d(self._slab_points(s), self.voxel).astype(np.float32)
+                centroids.tofile(f)
+                count += len(centroids)
+                self._buffers.pop(s, None)
+                self._path(s).unlink(missing_ok=True)  # frees the disk as the result fills
+        cloud = np.fromfile(out, dtype=np.float32, count=3 * count).reshape(-1, 3)
+        out.unlink()
+        return cloud
