@@ -85,7 +85,7 @@ class VoxelStream:
         for s, parts in self._buffers.items():
             with open(self._path(s), "ab") as f:
                 for part in parts:
-                    f.write(part.tobytes())
+                    part.tofile(f)
             self._on_disk.add(s)
         self._buffers.clear()
         self._buffered = 0
