@@ -66,9 +66,9 @@ def write_ply(path: str | Path, chunks: Iterable[tuple[np.ndarray, np.ndarray | 
                     faces = np.empty(len(triangles), _FACE)
                     faces["n"] = 3
                     faces["v"] = np.asarray(triangles) + n_vertices
-                    ff.write(faces.tobytes())
+                    faces.tofile(ff)  # no bytes copy of the chunk
                     n_faces += len(faces)
-                vf.write(np.ascontiguousarray(rows).tobytes())
+                np.ascontiguousarray(rows).tofile(vf)
                 n_vertices += len(rows)
         with atomic_path(path, overwrite=True) as tmp, open(tmp, "wb") as out:
             out.write(_header(vertex_dtype or POINT, n_vertices, n_faces if n_faces else None, comment))

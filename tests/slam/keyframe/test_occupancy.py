@@ -138,3 +138,23 @@ def test_a_grid_reaching_the_edge_of_the_vote_array_is_kept_whole():
     assert (gmap.values_at(np.array([[0.025, 0.025], [corner, corner]])) == OCCUPIED).all()
     assert gmap.values_at(np.array([[0.075, 0.025]]))[0] == FREE
     assert (gmap.data[0] == UNKNOWN).all() and (gmap.data[:, 0] == UNKNOWN).all()
+
+
+def test_a_reserved_vote_array_gives_the_same_grid_and_grows_if_it_must():
+    rng = np.random.default_rng(3)
+    grids = [LocalGrid(np.unique(rng.integers(-30, 30, (40, 2)), axis=0).astype(np.int16),
+                       np.unique(rng.integers(-15, 15, (60, 2)), axis=0).astype(np.int16), 0.05) for _ in range(20)]
+    poses = np.column_stack([np.linspace(0, 12, 20), np.linspace(-2, 3, 20), rng.uniform(-np.pi, np.pi, 20)])
+    grown = GridVotes(0.05)
+    for grid, pose in zip(grids, poses):
+        grown.add(grid, pose)
+    # Reserved to fit every grid, and reserved too small (the last grids reach beyond it).
+    for lo, hi in (([-3.0, -5.0], [15.0, 6.0]), ([0.0, 0.0], [5.0, 1.0])):
+        reserved = GridVotes(0.05)
+        reserved.reserve(np.array(lo), np.array(hi))
+        for grid, pose in zip(grids, poses):
+            reserved.add(grid, pose)
+        a, b = grown.grid(), reserved.grid()
+        assert np.array_equal(a.data, b.data) and a.origin == b.origin
+    with pytest.raises(RuntimeError, match="before the first add"):
+        reserved.reserve(np.zeros(2), np.ones(2))

@@ -35,6 +35,7 @@ from longslam.slam.keyframe.memory import KeyframeMemory, Node
 from longslam.slam.keyframe.memory_db import MemoryDatabase
 from longslam.slam.keyframe.occupancy import depth_points_in_base, local_grid
 from longslam.slam.place_recognition import Vocabulary
+from longslam.slam.rows import Rows
 from longslam.trajectory import Trajectory
 
 
@@ -66,8 +67,9 @@ class KeyframeMethod:
         self.images_every_frame = self.frontend.images_every_frame
         self._node_frame: dict[int, int] = {}  # node id -> index of the frame it was made at
         self._last_node: Node | None = None
-        self._frame_stamps: list[float] = []
-        self._online: list[np.ndarray] = []
+        # Per frame, in flat chunks rather than lists of small objects (slam/rows.py).
+        self._frame_stamps = Rows()
+        self._online = Rows((4, 4))
         self._node_seconds: list[float] = []  # time to make each node (features, loops, memory)
 
     @property
@@ -218,13 +220,14 @@ class KeyframeMethod:
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
         final = self._frontend_final()
         poses = self._mount.to_camera(final)
-        trajectory = Trajectory(np.array(self._frame_stamps), poses, source="keyframe")
-        online = Trajectory(np.array(self._frame_stamps), np.array(self._online), source="keyframe online")
+        trajectory = Trajectory(self._frame_stamps.array(), poses, source="keyframe")
+        online = Trajectory(self._frame_stamps.array(), self._online.array(), source="keyframe online")
 
         map_bytes = self.memory_bytes()
         census = self.memory.census()
         grid_map, cloud = assemble_maps(sorted(self.nodes), lambda node_id: final[self._node_frame[node_id]], self.memory.grid_and_points,
-                                        self._mount, self.config.grid_cell, self.config.cloud_voxel)
+                                        self._mount, self.config.grid_cell, self.config.cloud_voxel,
+                                        scratch_dir=self.db_path.parent, grid_reach=self.config.grid_range)
 
         # The database ends holding every node at its optimised pose, so a user can reopen it.
         self.memory.flush()
