@@ -51,14 +51,14 @@ def test_later_scans_turn_the_heading_onto_the_first_scans_axes():
     rng = np.random.default_rng(3)
     axes = WallAxes(WallAxesConfig(use=True, every=1, settle=1))
     scan = _corridor_corner(rng)
-    [(frame, heading)] = axes.measure(0, 0.0, scan)  # the first measurement sets the axes
-    assert frame == 0 and abs(math.degrees(heading)) < 0.2
+    [(frame, heading, direction)] = axes.measure(0, 0.0, scan)  # the first measurement sets the axes
+    assert frame == 0 and abs(math.degrees(heading)) < 0.2 and abs(math.degrees(direction)) < 0.2
     # Facing world +y, with 1.5 degrees of heading error: the robot sees world-aligned walls
     # at -90 degrees (its scan depends on the truth alone) and believes they are at -88.5.
     truth_yaw, believed = math.radians(90.0), math.radians(91.5)
     seen = _rotated(_corridor_corner(rng), -90.0)
-    [(frame, heading)] = axes.measure(1, believed, seen)
-    assert frame == 1
+    [(frame, heading, direction)] = axes.measure(1, believed, seen)
+    assert frame == 1 and abs(math.degrees(direction)) < 0.2  # the walls, in the robot's frame
     assert math.degrees(heading - truth_yaw) == pytest.approx(0.0, abs=0.2)
 
 
@@ -69,7 +69,7 @@ def test_the_axes_are_the_settling_measurements_mean_and_they_get_their_factors_
     got = [axes.measure(k, 0.0, _rotated(_corridor_corner(rng), t)) for k, t in enumerate(turns)]
     assert got[:3] == [[], [], []]
     assert math.degrees(axes.axes) == pytest.approx(np.mean(turns[:3]), abs=0.1)
-    assert [k for k, _ in got[3]] == [0, 1, 2] and axes.gated == 1
+    assert [k for k, _, _ in got[3]] == [0, 1, 2] and axes.gated == 1
 
 
 def test_the_gate_widens_with_the_online_headings_std():
@@ -105,11 +105,11 @@ def test_bad_settings_are_refused(field, value):
         WallAxesConfig(**{field: value})
 
 
-def test_heading_factors_undo_a_wheel_heading_bias_in_the_smoother():
+def test_walls_along_the_axes_undo_a_wheel_heading_bias_in_the_smoother():
     """Wheels that turn 0.02 degrees a frame too much along a straight line: the smoother alone
-    follows them (nothing tells their yaw bias apart from a turn); with a heading factor every 10
-    frames (the truth's, as the walls would give) it finds the bias and the end heading is the
-    truth's."""
+    follows them (nothing tells their yaw bias apart from a turn); with the walls seen straight
+    ahead every 10 frames, along axes it solves for from a wrong first value (2 degrees), it
+    finds the bias and the end heading is the truth's."""
     frames = 300
     truth = np.array([[0.1 * k, 0.0, 0.0] for k in range(frames)])
 
@@ -123,8 +123,9 @@ def test_heading_factors_undo_a_wheel_heading_bias_in_the_smoother():
                 wheel, sigmas = WheelStep(*step, True), np.array([0.002, 1e-3, 0.0006])
                 online = compose(online, step)
             smoother.add_frame(online.copy(), wheel, sigmas, None, None, np.zeros(2))
-            if headings and k and k % 10 == 0:
-                smoother.add_heading(k, 0.0, math.radians(1.0))
+            if headings and k % 10 == 0:
+                smoother.add_wall(k, 0.0, math.radians(1.0))
+        smoother.axes_initial = math.radians(2.0)
         return smoother.solve()
 
     free, held = solved(False), solved(True)

@@ -292,9 +292,10 @@ class FrontEnd:
         pose = flt.pose
         if self._axes is not None and len(scan):
             sigma = float(np.radians(cfg.wall_axes.sigma_deg))
-            for frame_k, heading in self._axes.measure(k, float(pose[2]), scan, float(np.sqrt(flt.cov[2, 2]))):
+            for frame_k, heading, direction in self._axes.measure(k, float(pose[2]), scan, float(np.sqrt(flt.cov[2, 2]))):
                 self.counts["wall_headings"] += 1
-                self._smoother.add_heading(frame_k, heading, sigma)
+                self._smoother.axes_initial = float(self._axes.axes)
+                self._smoother.add_wall(frame_k, direction, sigma)
                 if frame_k == k:  # online too, so the next measurement is gated against a held heading
                     flt.update_heading(heading, sigma)
                     pose = flt.pose

@@ -77,7 +77,10 @@ class FullSmoother:
         self.records = FrameStore()
         self.initial = self.records.poses
         self.loops: list[tuple[int, int, np.ndarray, np.ndarray]] = []
-        self.headings: list[tuple[int, float, float]] = []  # (frame, yaw, std): the walls' heading factors
+        # (frame, wall direction in the robot's frame, std): walls along the building's axes, whose
+        # direction is solved with the poses from `axes_initial` (wall_axes.py).
+        self.walls: list[tuple[int, float, float]] = []
+        self.axes_initial = 0.0
         self.bias_init: dict[int, np.ndarray] = {}
 
     def add_frame(self, online_pose: np.ndarray, wheel: WheelStep | None, wheel_sigmas: np.ndarray | None,
@@ -90,9 +93,9 @@ class FullSmoother:
         if bias is not None and block not in self.bias_init:
             self.bias_init[block] = np.asarray(bias, dtype=np.float64).copy()
 
-    def add_heading(self, k: int, yaw: float, sigma: float) -> None:
-        """Frame k's heading is `yaw` within `sigma` (rad), its position free (wall_axes.py)."""
-        self.headings.append((int(k), float(yaw), float(sigma)))
+    def add_wall(self, k: int, direction: float, sigma: float) -> None:
+        """Frame k saw a wall at `direction` (rad, robot frame) along the building's axes."""
+        self.walls.append((int(k), float(direction), float(sigma)))
 
     def add_loop(self, i: int, j: int, delta: np.ndarray, information: np.ndarray) -> None:
         self.loops.append((int(i), int(j), np.asarray(delta, dtype=np.float64), np.asarray(information, dtype=np.float64)))
@@ -251,7 +254,9 @@ class FullSmoother:
         for i, j, delta, info in self.loops:
             if first <= i <= last and first <= j <= last:
                 graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
-        for k, yaw, sigma in self.headings:
-            if first <= k <= last and (fixed is None or k not in fixed):
-                graph.prior_heading(k, self.initial[k], yaw, sigma)
+        walls = [w for w in self.walls if first <= w[0] <= last]
+        if walls:
+            graph.add_axes(self.axes_initial)
+            for k, direction, sigma in walls:
+                graph.wall(k, direction, sigma)
         return graph

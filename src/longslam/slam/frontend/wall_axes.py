@@ -4,9 +4,11 @@ Most buildings are drawn on a grid: their long walls are parallel or at right an
 other. A scan that sees a straight wall therefore measures the robot's heading modulo 90 degrees
 against the walls seen at the start, with no loop closure, however far the route has gone. The
 front end measures the dominant wall direction of a scan every few frames; the first `settle`
-measurements, near the start where the heading is still good, fix the building's axes (in the
-estimate's own frame, so nothing about the world is assumed), and each measurement within the
-gate of them becomes a heading factor in the online filter and the final smoother.
+measurements, near the start, give the building's axes a first value (in the estimate's own
+frame, so nothing about the world is assumed); each measurement within the gate of them then
+corrects the online filter's heading, and in the final smoother ties its frame's heading to the
+axes, a variable solved with the poses, so that a heading error while the axes settled is not
+frozen into them.
 
 A wall further than the gate from the axes (a wing built at 30 degrees) is not taken for one of
 them: it gives no factor. The gate is `gate_deg` widened by `gate_sigmas` times the online
@@ -109,10 +111,11 @@ class WallAxes:
         self.gated = 0  # measurements too far from the axes: another direction (a wing)
         self._settling: list[tuple[int, float, float]] = []  # (frame, yaw, world direction)
 
-    def measure(self, frame: int, yaw: float, scan_xy: np.ndarray, yaw_std: float = 0.0) -> list[tuple[int, float]]:
-        """Heading factors, (frame, heading in rad near that frame's yaw), that this frame's scan
-        gives: none on a frame that does not measure or whose walls show no direction, or while
-        the axes are settling; when they settle, the settling measurements' own."""
+    def measure(self, frame: int, yaw: float, scan_xy: np.ndarray, yaw_std: float = 0.0) -> list[tuple[int, float, float]]:
+        """Walls along the axes, (frame, the heading in rad near that frame's yaw that puts them
+        on the current axes, their direction in the robot's frame), that this frame's scan gives:
+        none on a frame that does not measure or whose walls show no direction, or while the axes
+        are settling; when they settle, the settling measurements' own."""
         cfg = self.config
         if frame % cfg.every:
             return []
@@ -122,24 +125,24 @@ class WallAxes:
         world = float(fold(yaw + found[0]))
         self.measured += 1
         if self.axes is None:
-            self._settling.append((frame, yaw, world))
+            self._settling.append((frame, yaw, found[0]))
             if len(self._settling) < cfg.settle:
                 return []
-            worlds = np.array([w for _, _, w in self._settling])
+            worlds = np.array([fold(y + d) for _, y, d in self._settling])
             # The mean of the largest group within the gate of one of them: a wing or a box at an
             # angle among the settling measurements does not pull the axes.
             near = np.abs(fold(worlds[:, None] - worlds[None, :])) <= math.radians(cfg.gate_deg)
             self.axes = mean_direction(worlds[near[int(np.argmax(near.sum(axis=1)))]])
             settled, self._settling = self._settling, []
-            return [f for f in (self._factor(k, y, w, 0.0) for k, y, w in settled) if f is not None]
-        factor = self._factor(frame, yaw, world, yaw_std)
+            return [f for f in (self._factor(k, y, d, 0.0) for k, y, d in settled) if f is not None]
+        factor = self._factor(frame, yaw, found[0], yaw_std)
         return [] if factor is None else [factor]
 
-    def _factor(self, frame: int, yaw: float, world: float, yaw_std: float) -> tuple[int, float] | None:
+    def _factor(self, frame: int, yaw: float, direction: float, yaw_std: float) -> tuple[int, float, float] | None:
         cfg = self.config
         gate = min(math.radians(cfg.gate_deg) + cfg.gate_sigmas * yaw_std, math.radians(cfg.max_gate_deg))
-        off = float(fold(world - self.axes))
+        off = float(fold(yaw + direction - self.axes))
         if abs(off) > gate:
             self.gated += 1
             return None
-        return frame, yaw - off
+        return frame, yaw - off, direction

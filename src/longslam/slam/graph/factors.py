@@ -22,6 +22,8 @@ from longslam.slam.graph.solver import levenberg_marquardt
 
 X = gtsam.symbol_shorthand.X
 B = gtsam.symbol_shorthand.B
+AXES = gtsam.symbol("a", 0)  # the building's wall direction (Rot2), modulo 90 degrees
+QUARTER = 0.5 * np.pi
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,18 @@ def wheel_error(step: WheelStep, this: gtsam.CustomFactor, values: gtsam.Values,
     return e
 
 
+def wall_error(direction: float, this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list | None) -> np.ndarray:
+    """A wall seen at `direction` (rad, in the robot's frame) lies along the axes, modulo 90 deg."""
+    keys = this.keys()
+    theta = values.atPose2(keys[0]).theta()
+    axes = values.atRot2(keys[1]).theta()
+    e = np.mod(theta + direction - axes + 0.5 * QUARTER, QUARTER) - 0.5 * QUARTER
+    if jacobians is not None:
+        jacobians[0] = np.array([[0.0, 0.0, 1.0]])
+        jacobians[1] = np.array([[-1.0]])
+    return np.array([e])
+
+
 class FactorGraph:
     """Poses and bias vectors with their factors; `solve` runs the solver loop of `solver.py`.
 
@@ -82,11 +96,16 @@ class FactorGraph:
     def prior_pose(self, k: int, xyyaw: np.ndarray, sigmas: np.ndarray) -> None:
         self.graph.add(gtsam.PriorFactorPose2(X(k), gtsam.Pose2(*xyyaw), noise.diagonal(sigmas)))
 
-    def prior_heading(self, k: int, xyyaw: np.ndarray, yaw: float, sigma: float, huber: float = 1.0) -> None:
-        """Pose k's heading is `yaw` within `sigma`, under a Huber kernel (in stds); its position
-        is left free (a std of 1 km about `xyyaw`'s)."""
-        model = noise.diagonal(np.array([1e3, 1e3, sigma]))
-        self.graph.add(gtsam.PriorFactorPose2(X(k), gtsam.Pose2(xyyaw[0], xyyaw[1], yaw), noise.robust(model, "huber", huber)))
+    def add_axes(self, direction: float) -> None:
+        """The building's wall direction as a variable (rad), solved with the poses."""
+        self.values.insert(AXES, gtsam.Rot2(direction))
+        self.dims[AXES] = 1
+
+    def wall(self, k: int, direction: float, sigma: float, huber: float = 1.0) -> None:
+        """Pose k saw a wall at `direction` (rad, robot frame) along the axes (modulo 90 degrees),
+        within `sigma`, under a Huber kernel (in stds)."""
+        model = noise.robust(noise.diagonal(np.array([sigma])), "huber", huber)
+        self.graph.add(gtsam.CustomFactor(model, [X(k), AXES], lambda this, v, h, d=float(direction): wall_error(d, this, v, h)))
 
     def prior_bias(self, b: int, value: np.ndarray, sigmas: np.ndarray) -> None:
         self.graph.add(gtsam.PriorFactorPoint2(B(b), gtsam.Point2(*value), noise.diagonal(sigmas)))
