@@ -63,6 +63,10 @@ def test_shipped_study_files_load():
     wheel = {m.label: m for m in paper.methods if m.params.get("frontend.mode") == "wheel"}
     assert {"keyframe-wheel", "submap-wheel"} <= set(wheel)
     assert {wheel["keyframe-wheel"].method, wheel["submap-wheel"].method} == {"keyframe", "submap"}
+    hard = load_study(ROOT / "studies" / "hard-end.toml")
+    axes = {m.label: m.method for m in hard.methods if m.params.get("frontend.wall_axes.use") is True}
+    assert axes == {"keyframe-axes": "keyframe", "submap-axes": "submap"}
+    assert hard.noise == ("xlarge",) and hard.seeds == (0, 1, 2, 3, 4)
 
 
 def _refused(tmp_path, study: str, change: tuple[str, str], expected: list[str]) -> None:
