@@ -4,6 +4,7 @@ rendered sequences, each simulated once per session into the session's own rende
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -41,6 +42,15 @@ def write_tiny_sequence(
         writer.set_ground_truth(truth)
         writer.set_odometry(odometry)
     return path, truth, odometry
+
+
+def write_bag_sequence(path: Path) -> Path:
+    """A tiny sequence that turns (24 frames), with noise level 'large' and the camera's height
+    in its meta.json: what a bag's export needs to carry."""
+    write_tiny_sequence(path, n=24, turn=1.0, odometry_scale=1.05)
+    meta = json.loads((path / "meta.json").read_text())
+    (path / "meta.json").write_text(json.dumps({**meta, "noise": "large", "camera": {"camera_height": 1.25}}))
+    return path
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,6 @@ own writer as a robot would record it, the odometry covariance, and the errors."
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +14,7 @@ from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from conftest import write_tiny_sequence  # noqa: E402
+from conftest import write_bag_sequence, write_tiny_sequence  # noqa: E402
 from longslam.cli import main  # noqa: E402
 from longslam.errors import InputError  # noqa: E402
 from longslam.geometry import base_to_camera, planar_poses  # noqa: E402
@@ -35,11 +34,7 @@ from sequence_checks import assert_same_sequence  # noqa: E402
 @pytest.fixture(scope="module")
 def sequence(tmp_path_factory) -> Path:
     """A tiny sequence that turns, with noise level 'large' in its meta.json."""
-    path = tmp_path_factory.mktemp("bags") / "seq"
-    write_tiny_sequence(path, n=24, turn=1.0, odometry_scale=1.05)
-    meta = json.loads((path / "meta.json").read_text())
-    (path / "meta.json").write_text(json.dumps({**meta, "noise": "large", "camera": {"camera_height": 1.25}}))
-    return path
+    return write_bag_sequence(tmp_path_factory.mktemp("bags") / "seq")
 
 
 @pytest.mark.parametrize("fmt, name, storage", [("ros2", "bag", "sqlite3"), ("ros2", "bag", "mcap"), ("ros1", "seq.bag", "sqlite3")])

@@ -18,7 +18,7 @@ pytest.importorskip("rosbags")
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
-from conftest import write_tiny_sequence  # noqa: E402
+from conftest import write_bag_sequence  # noqa: E402
 from longslam.cli import main  # noqa: E402
 from longslam.errors import InputError  # noqa: E402
 from longslam.geometry import base_to_camera, invert  # noqa: E402
@@ -34,11 +34,7 @@ STORES = {"humble": Stores.ROS2_HUMBLE, "jazzy": Stores.ROS2_JAZZY}
 
 @pytest.fixture(scope="module")
 def sequence(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("distro") / "seq"
-    write_tiny_sequence(path, n=24, turn=1.0, odometry_scale=1.05)
-    meta = json.loads((path / "meta.json").read_text())
-    (path / "meta.json").write_text(json.dumps({**meta, "noise": "large", "camera": {"camera_height": 1.25}}))
-    return path
+    return write_bag_sequence(tmp_path_factory.mktemp("distro") / "seq")
 
 
 def humble_reads(info: dict) -> None:
