@@ -5,6 +5,7 @@ from __future__ import annotations
 import tracemalloc
 
 import numpy as np
+import pytest
 
 from longslam.slam.rows import Rows
 
@@ -35,3 +36,16 @@ def test_a_pose_a_frame_costs_its_128_bytes_not_a_list_of_arrays():
         tracemalloc.stop()
     # A list of (4, 4) arrays held about 320 bytes a frame (header, allocation, pointer).
     assert held < 20_000 * 150, f"{held / 20_000:.0f} bytes a pose"
+
+
+def test_a_row_is_a_view_by_index_and_out_of_range_is_refused():
+    rows = Rows((3,), chunk=2)
+    for k in range(5):
+        rows.append([k, k, k])
+    assert rows.row(3).tolist() == [3, 3, 3] and rows.row(-1).tolist() == [4, 4, 4]
+    rows.row(2)[1] = 9.0  # written through, as the frame store writes records back
+    assert rows.array()[2].tolist() == [2, 9, 2]
+    assert rows.nbytes == 3 * 2 * 3 * 8  # three whole chunks of two rows
+    for k in (5, -6):
+        with pytest.raises(IndexError, match="of 5"):
+            rows.row(k)

@@ -30,6 +30,18 @@ class Rows:
         self._chunks[-1][self._count % self._chunk] = row
         self._count += 1
 
+    def row(self, k: int) -> np.ndarray:
+        """Row k (negative: from the end), a view: writing into it changes the row."""
+        if not -self._count <= k < self._count:
+            raise IndexError(f"row {k} of {self._count}")
+        k %= self._count
+        return self._chunks[k // self._chunk][k % self._chunk]
+
+    @property
+    def nbytes(self) -> int:
+        """The chunks' bytes: whole chunks, however few of their rows are used."""
+        return sum(chunk.nbytes for chunk in self._chunks)
+
     def array(self) -> np.ndarray:
         """Every row, (N, *shape): a new array."""
         if not self._chunks:

@@ -3,8 +3,8 @@
 A frame's factors (its online pose, wheel step and sigmas, constant-velocity step, scan factor,
 visual step, the filter's biases) were a Python object holding seven small numpy arrays: about
 1.3 kB a frame, 90 MB at 10 km. Here they are one row of 40 doubles (320 bytes) in chunks of
-4,096 rows, read back as the same `FrameRecord` values, so the smoother's graph is the same to
-the bit.
+4,096 rows (`slam/rows.py`), read back as the same `FrameRecord` values, so the smoother's graph
+is the same to the bit.
 """
 
 from __future__ import annotations
@@ -15,8 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.slam.graph.factors import WheelStep
-
-CHUNK = 4096
+from longslam.slam.rows import CHUNK, Rows
 # Column layout of a row: (first column, width) of each part, and its "present" flag's column.
 POSE = (0, 3)
 WHEEL, WHEEL_ON = (4, 4), 3  # forward, lateral, yaw, moving
@@ -43,26 +42,20 @@ class FrameStore:
     one back with `store[k] = record`), `store.poses[k]` its online pose."""
 
     def __init__(self) -> None:
-        self._chunks: list[np.ndarray] = []
-        self._count = 0
+        self._rows = Rows((WIDTH,), CHUNK)
         self.poses = _Poses(self)
 
     def __len__(self) -> int:
-        return self._count
+        return len(self._rows)
 
     def _row(self, k: int) -> np.ndarray:
-        if not -self._count <= k < self._count:
-            raise IndexError(f"frame {k} of {self._count}")
-        k %= self._count
-        return self._chunks[k // CHUNK][k % CHUNK]
+        return self._rows.row(k)
 
     def append(self, pose: np.ndarray, record: FrameRecord) -> None:
-        if self._count == len(self._chunks) * CHUNK:
-            self._chunks.append(np.zeros((CHUNK, WIDTH)))
-        self._count += 1
-        row = self._row(self._count - 1)
+        row = np.zeros(WIDTH)
         row[POSE[0]:POSE[0] + 3] = pose
         self._write(row, record)
+        self._rows.append(row)
 
     def __setitem__(self, k: int, record: FrameRecord) -> None:
         self._write(self._row(k), record)
@@ -112,11 +105,11 @@ class FrameStore:
                            scan, visual, part(BIAS) if row[BIAS_ON] else None)
 
     def __iter__(self) -> Iterator[FrameRecord]:
-        return (self[k] for k in range(self._count))
+        return (self[k] for k in range(len(self)))
 
     @property
     def nbytes(self) -> int:
-        return sum(chunk.nbytes for chunk in self._chunks)
+        return self._rows.nbytes
 
 
 class _Poses:
