@@ -13,6 +13,7 @@ from longslam.geometry.planar import (
     base_to_camera,
     camera_poses_from_planar,
     compose_xyyaw,
+    fold_quarter,
     planar_from_camera_poses,
     planar_poses,
     pose_from_xyyaw,
@@ -24,7 +25,7 @@ from longslam.geometry.se3 import invert, poses_from_tum, rigidity_violation, tu
 
 __all__ = [
     "R_BASE_CAMERA", "CameraMount", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",
-    "compose_xyyaw", "invert", "planar_from_camera_poses", "planar_poses",
+    "compose_xyyaw", "fold_quarter", "invert", "planar_from_camera_poses", "planar_poses",
     "pose_from_xyyaw", "poses_from_tum", "relative_xyyaw", "rigid_transform", "rigid_transform_2d", "rigidity_violation",
     "tum_from_poses", "umeyama", "wrap_angle", "xyyaw_from_pose",
 ]

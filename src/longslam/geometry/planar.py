@@ -23,6 +23,13 @@ def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def fold_quarter(angle: np.ndarray | float) -> np.ndarray | float:
+    """An angle modulo 90 degrees, in [-45, 45) degrees (radians): a direction of a building's
+    grid of walls, where a wall and one at right angles to it are the same."""
+    quarter = 0.5 * np.pi
+    return np.mod(np.asarray(angle) + 0.5 * quarter, quarter) - 0.5 * quarter
+
+
 def planar_poses(xyyaw: np.ndarray, z: float = 0.0) -> np.ndarray:
     """(N, 3) array of x, y, yaw -> (N, 4, 4) poses."""
     xyyaw = np.asarray(xyyaw, dtype=np.float64)

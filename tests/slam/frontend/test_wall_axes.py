@@ -11,7 +11,8 @@ from longslam.errors import InputError
 from longslam.geometry import compose_xyyaw as compose, relative_xyyaw as relative
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
-from longslam.slam.frontend.wall_axes import WallAxes, WallAxesConfig, fold, wall_direction
+from longslam.geometry import fold_quarter as fold
+from longslam.slam.frontend.wall_axes import WallAxes, WallAxesConfig, wall_direction
 from longslam.slam.graph.factors import WheelStep
 
 

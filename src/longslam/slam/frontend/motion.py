@@ -372,7 +372,7 @@ class FrontEnd:
         if self.counts["depth_limited"]:
             out["trusted_range_mean_m"] = self._range_sum / self.counts["depth_limited"]
         if self._axes is not None:
-            # Measured wall directions: the first sets the axes, `gated` were off them (a wing).
+            # Measured wall directions: the first `settle` set the axes, `gated` were off them (a wing).
             out["wall_directions"] = {"measured": self._axes.measured, "gated": self._axes.gated,
                                       "axes_deg": None if self._axes.axes is None else float(np.degrees(self._axes.axes))}
         if self._filter is not None and self._has_wheels and self.config.mode == "fused":

@@ -12,8 +12,9 @@ frozen into them.
 
 A wall further than the gate from the axes (a wing built at 30 degrees) is not taken for one of
 them: it gives no factor. The gate is `gate_deg` widened by `gate_sigmas` times the online
-heading's std, so a heading that drifted where no wall was seen (a hall) is still caught. Off by default: a building with no dominant grid, or a route through
-curved rooms, gets nothing from it, and a wrong axis would pull every heading.
+heading's std, so a heading that drifted where no wall was seen (a hall) is still caught.
+Off by default: a building with no dominant grid, or a route through curved rooms, gets nothing
+from it, and a wrong axis would pull every heading.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-QUARTER = 0.5 * math.pi
+from longslam.errors import InputError
+from longslam.geometry import fold_quarter as fold
 
 
 @dataclass(frozen=True)
@@ -44,8 +46,6 @@ class WallAxesConfig:
     sigma_deg: float = 1.0  # heading std of one measurement in the final smoother
 
     def __post_init__(self) -> None:
-        from longslam.errors import InputError
-
         if self.every < 1:
             raise InputError(f"front end: wall_axes.every must be at least 1 frame, got {self.every}")
         if not 0 < self.sigma_deg:
@@ -55,11 +55,6 @@ class WallAxesConfig:
                              f"degrees, got {self.gate_deg} and {self.max_gate_deg}")
         if self.settle < 1:
             raise InputError(f"front end: wall_axes.settle must be at least 1 measurement, got {self.settle}")
-
-
-def fold(angle: float | np.ndarray) -> float | np.ndarray:
-    """An angle modulo 90 degrees, in [-45, 45) degrees (radians)."""
-    return np.mod(np.asarray(angle) + 0.5 * QUARTER, QUARTER) - 0.5 * QUARTER
 
 
 def wall_direction(scan_xy: np.ndarray, config: WallAxesConfig = WallAxesConfig()) -> tuple[float, int] | None:
@@ -91,8 +86,7 @@ def wall_direction(scan_xy: np.ndarray, config: WallAxesConfig = WallAxesConfig(
     count = int(members.sum())
     if count < config.min_points or count < config.min_share * len(along):
         return None
-    mean = math.atan2(np.sin(4.0 * along[members]).sum(), np.cos(4.0 * along[members]).sum()) / 4.0
-    return float(fold(mean)), count
+    return mean_direction(along[members]), count
 
 
 def mean_direction(angles: np.ndarray) -> float:
@@ -109,7 +103,7 @@ class WallAxes:
         self.axes: float | None = None  # world direction of the walls, modulo 90 degrees (rad)
         self.measured = 0
         self.gated = 0  # measurements too far from the axes: another direction (a wing)
-        self._settling: list[tuple[int, float, float]] = []  # (frame, yaw, world direction)
+        self._settling: list[tuple[int, float, float]] = []  # (frame, yaw, wall direction in the robot's frame)
 
     def measure(self, frame: int, yaw: float, scan_xy: np.ndarray, yaw_std: float = 0.0) -> list[tuple[int, float, float]]:
         """Walls along the axes, (frame, the heading in rad near that frame's yaw that puts them
@@ -122,7 +116,6 @@ class WallAxes:
         found = wall_direction(scan_xy, cfg)
         if found is None:
             return []
-        world = float(fold(yaw + found[0]))
         self.measured += 1
         if self.axes is None:
             self._settling.append((frame, yaw, found[0]))

@@ -17,13 +17,13 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from longslam.geometry import fold_quarter
 from longslam.slam.graph import noise
 from longslam.slam.graph.solver import levenberg_marquardt
 
 X = gtsam.symbol_shorthand.X
 B = gtsam.symbol_shorthand.B
 AXES = gtsam.symbol("a", 0)  # the building's wall direction (Rot2), modulo 90 degrees
-QUARTER = 0.5 * np.pi
 
 
 @dataclass(frozen=True)
@@ -65,7 +65,7 @@ def wall_error(direction: float, this: gtsam.CustomFactor, values: gtsam.Values,
     keys = this.keys()
     theta = values.atPose2(keys[0]).theta()
     axes = values.atRot2(keys[1]).theta()
-    e = np.mod(theta + direction - axes + 0.5 * QUARTER, QUARTER) - 0.5 * QUARTER
+    e = fold_quarter(theta + direction - axes)
     if jacobians is not None:
         jacobians[0] = np.array([[0.0, 0.0, 1.0]])
         jacobians[1] = np.array([[-1.0]])
