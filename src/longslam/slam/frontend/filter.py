@@ -110,19 +110,19 @@ class BiasFilter:
             h[i, 3 + r] = 1.0
         z = np.asarray(residual, dtype=np.float64)[rows]
         s = h @ self.cov @ h.T + np.diag(np.asarray(variances)[rows])
-        gain = self.cov @ h.T @ np.linalg.inv(s)
-        self.state += gain @ (z - h @ self.state)
-        self.state[2] = wrap_angle(self.state[2])
-        self.cov = (np.eye(5) - gain @ h) @ self.cov
-        self.cov = 0.5 * (self.cov + self.cov.T)
+        self._correct(self.cov @ h.T @ np.linalg.inv(s), h, z - h @ self.state)
 
     def update_heading(self, yaw: float, sigma: float) -> None:
         """Fuse a measurement of the heading alone (rad, within `sigma`): the walls' direction."""
         h = np.zeros((1, 5))
         h[0, 2] = 1.0
         s = float(self.cov[2, 2]) + sigma ** 2
-        gain = self.cov @ h.T / s
-        self.state += (gain * wrap_angle(yaw - self.state[2]))[:, 0]
+        self._correct(self.cov @ h.T / s, h, np.array([wrap_angle(yaw - self.state[2])]))
+
+    def _correct(self, gain: np.ndarray, h: np.ndarray, innovation: np.ndarray) -> None:
+        """The Kalman correction of the state and covariance by `gain` (5, m) for measurement
+        rows `h` (m, 5) and their innovation (m,)."""
+        self.state += gain @ innovation
         self.state[2] = wrap_angle(self.state[2])
         self.cov = (np.eye(5) - gain @ h) @ self.cov
         self.cov = 0.5 * (self.cov + self.cov.T)
