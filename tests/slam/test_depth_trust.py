@@ -101,3 +101,25 @@ def test_a_weighted_scan_informs_the_registration_less():
     light = register(scan, np.array([0.02, 0.01, 0.0]), local, weight=0.01)
     assert full.ok and light.ok
     np.testing.assert_allclose(light.hessian, 0.01 * full.hessian, rtol=1e-6)
+
+
+def test_a_method_gets_the_front_ends_limit_for_the_frame_it_stepped_without_measuring_again(wall_2m, monkeypatch):
+    import longslam.slam.depth_trust as depth_trust
+
+    rgb, depth = wall_2m
+    kinect = _sensed(KinectV1(), rgb, depth)
+    poses = camera_poses_from_planar(np.zeros((2, 3)), 1.25)
+    front = FrontEnd(K)
+    front.step(Frame(0, 0.0, rgb, kinect, poses[0], K))
+    limit = trusted_range(kinect)
+    assert limit is not None  # a Kinect frame is limited, not used as it is
+    expected = trusted_depth(kinect, limit)
+    measured = []
+    real = depth_trust.inverse_depth_noise
+    monkeypatch.setattr(depth_trust, "inverse_depth_noise", lambda *a, **k: measured.append(1) or real(*a, **k))
+    stepped = front.trusted_depth(Frame(0, 0.0, rgb, kinect, poses[0], K), kinect)
+    assert measured == []  # the stepped frame's range, as the front end measured it
+    np.testing.assert_array_equal(stepped, expected)
+    other = front.trusted_depth(Frame(1, 0.1, rgb, kinect, poses[1], K), kinect)
+    assert len(measured) == 1  # a frame it did not step is measured
+    np.testing.assert_array_equal(other, stepped)

@@ -31,7 +31,7 @@ from longslam.frame import Frame, Intrinsics
 from longslam.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
 from longslam.memory_release import release_free_memory
 from longslam.slam.api import Table
-from longslam.slam.depth_trust import DepthTrust, measured_noise, range_for_noise, scan_weight, trusted_depth
+from longslam.slam.depth_trust import DepthTrust, measured_noise, range_for_noise, scan_weight, trusted_depth, trusted_range
 from longslam.slam.graph import Edge
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
@@ -146,6 +146,7 @@ class FrontEnd:
                        "depth_limited": 0, "depth_too_noisy": 0, "scans_weighted": 0, "wall_headings": 0}
         self._axes = WallAxes(self.config.wall_axes) if self.config.wall_axes.use else None
         self._range_sum = 0.0  # of the trusted ranges of the frames whose depth was limited
+        self._depth_limit: tuple[int, float | None] | None = None  # (frame index, its trusted range)
         self._depth: np.ndarray | None = None
 
     # --- per frame ---------------------------------------------------------------------------
@@ -171,6 +172,17 @@ class FrontEnd:
         self.counts["frames"] += 1
         self._time += time.perf_counter() - t0
         return pose.copy()
+
+    def trusted_depth(self, frame: Frame, depth: np.ndarray) -> np.ndarray:
+        """`depth` (the frame's depth image as a method holds it) without the returns beyond what
+        the frame's own noise lets be trusted (depth_trust): the range measured when this front
+        end stepped the frame, so a method does not measure it twice; measured here otherwise
+        (mode "wheel" looks at no depth)."""
+        if self._depth_limit is not None and self._depth_limit[0] == frame.index:
+            limit = self._depth_limit[1]
+        else:
+            limit = trusted_range(depth, self.config.depth_trust)
+        return trusted_depth(depth, limit)
 
     @property
     def images_every_frame(self) -> tuple[str, ...]:
@@ -227,6 +239,7 @@ class FrontEnd:
         # Scans and tracked corners only where the frame's own depth noise allows (depth_trust).
         sigma_w = measured_noise(frame.depth, cfg.depth_trust)
         limit = range_for_noise(sigma_w, cfg.depth_trust)
+        self._depth_limit = (frame.index, limit)
         weight = scan_weight(sigma_w, cfg.depth_trust)
         if weight < 1.0:
             self.counts["scans_weighted"] += 1

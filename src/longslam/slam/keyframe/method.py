@@ -24,7 +24,6 @@ from longslam.frame import Frame
 from longslam.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, Table
-from longslam.slam.depth_trust import trusted_depth, trusted_range
 from longslam.slam.features import Features, extract
 from longslam.slam.frontend import FrontEnd
 from longslam.slam.graph import ODOMETRY, PoseGraph
@@ -127,7 +126,7 @@ class KeyframeMethod:
         node_id = len(self.nodes)
         depth = np.asarray(frame.depth, dtype=np.float32)
         # Features, grid and points only where the frame's depth noise allows (the front end's rule).
-        depth = trusted_depth(depth, trusted_range(depth, cfg.frontend.depth_trust))
+        depth = self.frontend.trusted_depth(frame, depth)
         has_depth = bool(np.any(np.isfinite(depth) & (depth > 0)))
         if not has_depth:
             self.counts[stats.FRAMES_WITHOUT_DEPTH] += 1

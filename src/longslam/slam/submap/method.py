@@ -37,7 +37,6 @@ from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, xyyaw_from_pose
 from longslam.slam import stats
-from longslam.slam.depth_trust import trusted_depth, trusted_range
 from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.frontend import FrontEnd
 from longslam.slam.submap.config import SubmapConfig
@@ -147,7 +146,7 @@ class SubmapMethod:
         self._last_odometry = odometry
         depth = np.asarray(frame.depth)
         # Integrated only where the frame's depth noise allows (the front end's rule).
-        depth = trusted_depth(depth, trusted_range(depth, self.config.frontend.depth_trust)) if depth.ndim == 2 else depth
+        depth = self.frontend.trusted_depth(frame, depth) if depth.ndim == 2 else depth
         updates = 0
         if depth.ndim == 2 and depth.shape == (frame.intrinsics.height, frame.intrinsics.width):
             updates = active.tsdf.integrate_depth(
