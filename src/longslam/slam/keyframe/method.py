@@ -219,8 +219,9 @@ class KeyframeMethod:
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
         final = self._frontend_final()
         poses = self._mount.to_camera(final)
-        trajectory = Trajectory(self._frame_stamps.array(), poses, source="keyframe")
-        online = Trajectory(self._frame_stamps.array(), self._online.array(), source="keyframe online")
+        stamps = self._frame_stamps.array()
+        trajectory = Trajectory(stamps, poses, source="keyframe")
+        online = Trajectory(stamps, self._online.array(), source="keyframe online")
 
         map_bytes = self.memory_bytes()
         census = self.memory.census()
