@@ -11,13 +11,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+import gtsam
 import numpy as np
 
 from longslam.errors import InputError
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.frame_store import FrameRecord, FrameStore
-from longslam.geometry.planar import compose_xyyaw, relative_xyyaw
-from longslam.slam.graph.factors import FactorGraph, WheelStep
+from longslam.slam.graph.factors import B, X, FactorGraph, WheelStep
+from longslam.slam.graph.parts import levenberg_marquardt_parts
 
 
 # Added to a scan's or loop's information: a registration's Hessian is singular along a corridor.
@@ -48,13 +49,13 @@ class SmootherConfig:
     # 1e-5 took 27 iterations for ATE 0.567 m; 3e-4 takes 5 for 0.580 m. Without bias states
     # 0.590 m.
     relative_tolerance: float = 3e-4
-    # Most frames in one solve (0: no limit, the default). A longer route is solved window by
-    # window, so that the smoother's own memory stays that of one window: each window alone, then
-    # the chain of the windows' ends with the loop constraints, then each window with its ends held
-    # on the chain. Off by default, as measured on paper-1km-x3 (3 km, large noise, seed 0):
-    # window 8,000 gave keyframe ATE 1.47 m against 0.44 m whole, the same peak (615 / 619 MB:
-    # the finish's peak is the maps') and a longer finish (41 / 14 s).
-    window: int = 0
+    # Most frames in one window of the solve (0: no limit). A longer route is solved window by
+    # window (`slam.graph.parts`): the same Levenberg-Marquardt steps as one solve over every
+    # frame, but no more than one window's linear system is held at a time. Measured on the
+    # final graph of paper-1km-x3 (3 km, large noise, seed 0; 20,980 frames, 712 loops): the
+    # solve's own peak +142 MiB whole, +65 MiB in windows of 2,000 frames, the result within
+    # 5 um of the whole solve's, in 17.5 s against 4.2 s. 2,500 leaves paper-300m whole.
+    window: int = 2500
 
     def __post_init__(self) -> None:
         if self.optimizer not in self.CHOICES["optimizer"]:
@@ -109,154 +110,141 @@ class FullSmoother:
         if window == 0 or n <= window:
             out, self.iterations = self._solve(self.build_graph(), 0, n - 1)
             return out
-        return self._solve_in_windows(window)
+        return self._solve_in_parts(window)
 
     def _solve(self, graph: FactorGraph, first: int, last: int) -> tuple[np.ndarray, int]:
         return graph.solve(range(first, last + 1), iterations=self.config.iterations,
                            relative_tolerance=self.config.relative_tolerance, damping=self.config.optimizer != "gn")
 
-    def _solve_in_windows(self, window: int) -> np.ndarray:
-        """Window by window, so that no solve holds more than `window` frames:
-
-        1. each window alone (its frames' factors and the loops inside it), from its start's online
-           pose;
-        2. the skeleton (`_skeleton`): the windows' ends and every loop constraint's two frames,
-           chained by the first solves' steps between them, with the loop constraints;
-        3. each window again, from its first solve moved onto the skeleton, its two ends held at
-           the skeleton's poses, and each loop constraint with one frame in it tying that frame to
-           the other frame's skeleton pose (held there), with the constraint's own information."""
+    def _solve_in_parts(self, window: int) -> np.ndarray:
+        """The whole solve's result, computed window by window (`slam.graph.parts`): each step of
+        Levenberg-Marquardt eliminates one window at a time, so that no more than one window's
+        linear system is held. The windows share the frames and bias blocks that factors of two
+        windows touch (a window's first frame's step, a scan's anchor, a loop's frames); each
+        loop frame's bias blocks are shared too, which keeps each window's Schur complement
+        local instead of dense over the window's loop frames."""
         n = len(self.initial)
-        ends = list(range(0, n - 1, window - 1)) + [n - 1]
-        first_pass = np.empty((n, 3))
-        self.iterations = 0
-        for a, b in zip(ends[:-1], ends[1:]):
-            first_pass[a:b + 1], taken = self._solve(self.build_graph(a, b), a, b)
-            self.iterations = max(self.iterations, taken)
-        skeleton = self._skeleton(ends, first_pass)
+        starts = list(range(0, n, window))
+        ranges = [(a, min(a + window, n) - 1) for a in starts]
+        bias_range = self._bias_range()
+        values, dims = self.initial_values()
+        result, self.iterations = levenberg_marquardt_parts(
+            lambda p: self.part_graph(*ranges[p], bias_range), len(ranges), values, dims,
+            iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
+            damping=self.config.optimizer != "gn")
         out = np.empty((n, 3))
-        for a, b in zip(ends[:-1], ends[1:]):
-            moved = np.array([compose_xyyaw(skeleton[a], relative_xyyaw(first_pass[a], p)) for p in first_pass[a:b + 1]])
-            graph = self.build_graph(a, b, fixed={a: skeleton[a], b: skeleton[b]}, initial=moved)
-            held: set[int] = set()
-            for i, j, delta, info in self.loops:
-                if (a <= i <= b) != (a <= j <= b):  # the frame outside is held at its skeleton pose
-                    outside = j if a <= i <= b else i
-                    if outside not in held:
-                        held.add(outside)
-                        graph.add_pose(outside, skeleton[outside])
-                        graph.prior_pose(outside, skeleton[outside], np.array([1e-4, 1e-4, 1e-5]))
-                    graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
-            out[a:b + 1], taken = self._solve(graph, a, b)
-            self.iterations = max(self.iterations, taken)
+        for k in range(n):
+            pose = result.atPose2(X(k))
+            out[k] = (pose.x(), pose.y(), pose.theta())
         return out
 
-    def _skeleton(self, ends: list[int], first_pass: np.ndarray) -> dict[int, np.ndarray]:
-        """Poses of the windows' ends and of every loop constraint's frames: a chain of the first
-        pass's steps between consecutive ones (each within one window; sigmas from
-        `_chain_sigmas`), and the loop constraints between their own frames."""
-        nodes = sorted(set(ends) | {f for i, j, _, _ in self.loops for f in (i, j)})
-        node_of = {k: node for node, k in enumerate(nodes)}
-        graph = FactorGraph()
-        for node, k in enumerate(nodes):
-            graph.add_pose(node, first_pass[k])
-        graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
-        for node, (p, q) in enumerate(zip(nodes[:-1], nodes[1:])):
-            graph.between(node, node + 1, relative_xyyaw(first_pass[p], first_pass[q]), sigmas=self._chain_sigmas(p, q))
-        for i, j, delta, info in self.loops:
-            graph.between(node_of[i], node_of[j], delta, information=info, ridge=INFORMATION_RIDGE)
-        poses, _ = graph.solve(range(len(nodes)), iterations=self.config.iterations,
-                               relative_tolerance=self.config.relative_tolerance, damping=True)
-        return {k: poses[node] for node, k in enumerate(nodes)}
+    def _bias_range(self) -> tuple[int, int] | None:
+        """The first and last bias block the whole graph has, or None (no bias states)."""
+        if not (self.use_bias and self.config.bias_states):
+            return None
+        wheel_frames = [k for k in range(1, len(self.initial)) if self.records[k].wheel is not None]
+        if not wheel_frames:
+            return None
+        return (wheel_frames[0] - 1) // self.config.bias_block, (wheel_frames[-1] - 1) // self.config.bias_block
 
-    def _chain_sigmas(self, a: int, b: int) -> np.ndarray:
-        """Sigmas of a window's step from frame a to frame b: each frame's step sigmas (wheel and
-        visual combined as independent measurements, or the constant-velocity ones), their
-        variances summed, a heading variance turned into sideways variance over the distance still
-        to go, and the wheel biases' prior uncertainty over the window. An approximation of the
-        window's marginal, on the loose side: only the chain of the windows' ends uses it."""
-        nz = self.noise
-        variance = np.zeros(3)
-        for k in range(a + 1, b + 1):
-            rec = self.records[k]
-            sources = []
-            if rec.wheel_sigmas is not None:
-                sources.append(np.asarray(rec.wheel_sigmas, dtype=np.float64) ** 2)
-            elif rec.cv_step is not None:
-                sources.append(np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]) ** 2)
-            if rec.visual is not None:
-                sources.append(np.asarray(rec.visual[1], dtype=np.float64) ** 2)
-            if not sources:
-                continue
-            step = 1.0 / np.sum([1.0 / np.maximum(v, 1e-18) for v in sources], axis=0)
-            remaining = float(np.hypot(*(self.initial[b][:2] - self.initial[k][:2])))
-            variance += step + np.array([0.0, step[2] * remaining ** 2, 0.0])
-        # A window alone may not see its wheel biases (nothing but the loops ties its heading):
-        # its step carries their uncertainty, once per frame, fully correlated.
-        frames, length = b - a, float(np.hypot(*(self.initial[b][:2] - self.initial[a][:2])))
-        yaw = frames * nz.bias_yaw_init
-        variance += np.array([(frames * nz.bias_forward_init) ** 2, (yaw * length / 2.0) ** 2, yaw ** 2])
-        return np.sqrt(np.maximum(variance, 1e-12))
-
-    def build_graph(self, first: int = 0, last: int | None = None, fixed: dict[int, np.ndarray] | None = None,
-                    initial: np.ndarray | None = None) -> FactorGraph:
-        """The factor graph over frames `first`..`last` (default every frame), from the online
-        poses (or `initial`, one per frame of the range): held at the start's online pose, or at
-        the `fixed` poses (a window's ends)."""
-        n = len(self.initial)
-        last = n - 1 if last is None else last
-        nz = self.noise
+    def initial_values(self) -> tuple[gtsam.Values, dict[int, int]]:
+        """`build_graph()`'s variables at its starting values, without its factors."""
         graph = FactorGraph()
-        for k in range(first, last + 1):
-            start = self.initial[k] if initial is None else initial[k - first]
-            graph.add_pose(k, start if fixed is None or k not in fixed else fixed[k])
-        for k, pose in (fixed or {first: self.initial[first]}).items():
-            graph.prior_pose(k, pose, np.array([1e-4, 1e-4, 1e-5]))
-        blocks_used: set[int] = set()
-        for k in range(first + 1, last + 1):
-            rec = self.records[k]
-            if rec.wheel is not None:
-                sig = np.array(rec.wheel_sigmas, dtype=np.float64)
-                sig[1] = min(sig[1], self.config.lateral_sigma)
-                step = rec.wheel
-                if self.use_bias and self.config.bias_states:
-                    block = (k - 1) // self.config.bias_block
-                    blocks_used.add(block)
-                    graph.wheel(k - 1, k, step, sig, bias=block)
-                else:
-                    # The step corrected by the online filter's biases: a plain GTSAM factor.
-                    b = rec.bias if (self.use_bias and rec.bias is not None) else np.zeros(2)
-                    corrected = WheelStep(step.forward - (b[0] if step.moving else 0.0), step.lateral, step.yaw - b[1], step.moving)
-                    graph.wheel(k - 1, k, corrected, sig)
-            elif rec.cv_step is not None:
-                graph.between(k - 1, k, rec.cv_step, sigmas=np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]))
-            if rec.wheel is None and self.config.nonholonomic_sigma > 0:
-                # The step's twist (Logmap of the relative pose) has no sideways part: forward and
-                # turn are left free (a std of 1 km and 1000 rad), only y is held.
-                graph.between(k - 1, k, np.zeros(3), sigmas=np.array([1e3, self.config.nonholonomic_sigma, 1e3]))
-            if rec.visual is not None:
-                step, sigmas = rec.visual
-                graph.between(k - 1, k, step, sigmas=sigmas)
-            if rec.scan is not None and rec.scan[0] >= first:
-                anchor, meas, info = rec.scan
-                graph.between(anchor, k, meas, information=info, ridge=INFORMATION_RIDGE)
-        if blocks_used:
-            blocks = sorted(blocks_used)
+        for k in range(len(self.initial)):
+            graph.add_pose(k, self.initial[k])
+        bias_range = self._bias_range()
+        if bias_range is not None:
             value = np.zeros(2)
-            for b in range(blocks[0], blocks[-1] + 1):
+            for b in range(bias_range[0], bias_range[1] + 1):
                 value = self.bias_init.get(b, value)
                 graph.add_bias(b, value)
-            # The route's first block starts from no bias; a later window's, from the online filter's.
-            start = np.zeros(2) if first == 0 else self.bias_init.get(blocks[0], np.zeros(2))
-            graph.prior_bias(blocks[0], start, np.array([nz.bias_forward_init, nz.bias_yaw_init]))
+        if self.walls:
+            graph.add_axes(self.axes_initial)
+        return graph.values, graph.dims
+
+    def part_graph(self, first: int, last: int, bias_range: tuple[int, int] | None) -> gtsam.NonlinearFactorGraph:
+        """The factors of `build_graph()` that belong to frames `first`..`last`: each frame's
+        own factors (its step from the frame before, its scan to its anchor, its walls), the loops
+        whose later frame it is, and the bias factors of the blocks that start there. The parts
+        of consecutive ranges together are the whole graph."""
+        nz = self.noise
+        graph = FactorGraph()
+        if first == 0:
+            graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
+        for k in range(max(first, 1), last + 1):
+            self._add_frame_factors(graph, k)
+        if bias_range is not None:
+            bb = self.config.bias_block
+            b0, b1 = bias_range
+            if first <= bb * b0 + 1 <= last:
+                graph.prior_bias(b0, np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
+            walk = np.sqrt(bb) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
+            # Block b+1's walk from block b belongs to b+1's first frame.
+            for b in range(max(b0, (first - 2) // bb), min(b1, (last - 1) // bb)):
+                if first <= bb * (b + 1) + 1 <= last:
+                    graph.bias_walk(b, b + 1, walk)
+        for i, j, delta, info in self.loops:
+            if first <= max(i, j) <= last:
+                graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
+        for k, direction, sigma in self.walls:
+            if first <= k <= last:
+                graph.wall(k, direction, sigma)
+        return graph.graph
+
+    def build_graph(self) -> FactorGraph:
+        """The factor graph over every frame, from the online poses, held at the first one."""
+        nz = self.noise
+        graph = FactorGraph()
+        for k in range(len(self.initial)):
+            graph.add_pose(k, self.initial[k])
+        graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
+        for k in range(1, len(self.initial)):
+            self._add_frame_factors(graph, k)
+        bias_range = self._bias_range()
+        if bias_range is not None:
+            value = np.zeros(2)
+            for b in range(bias_range[0], bias_range[1] + 1):
+                value = self.bias_init.get(b, value)
+                graph.add_bias(b, value)
+            # The route's first block starts from no bias.
+            graph.prior_bias(bias_range[0], np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
             walk = np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
-            for b in range(blocks[0], blocks[-1]):
+            for b in range(bias_range[0], bias_range[1]):
                 graph.bias_walk(b, b + 1, walk)
         for i, j, delta, info in self.loops:
-            if first <= i <= last and first <= j <= last:
-                graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
-        walls = [w for w in self.walls if first <= w[0] <= last]
-        if walls:
+            graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
+        if self.walls:
             graph.add_axes(self.axes_initial)
-            for k, direction, sigma in walls:
+            for k, direction, sigma in self.walls:
                 graph.wall(k, direction, sigma)
         return graph
+
+    def _add_frame_factors(self, graph: FactorGraph, k: int) -> None:
+        """Frame k's own factors: its step from frame k-1 (the wheels, corrected by their bias
+        block's state or by the online filter's biases, or a constant-velocity step; the
+        nonholonomic hold; the visual step) and its scan to its anchor."""
+        nz = self.noise
+        rec = self.records[k]
+        if rec.wheel is not None:
+            sig = np.array(rec.wheel_sigmas, dtype=np.float64)
+            sig[1] = min(sig[1], self.config.lateral_sigma)
+            step = rec.wheel
+            if self.use_bias and self.config.bias_states:
+                graph.wheel(k - 1, k, step, sig, bias=(k - 1) // self.config.bias_block)
+            else:
+                # The step corrected by the online filter's biases: a plain GTSAM factor.
+                b = rec.bias if (self.use_bias and rec.bias is not None) else np.zeros(2)
+                corrected = WheelStep(step.forward - (b[0] if step.moving else 0.0), step.lateral, step.yaw - b[1], step.moving)
+                graph.wheel(k - 1, k, corrected, sig)
+        elif rec.cv_step is not None:
+            graph.between(k - 1, k, rec.cv_step, sigmas=np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]))
+        if rec.wheel is None and self.config.nonholonomic_sigma > 0:
+            # The step's twist (Logmap of the relative pose) has no sideways part: forward and
+            # turn are left free (a std of 1 km and 1000 rad), only y is held.
+            graph.between(k - 1, k, np.zeros(3), sigmas=np.array([1e3, self.config.nonholonomic_sigma, 1e3]))
+        if rec.visual is not None:
+            step, sigmas = rec.visual
+            graph.between(k - 1, k, step, sigmas=sigmas)
+        if rec.scan is not None:
+            anchor, meas, info = rec.scan
+            graph.between(anchor, k, meas, information=info, ridge=INFORMATION_RIDGE)
