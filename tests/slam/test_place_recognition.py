@@ -176,3 +176,25 @@ def test_the_faiss_indexes_find_the_words_brute_force_finds(scenes):
     assert vocabularies["hnsw"].n_words >= vocabularies["bruteforce"].n_words
     with pytest.raises(InputError, match="vocabulary index"):
         Vocabulary(index="lsh")
+
+
+@pytest.mark.parametrize("index", ["flat", "hnsw"])
+def test_unused_words_leave_the_index_and_held_ones_keep_their_ids(index):
+    rng = np.random.default_rng(3)
+    vocab = Vocabulary(max_distance=20, index=index)
+    images = [rng.integers(0, 256, (100, 32), dtype=np.uint8) for _ in range(6)]
+    words = [vocab.add(node, d) for node, d in enumerate(images)]
+    assert vocab.n_words == 600  # random descriptors: every one founds a word
+    assert not vocab.forget_unused(least=0)  # every word is held
+    for node in range(4):
+        vocab.remove(node)
+    # 400 unused against 200 held: rebuilt over the held ones only.
+    assert not vocab.forget_unused(least=400) and vocab.forget_unused(least=0)
+    assert vocab.index_rebuilds == 1 and len(vocab._index_words) == 200
+    # A held word is found under its old id; an unused one is no longer found, so its
+    # descriptor founds a new word.
+    assert np.array_equal(vocab.quantise(images[5]), words[5])
+    assert np.all(vocab.quantise(images[0]) == -1)
+    again = vocab.add(9, images[0])
+    assert again.min() >= 600 and vocab.n_words == 700
+    assert vocab.query(images[5], top_k=1)[0][0] == 5

@@ -72,8 +72,11 @@ class Vocabulary:
     """Incremental visual-word dictionary with an inverted index over the nodes in working memory.
 
     A descriptor joins the nearest word if it is within `max_distance` bits, otherwise it founds
-    a new word. Words are never deleted when nodes leave: a node brought back from long-term
-    memory must quantise to the same words it had.
+    a new word. Word ids are never reused. `forget_unused` takes the words no indexed node holds
+    out of the search index (faiss kinds), as RTAB-Map's dictionary drops the words of nodes
+    that left working memory: the index then stays the size of working memory's words instead
+    of growing with the route, and a node brought back from long-term memory quantises its
+    descriptors afresh.
     """
 
     def __init__(self, max_distance: int = 40, max_words_per_image: int = 500, index: str = "hnsw"):
@@ -88,7 +91,10 @@ class Vocabulary:
         self._words = np.zeros((1024, DESCRIPTOR_BYTES), np.uint8)  # grown by doubling
         self._n_words = 0
         self._matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
+        self._index_kind = index
         self._index = None if index == "bruteforce" else _faiss_index(index)
+        self._index_words = np.zeros(0, np.int64)  # word id of each row of the faiss index
+        self.index_rebuilds = 0
         # node id -> (unique word ids, counts): the node's bag of words.
         self._bags: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._df = np.zeros(1024, np.int64)  # how many nodes in working memory hold each word
@@ -125,8 +131,12 @@ class Vocabulary:
         if self._n_words == 0 or n == 0:
             return np.full(n, -1, np.int64), np.full(n, 257, np.int64)
         if self._index is not None:
-            dist, word = self._index.search(np.ascontiguousarray(descriptors), 1)
-            return word[:, 0].astype(np.int64), dist[:, 0].astype(np.int64)
+            if self._index.ntotal == 0:
+                return np.full(n, -1, np.int64), np.full(n, 257, np.int64)
+            dist, row = self._index.search(np.ascontiguousarray(descriptors), 1)
+            row, dist = row[:, 0], dist[:, 0].astype(np.int64)
+            found = row >= 0
+            return np.where(found, self._index_words[np.maximum(row, 0)], -1), np.where(found, dist, 257)
         word = np.full(n, -1, np.int64)
         dist = np.full(n, 257, np.int64)
         # BFMatcher refuses train sets of 2**18 rows or more, so a long route's dictionary is
@@ -155,7 +165,27 @@ class Vocabulary:
         self._n_words = need
         if self._index is not None:
             self._index.add(np.ascontiguousarray(descriptors))
+            self._index_words = np.concatenate([self._index_words, ids])
         return ids
+
+    def forget_unused(self, least: int = 4096) -> bool:
+        """Rebuild the search index over the words some indexed node holds, once those no node
+        holds outnumber them (and `least`); True if it was rebuilt. Call it where no word ids
+        handed out are still waiting to be indexed (after `add_words`): a word just founded and
+        not yet in a bag would be dropped."""
+        if self._index is None:
+            return False
+        held = self._df[self._index_words] > 0
+        unused = len(held) - int(held.sum())
+        if unused <= max(int(held.sum()), least):
+            return False
+        keep = self._index_words[held]
+        index = _faiss_index(self._index_kind)
+        if len(keep):
+            index.add(np.ascontiguousarray(self._words[keep]))
+        self._index, self._index_words = index, keep
+        self.index_rebuilds += 1
+        return True
 
     def quantise(self, descriptors: np.ndarray, grow: bool = False) -> np.ndarray:
         """Word id per descriptor (first `max_words_per_image` only); -1 where none is near enough.

@@ -45,6 +45,11 @@ class KeyframeConfig:
     # (OpenCV, exact), "flat" (faiss, exact, faster), "hnsw" (faiss, approximate, cost ~ log of
     # the dictionary's size).
     vocabulary_index: str = "hnsw"
+    # The words no node in working or short-term memory holds leave the search index (rebuilt
+    # once they outnumber the held ones), so that it stays the size of working memory's words
+    # instead of growing with the route (RTAB-Map's dictionary drops them too). false: every
+    # word ever founded stays searchable, as before.
+    vocabulary_forget: bool = True
     # Memory (Mem/STMSize, Rtabmap/MemoryThr, Rtabmap/MaxRetrieved).
     stm_size: int = 10
     wm_max_nodes: int = 150  # nodes searched for loop closure; 0 = unbounded

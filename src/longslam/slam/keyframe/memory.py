@@ -63,6 +63,10 @@ class KeyframeMemory:
         while len(self.stm) > self.config.stm_size:
             self.wm.add(self.stm.popleft())
         self.enforce_budget()
+        if self.config.vocabulary_forget:
+            # Here every word handed out is in a bag: the node's own (just indexed) and those of
+            # nodes retrieved during its loop search.
+            self.vocabulary.forget_unused()
 
     def searchable(self) -> list[int]:
         """The nodes loop closure may match: working memory, in id order."""

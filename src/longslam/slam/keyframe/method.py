@@ -242,6 +242,7 @@ class KeyframeMethod:
             stats.CAMERA_HEIGHT: self._mount.camera_height,
             **census,
             "vocabulary_words": self.memory.vocabulary.n_words, "graph_loops": self.graph.num_loops,
+            "vocabulary_index_rebuilds": self.memory.vocabulary.index_rebuilds,
             "database": str(self.db_path) if self._own_dir is None else None,
         })
         run_stats["frontend"] = self.frontend.stats
