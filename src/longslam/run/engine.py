@@ -23,6 +23,7 @@ from longslam.io.partials import clean_stale_partials
 from longslam.io.outputs import RUN, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
+from longslam.memory_release import map_large_blocks
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
 from longslam.progress import bar
@@ -53,6 +54,8 @@ def run_frames(
 
     With a `context.output_dir`, what native code prints during the run goes to its
     `console.log` (run/console.py), and the method is told so through `context.console_log`."""
+    # A long run's large arrays go back to the system when freed, rather than staying in the heap.
+    map_large_blocks()
     baseline_rss = current_rss_bytes()
     spec = get_spec(method_name)
     config = spec.config(params)
