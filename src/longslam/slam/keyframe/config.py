@@ -45,10 +45,8 @@ class KeyframeConfig:
     # (OpenCV, exact), "flat" (faiss, exact, faster), "hnsw" (faiss, approximate, cost ~ log of
     # the dictionary's size).
     vocabulary_index: str = "hnsw"
-    # The words no node in working or short-term memory holds leave the search index (rebuilt
-    # once they outnumber the held ones), so that it stays the size of working memory's words
-    # instead of growing with the route (RTAB-Map's dictionary drops them too). false: every
-    # word ever founded stays searchable, as before.
+    # Words no node in short-term or working memory holds leave the search index (RTAB-Map drops
+    # them too); false: every word stays searchable.
     vocabulary_forget: bool = True
     # Memory (Mem/STMSize, Rtabmap/MemoryThr, Rtabmap/MaxRetrieved).
     stm_size: int = 10
