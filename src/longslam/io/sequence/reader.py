@@ -24,6 +24,27 @@ from longslam.timestamps import associate_lists, match_every
 from longslam.trajectory import Trajectory
 
 
+class PackedNames(Sequence[str]):
+    """Strings held in one UTF-8 buffer with their offsets, not as a Python object each. As lists
+    of str, a long route's file names pinned the heap of the whole parse around them: opening the
+    10 km tour (68,658 frames) left 57 MiB resident (heap trimmed), 36 MiB with these."""
+
+    def __init__(self, names: Sequence[str]):
+        encoded = [name.encode("utf-8") for name in names]
+        self._offsets = np.zeros(len(encoded) + 1, np.int64)
+        np.cumsum([len(e) for e in encoded], out=self._offsets[1:])
+        self._buffer = b"".join(encoded)
+
+    def __len__(self) -> int:
+        return len(self._offsets) - 1
+
+    def __getitem__(self, i):  # type: ignore[override]
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        i = range(len(self))[i]  # negative indices, and IndexError past the end
+        return self._buffer[self._offsets[i]:self._offsets[i + 1]].decode("utf-8")
+
+
 def _read_list(path: Path) -> list[tuple[float, str]]:
     """A TUM image list: '# ...' comments, then 'timestamp filename' lines."""
     text = read_text(path, "image list", hint=f"a TUM sequence needs {path.name}")
@@ -140,8 +161,9 @@ class SequenceReader:
         # What the index files leave out, said rather than dropped without a word (as import does).
         self.notes: list[str] = _pairing_notes(rgb_rows, depth_rows, len(pairs), self.max_diff)
         self.timestamps = np.array([rgb_rows[i][0] for i, _ in pairs], dtype=np.float64)
-        self._rgb_files = [rgb_rows[i][1] for i, _ in pairs]
-        self._depth_files = [depth_rows[j][1] for _, j in pairs]
+        self._rgb_files = PackedNames([rgb_rows[i][1] for i, _ in pairs])
+        self._depth_files = PackedNames([depth_rows[j][1] for _, j in pairs])
+        del rgb_rows, depth_rows, pairs
         self._check_files_exist()
 
         self.meta = self._read_meta()
