@@ -152,15 +152,20 @@ class FullSmoother:
         graph = FactorGraph()
         for k in range(len(self.initial)):
             graph.add_pose(k, self.initial[k])
-        bias_range = self._bias_range()
-        if bias_range is not None:
-            value = np.zeros(2)
-            for b in range(bias_range[0], bias_range[1] + 1):
-                value = self.bias_init.get(b, value)
-                graph.add_bias(b, value)
+        self._add_biases(graph, self._bias_range())
         if self.walls:
             graph.add_axes(self.axes_initial)
         return graph.values, graph.dims
+
+    def _add_biases(self, graph: FactorGraph, bias_range: tuple[int, int] | None) -> None:
+        """The bias blocks' variables, each from the online filter's estimate when its block
+        began (or the block's before it)."""
+        if bias_range is None:
+            return
+        value = np.zeros(2)
+        for b in range(bias_range[0], bias_range[1] + 1):
+            value = self.bias_init.get(b, value)
+            graph.add_bias(b, value)
 
     def part_graph(self, first: int, last: int, bias_range: tuple[int, int] | None) -> gtsam.NonlinearFactorGraph:
         """The factors of `build_graph()` that belong to frames `first`..`last`: each frame's
@@ -201,11 +206,8 @@ class FullSmoother:
         for k in range(1, len(self.initial)):
             self._add_frame_factors(graph, k)
         bias_range = self._bias_range()
+        self._add_biases(graph, bias_range)
         if bias_range is not None:
-            value = np.zeros(2)
-            for b in range(bias_range[0], bias_range[1] + 1):
-                value = self.bias_init.get(b, value)
-                graph.add_bias(b, value)
             # The route's first block starts from no bias.
             graph.prior_bias(bias_range[0], np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
             walk = np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
