@@ -22,6 +22,7 @@ LARGE_BLOCK = 1 << 20  # bytes: blocks this large or larger get pages of their o
 
 @functools.cache
 def _libc():
+    """The C library, looked up once (finding it runs `ldconfig`); None off Linux."""
     if not sys.platform.startswith("linux"):
         return None
     try:
@@ -39,8 +40,7 @@ def map_large_blocks(threshold: int = LARGE_BLOCK) -> bool:
     are freed: a long run's resident memory then creeps up with every large array it ever held.
     Fixing the threshold stops that (paper-1km, keyframe: RSS at frame 6,000 209 MiB against
     230)."""
-    libc = _libc()
-    mallopt = getattr(libc, "mallopt", None) if libc is not None else None
+    mallopt = getattr(_libc(), "mallopt", None)
     if mallopt is None:
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
@@ -49,15 +49,10 @@ def map_large_blocks(threshold: int = LARGE_BLOCK) -> bool:
 
 @functools.cache
 def _malloc_trim():
-    """glibc's malloc_trim, looked up once (finding the C library runs `ldconfig`); None
-    elsewhere."""
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        trim = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
-    except (OSError, AttributeError):  # musl or another C library without it
-        return None
-    trim.argtypes = [ctypes.c_size_t]
+    """glibc's malloc_trim; None elsewhere (musl or another C library without it)."""
+    trim = getattr(_libc(), "malloc_trim", None)
+    if trim is not None:
+        trim.argtypes = [ctypes.c_size_t]
     return trim
 
 

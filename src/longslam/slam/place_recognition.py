@@ -128,11 +128,10 @@ class Vocabulary:
     def _nearest(self, descriptors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nearest word and its distance for each descriptor (-1, 257 with an empty dictionary)."""
         n = len(descriptors)
-        if self._n_words == 0 or n == 0:
+        # Words may exist with none left in the index (`forget_unused`).
+        if self._n_words == 0 or n == 0 or (self._index is not None and self._index.ntotal == 0):
             return np.full(n, -1, np.int64), np.full(n, 257, np.int64)
         if self._index is not None:
-            if self._index.ntotal == 0:
-                return np.full(n, -1, np.int64), np.full(n, 257, np.int64)
             dist, row = self._index.search(np.ascontiguousarray(descriptors), 1)
             row, dist = row[:, 0], dist[:, 0].astype(np.int64)
             found = row >= 0
@@ -176,8 +175,8 @@ class Vocabulary:
         if self._index is None:
             return False
         held = self._df[self._index_words] > 0
-        unused = len(held) - int(held.sum())
-        if unused <= max(int(held.sum()), least):
+        kept = int(held.sum())
+        if len(held) - kept <= max(kept, least):
             return False
         keep = self._index_words[held]
         index = _faiss_index(self._index_kind)

@@ -17,7 +17,7 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.frame_store import FrameRecord, FrameStore
-from longslam.slam.graph.factors import B, X, FactorGraph, WheelStep
+from longslam.slam.graph.factors import FactorGraph, WheelStep, pose_array
 from longslam.slam.graph.parts import levenberg_marquardt_parts
 
 
@@ -108,35 +108,32 @@ class FullSmoother:
             return np.zeros((0, 3))
         window = self.config.window
         if window == 0 or n <= window:
-            out, self.iterations = self._solve(self.build_graph(), 0, n - 1)
+            out, self.iterations = self.build_graph().solve(
+                n, iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
+                damping=self.config.optimizer != "gn")
             return out
         return self._solve_in_parts(window)
-
-    def _solve(self, graph: FactorGraph, first: int, last: int) -> tuple[np.ndarray, int]:
-        return graph.solve(range(first, last + 1), iterations=self.config.iterations,
-                           relative_tolerance=self.config.relative_tolerance, damping=self.config.optimizer != "gn")
 
     def _solve_in_parts(self, window: int) -> np.ndarray:
         """The whole solve's result, computed window by window (`slam.graph.parts`): each step of
         Levenberg-Marquardt eliminates one window at a time, so that no more than one window's
         linear system is held. The windows share the frames and bias blocks that factors of two
-        windows touch (a window's first frame's step, a scan's anchor, a loop's frames); each
-        loop frame's bias blocks are shared too, which keeps each window's Schur complement
-        local instead of dense over the window's loop frames."""
+        windows touch (a window's first frame's step, a scan's anchor, a loop's frames)."""
         n = len(self.initial)
-        starts = list(range(0, n, window))
-        ranges = [(a, min(a + window, n) - 1) for a in starts]
+        ranges = [(a, min(a + window, n) - 1) for a in range(0, n, window)]
         bias_range = self._bias_range()
-        values, dims = self.initial_values()
+        variables = self._variables(bias_range)
+
+        def part(p: int) -> gtsam.NonlinearFactorGraph:
+            graph = FactorGraph()
+            self._add_factors(graph, *ranges[p], bias_range)
+            return graph.graph
+
         result, self.iterations = levenberg_marquardt_parts(
-            lambda p: self.part_graph(*ranges[p], bias_range), len(ranges), values, dims,
+            part, len(ranges), variables.values, variables.dims,
             iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
             damping=self.config.optimizer != "gn")
-        out = np.empty((n, 3))
-        for k in range(n):
-            pose = result.atPose2(X(k))
-            out[k] = (pose.x(), pose.y(), pose.theta())
-        return out
+        return pose_array(result, range(n))
 
     def _bias_range(self) -> tuple[int, int] | None:
         """The first and last bias block the whole graph has, or None (no bias states)."""
@@ -147,33 +144,35 @@ class FullSmoother:
             return None
         return (wheel_frames[0] - 1) // self.config.bias_block, (wheel_frames[-1] - 1) // self.config.bias_block
 
-    def initial_values(self) -> tuple[gtsam.Values, dict[int, int]]:
-        """`build_graph()`'s variables at its starting values, without its factors."""
+    def _variables(self, bias_range: tuple[int, int] | None) -> FactorGraph:
+        """A graph of the variables alone, at their starting values: every frame's online pose,
+        each bias block from the online filter's estimate when it began (or the block's before
+        it), and the building's axes if walls were seen."""
         graph = FactorGraph()
         for k in range(len(self.initial)):
             graph.add_pose(k, self.initial[k])
-        self._add_biases(graph, self._bias_range())
+        if bias_range is not None:
+            value = np.zeros(2)
+            for b in range(bias_range[0], bias_range[1] + 1):
+                value = self.bias_init.get(b, value)
+                graph.add_bias(b, value)
         if self.walls:
             graph.add_axes(self.axes_initial)
-        return graph.values, graph.dims
+        return graph
 
-    def _add_biases(self, graph: FactorGraph, bias_range: tuple[int, int] | None) -> None:
-        """The bias blocks' variables, each from the online filter's estimate when its block
-        began (or the block's before it)."""
-        if bias_range is None:
-            return
-        value = np.zeros(2)
-        for b in range(bias_range[0], bias_range[1] + 1):
-            value = self.bias_init.get(b, value)
-            graph.add_bias(b, value)
+    def build_graph(self) -> FactorGraph:
+        """The factor graph over every frame, from the online poses, held at the first one."""
+        bias_range = self._bias_range()
+        graph = self._variables(bias_range)
+        self._add_factors(graph, 0, len(self.initial) - 1, bias_range)
+        return graph
 
-    def part_graph(self, first: int, last: int, bias_range: tuple[int, int] | None) -> gtsam.NonlinearFactorGraph:
-        """The factors of `build_graph()` that belong to frames `first`..`last`: each frame's
-        own factors (its step from the frame before, its scan to its anchor, its walls), the loops
-        whose later frame it is, and the bias factors of the blocks that start there. The parts
-        of consecutive ranges together are the whole graph."""
+    def _add_factors(self, graph: FactorGraph, first: int, last: int, bias_range: tuple[int, int] | None) -> None:
+        """The factors that belong to frames `first`..`last`: each frame's own factors (its step
+        from the frame before, its scan to its anchor, its walls), the loops whose later frame it
+        is, and the bias factors of the blocks that start there. Over consecutive ranges they are
+        the whole graph's, in its order."""
         nz = self.noise
-        graph = FactorGraph()
         if first == 0:
             graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
         for k in range(max(first, 1), last + 1):
@@ -181,7 +180,7 @@ class FullSmoother:
         if bias_range is not None:
             bb = self.config.bias_block
             b0, b1 = bias_range
-            if first <= bb * b0 + 1 <= last:
+            if first <= bb * b0 + 1 <= last:  # the route's first block starts from no bias
                 graph.prior_bias(b0, np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
             walk = np.sqrt(bb) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
             # Block b+1's walk from block b belongs to b+1's first frame.
@@ -194,32 +193,6 @@ class FullSmoother:
         for k, direction, sigma in self.walls:
             if first <= k <= last:
                 graph.wall(k, direction, sigma)
-        return graph.graph
-
-    def build_graph(self) -> FactorGraph:
-        """The factor graph over every frame, from the online poses, held at the first one."""
-        nz = self.noise
-        graph = FactorGraph()
-        for k in range(len(self.initial)):
-            graph.add_pose(k, self.initial[k])
-        graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
-        for k in range(1, len(self.initial)):
-            self._add_frame_factors(graph, k)
-        bias_range = self._bias_range()
-        self._add_biases(graph, bias_range)
-        if bias_range is not None:
-            # The route's first block starts from no bias.
-            graph.prior_bias(bias_range[0], np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
-            walk = np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
-            for b in range(bias_range[0], bias_range[1]):
-                graph.bias_walk(b, b + 1, walk)
-        for i, j, delta, info in self.loops:
-            graph.between(i, j, delta, information=info, ridge=INFORMATION_RIDGE)
-        if self.walls:
-            graph.add_axes(self.axes_initial)
-            for k, direction, sigma in self.walls:
-                graph.wall(k, direction, sigma)
-        return graph
 
     def _add_frame_factors(self, graph: FactorGraph, k: int) -> None:
         """Frame k's own factors: its step from frame k-1 (the wheels, corrected by their bias

@@ -72,6 +72,15 @@ def wall_error(direction: float, this: gtsam.CustomFactor, values: gtsam.Values,
     return np.array([e])
 
 
+def pose_array(values: gtsam.Values, frames: range) -> np.ndarray:
+    """The poses of `frames` in `values`, (len(frames), 3) x, y, yaw."""
+    out = np.empty((len(frames), 3))
+    for row, k in enumerate(frames):
+        p = values.atPose2(X(k))
+        out[row] = (p.x(), p.y(), p.theta())
+    return out
+
+
 class FactorGraph:
     """Poses and bias vectors with their factors; `solve` runs the solver loop of `solver.py`.
 
@@ -137,9 +146,4 @@ class FactorGraph:
         """Poses 0..`poses`-1 (or the keys of a range) optimised, (poses, 3), and the iterations taken."""
         result, taken = levenberg_marquardt(self.graph, self.values, self.dims, iterations=iterations,
                                             relative_tolerance=relative_tolerance, damping=damping)
-        keys = range(poses) if isinstance(poses, int) else poses
-        out = np.empty((len(keys), 3))
-        for row, k in enumerate(keys):
-            p = result.atPose2(X(k))
-            out[row] = (p.x(), p.y(), p.theta())
-        return out, taken
+        return pose_array(result, range(poses) if isinstance(poses, int) else poses), taken

@@ -22,14 +22,14 @@ poses and wheel biases) connect.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 
 import gtsam
 import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from longslam.slam.graph.solver import LAMBDA_FACTOR, LAMBDA_MAX, LAMBDA_MIN
+from longslam.slam.graph.solver import LAMBDA_MAX, add_damping, converged, lowered, raised
 
 PartBuilder = Callable[[int], gtsam.NonlinearFactorGraph]
 
@@ -42,13 +42,6 @@ def shared_keys(build: PartBuilder, parts: int) -> set[int]:
     return {int(key) for key in unique[counts > 1]}
 
 
-def _damp(linear: gtsam.GaussianFactorGraph, keys: Iterable[int], dims: dict[int, int], lam: float) -> None:
-    root = np.sqrt(lam)
-    for key in keys:
-        dim = dims[key]
-        linear.push_back(gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)))
-
-
 def _eliminate(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, shared: set[int], dims: dict[int, int],
                lam: float) -> tuple[gtsam.GaussianBayesNet, gtsam.GaussianFactorGraph]:
     """A part linearised at `values` (damped by `lam`), its own variables eliminated: their
@@ -56,7 +49,7 @@ def _eliminate(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, shared: 
     linear = graph.linearize(values)
     own = [key for key in linear.keyVector() if key not in shared]
     if lam:
-        _damp(linear, own, dims, lam)
+        add_damping(linear, own, dims, lam)
     return linear.eliminatePartialSequential(own)
 
 
@@ -87,7 +80,7 @@ class Parts:
         by back-substitution, each part linearised and eliminated again."""
         if lam:
             on_shared = on_shared.clone()
-            _damp(on_shared, list(on_shared.keyVector()), self.dims, lam)
+            add_damping(on_shared, list(on_shared.keyVector()), self.dims, lam)
         try:
             shared_step = on_shared.optimize()
         except RuntimeError:
@@ -157,7 +150,7 @@ def levenberg_marquardt_parts(build: PartBuilder, parts: int, values: gtsam.Valu
     iteration = 0
     while iteration < iterations:
         while True:
-            next_lam = 0.0 if lam <= LAMBDA_MIN else lam / LAMBDA_FACTOR
+            next_lam = lowered(lam)
             try:
                 if on_shared is None:
                     raise RuntimeError("a part is indeterminate")
@@ -170,11 +163,11 @@ def levenberg_marquardt_parts(build: PartBuilder, parts: int, values: gtsam.Valu
                 break
             if not damping or lam >= LAMBDA_MAX:
                 return values, iteration
-            lam = max(lam * LAMBDA_FACTOR, LAMBDA_MIN)
+            lam = raised(lam)
             _, on_shared = graph.forward(values, lam)
         iteration += 1
         decrease = current - new_error
         values, current, lam, on_shared = candidate, new_error, next_lam, next_shared
-        if decrease <= relative_tolerance * (current + decrease) or decrease <= 1e-5:
+        if converged(decrease, current, relative_tolerance):
             break
     return values, iteration

@@ -14,19 +14,42 @@ GTSAM's own Levenberg-Marquardt in C++ (`gtsam_levenberg_marquardt`).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import gtsam
 import numpy as np
 
 LAMBDA_MIN, LAMBDA_MAX, LAMBDA_FACTOR = 1e-5, 1e5, 10.0  # GTSAM's Levenberg-Marquardt defaults
 
 
-def _damped(linear: gtsam.GaussianFactorGraph, dims: dict[int, int], lam: float) -> gtsam.GaussianFactorGraph:
-    """The linear system plus lam * I on every variable (Levenberg-Marquardt's damping)."""
-    damped = linear.clone()
+def add_damping(linear: gtsam.GaussianFactorGraph, keys: Iterable[int], dims: dict[int, int], lam: float) -> None:
+    """lam * I on each of `keys` (Levenberg-Marquardt's damping), pushed onto `linear`."""
     root = np.sqrt(lam)
-    for key, dim in dims.items():
-        damped.push_back(gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)))
+    for key in keys:
+        dim = dims[key]
+        linear.push_back(gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)))
+
+
+def _damped(linear: gtsam.GaussianFactorGraph, dims: dict[int, int], lam: float) -> gtsam.GaussianFactorGraph:
+    """The linear system plus lam * I on every variable."""
+    damped = linear.clone()
+    add_damping(damped, dims, dims, lam)
     return damped
+
+
+def raised(lam: float) -> float:
+    """The damping after a step that failed to lower the error."""
+    return max(lam * LAMBDA_FACTOR, LAMBDA_MIN)
+
+
+def lowered(lam: float) -> float:
+    """The damping after a good step."""
+    return 0.0 if lam <= LAMBDA_MIN else lam / LAMBDA_FACTOR
+
+
+def converged(decrease: float, error: float, relative_tolerance: float) -> bool:
+    """GTSAM's test after a step that took the error down by `decrease` to `error`."""
+    return decrease <= relative_tolerance * (error + decrease) or decrease <= 1e-5
 
 
 def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, dims: dict[int, int], *,
@@ -50,12 +73,12 @@ def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
                 break
             if not damping or lam >= LAMBDA_MAX:
                 return values, iteration  # no step lowers the error any more
-            lam = max(lam * LAMBDA_FACTOR, LAMBDA_MIN)
+            lam = raised(lam)
         iteration += 1
         decrease = error - new_error
         values, error = candidate, new_error
-        lam = 0.0 if lam <= LAMBDA_MIN else lam / LAMBDA_FACTOR
-        if decrease <= relative_tolerance * (error + decrease) or decrease <= 1e-5:
+        lam = lowered(lam)
+        if converged(decrease, error, relative_tolerance):
             break
     return values, iteration
 
