@@ -14,6 +14,7 @@ from longslam.geometry.planar import (
     camera_poses_from_planar,
     compose_xyyaw,
     fold_quarter,
+    log_xyyaw,
     planar_from_camera_poses,
     planar_poses,
     pose_from_xyyaw,
@@ -25,7 +26,7 @@ from longslam.geometry.se3 import invert, poses_from_tum, rigidity_violation, tu
 
 __all__ = [
     "R_BASE_CAMERA", "CameraMount", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",
-    "compose_xyyaw", "fold_quarter", "invert", "planar_from_camera_poses", "planar_poses",
+    "compose_xyyaw", "fold_quarter", "invert", "log_xyyaw", "planar_from_camera_poses", "planar_poses",
     "pose_from_xyyaw", "poses_from_tum", "relative_xyyaw", "rigid_transform", "rigid_transform_2d", "rigidity_violation",
     "tum_from_poses", "umeyama", "wrap_angle", "xyyaw_from_pose",
 ]

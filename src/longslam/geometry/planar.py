@@ -102,6 +102,21 @@ def compose_xyyaw(a: np.ndarray, delta: np.ndarray) -> np.ndarray:
     return np.stack([x, y, wrap_angle(a[..., 2] + delta[..., 2])], axis=-1)
 
 
+def log_xyyaw(pose: np.ndarray) -> np.ndarray:
+    """SE(2)'s logarithm of (3,) or (N, 3) poses: the tangent vector GTSAM's `Pose2.Logmap` (and
+    so a Pose2 factor's residual) gives, for a whole graph's edges at once."""
+    pose = np.asarray(pose, dtype=np.float64)
+    w = wrap_angle(pose[..., 2])
+    x, y = pose[..., 0], pose[..., 1]
+    c1, s = np.cos(w) - 1.0, np.sin(w)
+    small = np.abs(w) < 1e-10
+    scale = np.where(small, 0.0, w / np.where(small, 1.0, c1 * c1 + s * s))
+    # R(pi/2) * (R^T t - t), scaled: GTSAM's closed form.
+    ux, uy = (c1 + 1.0) * x + s * y - x, -s * x + (c1 + 1.0) * y - y
+    vx, vy = np.where(small, x, -scale * uy), np.where(small, y, scale * ux)
+    return np.stack([vx, vy, w], axis=-1)
+
+
 @dataclass(frozen=True)
 class CameraMount:
     """Where the camera sits on the robot, and where the floor is in the world.

@@ -76,6 +76,9 @@ class KeyframeConfig:
     refine_max_angle: float = 0.3  # rad a refined neighbour link may differ from the odometry by
     # Graph (RGBD/OptimizeMaxError): a new loop whose error exceeds this is rejected.
     optimize_max_error: float = 3.0  # sigmas: a new loop whose error after optimisation exceeds this is rejected
+    # A whole solve per loop try costs time in proportion to the graph; past this many nodes (a
+    # route of over a kilometre) the graph is solved incrementally instead (iSAM2).
+    graph_batch_nodes: int = 1000  # nodes solved whole by Levenberg-Marquardt; beyond, incrementally (iSAM2); 0: always whole
     odom_sigma_linear: float = 0.05  # odometry link std per metre travelled
     # Wheels barely slip sideways: drift is forward scale and heading, so a link's lateral std is
     # a fraction of its forward std, and the graph explains drift by turning rather than sliding.

@@ -50,7 +50,7 @@ class KeyframeMethod:
             self._own_dir = folder = tempfile.mkdtemp(prefix="longslam-ltm-")
         self.db_path = Path(folder) / "memory.db"
         self.db = MemoryDatabase(self.db_path)
-        self.graph = PoseGraph()
+        self.graph = PoseGraph(batch_nodes=self.config.graph_batch_nodes)
         self.counts = {
             stats.FRAMES: 0, stats.NODES: 0, stats.FRAMES_WITHOUT_DEPTH: 0, "frames_no_features": 0, stats.ODOMETRY_JUMPS: 0,
             **{name: 0 for name in counter_names()},
