@@ -74,7 +74,9 @@ def test_incremental_try_loop_rejects_a_wrong_closure_and_restores_the_estimate(
     check = graph.try_loop(0, 70, (0.0, 0.0, 0.0), sigmas=LOOP_SIGMAS, max_error=3.0, check="graph")
     assert not check.accepted and check.error > 10.0
     after = as_array(graph.optimize(), len(truth))
-    assert np.abs(after[:, :2] - before[:, :2]).max() < 1e-3
+    # Restored to within iSAM2's relinearisation lag (a few millimetres; the whole solve restores
+    # to 1e-6), where the claim is about 14 m off.
+    assert np.abs(after[:, :2] - before[:, :2]).max() < 5e-3
     assert graph.num_loops == len(accepted)
 
 
