@@ -76,9 +76,10 @@ class KeyframeConfig:
     refine_max_angle: float = 0.3  # rad a refined neighbour link may differ from the odometry by
     # Graph (RGBD/OptimizeMaxError): a new loop whose error exceeds this is rejected.
     optimize_max_error: float = 3.0  # sigmas: a new loop whose error after optimisation exceeds this is rejected
-    # A whole solve per loop try costs time in proportion to the graph; past this many nodes (a
-    # route of over a kilometre) the graph is solved incrementally instead (iSAM2).
-    graph_batch_nodes: int = 1000  # nodes solved whole by Levenberg-Marquardt; beyond, incrementally (iSAM2); 0: always whole
+    # A whole solve per loop try costs time in proportion to the graph; past this many nodes the
+    # graph can be solved incrementally instead (iSAM2). Off by default: on the 10 km tour it
+    # kept the per-frame cost flat but accepted 644 loops against 2,324 (ATE 2.35 m against 0.67).
+    graph_batch_nodes: int = 0  # nodes solved whole by Levenberg-Marquardt, beyond them by iSAM2; 0: always whole
     odom_sigma_linear: float = 0.05  # odometry link std per metre travelled
     # Wheels barely slip sideways: drift is forward scale and heading, so a link's lateral std is
     # a fraction of its forward std, and the graph explains drift by turning rather than sliding.
