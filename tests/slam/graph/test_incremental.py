@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from longslam.errors import InputError
-from longslam.geometry import log_xyyaw, relative_xyyaw
+from longslam.geometry import compose_xyyaw, log_xyyaw, relative_xyyaw
 from longslam.slam.graph import PoseGraph
 
 from test_graph import LOOP_SIGMAS, ODO_SIGMAS, as_array, drifting_odometry, square_route
@@ -27,7 +27,7 @@ def grown(truth: np.ndarray, batch_nodes: int, loops: bool = True) -> tuple[Pose
     graph.add_node(0, odo[0])
     accepted = []
     for i, d in enumerate(deltas, start=1):
-        graph.add_node(i, _composed(graph, i - 1, d))
+        graph.add_node(i, compose_xyyaw(graph.estimate(i - 1), d))
         graph.add_odometry(i - 1, i, d, ODO_SIGMAS)
         if loops and i >= 40 and i % 5 == 0:
             check = graph.try_loop(i % 40, i, relative_xyyaw(truth[i % 40], truth[i]), sigmas=LOOP_SIGMAS,
@@ -35,12 +35,6 @@ def grown(truth: np.ndarray, batch_nodes: int, loops: bool = True) -> tuple[Pose
             if check.accepted:
                 accepted.append(check.edge_id)
     return graph, accepted
-
-
-def _composed(graph: PoseGraph, previous: int, delta: np.ndarray) -> np.ndarray:
-    from longslam.geometry import compose_xyyaw
-
-    return compose_xyyaw(graph.estimate(previous), delta)
 
 
 def test_log_xyyaw_is_gtsams_pose2_logmap():

@@ -14,13 +14,13 @@ back when the optimised graph disagrees with it, in one of two ways:
   rotation judged apart (RTAB-Map's RGBD/OptimizeMaxError);
 - "edge": the new edge's own Mahalanobis error must stay under `max_error` (longslam's Voxgraph).
 
-A graph that grows past `batch_nodes` nodes (a route of kilometres) is solved incrementally from
-then on, by GTSAM's iSAM2: each optimisation adds the nodes and edges new since the last one
-(and drops removed ones) and re-eliminates only the part of the Bayes tree they touch, and the
-"graph" check judges every edge at once in numpy. A whole solve and the judging pass cost time
-in proportion to the graph, so a loop try on a 10 km route's 6,000 nodes cost ten times one on
-its first kilometre; iSAM2's stays about flat. Below `batch_nodes` the graph is solved whole by
-Levenberg-Marquardt, as before: results on routes that stay below it are unchanged.
+A graph given `batch_nodes` (off by default) is solved incrementally once it outgrows them, by
+GTSAM's iSAM2: each optimisation adds the nodes and edges new since the last one (and drops
+removed ones) and re-eliminates only the part of the Bayes tree they touch, and the "graph" check
+judges every edge at once in numpy. A whole solve and the edge-by-edge check cost time in
+proportion to the graph (a loop try at 10 km cost ten times one on the first kilometre); the
+incremental one kept keyframe's per-frame cost flat on the 10 km tour, but there it accepted 644
+loops where the whole solve accepted 2,324 (docs/scale.md), so it is an option to measure with.
 """
 
 from __future__ import annotations
@@ -317,7 +317,7 @@ class PoseGraph:
         first = next(iter(self._initial))
         graph.add(gtsam.PriorFactorPose2(first, gtsam.Pose2(*self._initial[first]), noise.diagonal(ANCHOR_SIGMAS)))
         for e in self._edges.values():
-            graph.add(gtsam.BetweenFactorPose2(e.a, e.b, gtsam.Pose2(*e.delta), self._noise(e)))
+            graph.add(_between_factor(e, self._noise(e)))
         values = gtsam.Values()
         for node, xyyaw in self._initial.items():
             start = self._optimized.get(node, xyyaw) if warm_start else xyyaw
@@ -437,8 +437,7 @@ class _Incremental:
         self.slots: dict[int, int] = {}  # edge id -> its factor's slot in iSAM2
         self.new_edges: list[Edge] = []
         self.removed_slots: list[int] = []
-        first = next(iter(initial))
-        self.first = first
+        self.first = next(iter(initial))
         # The first update takes the whole graph, warm from the last whole solve.
         self.new_nodes: list[int] = list(initial)
         self.starts = {n: optimized.get(n, xyyaw) for n, xyyaw in initial.items()}
