@@ -120,7 +120,7 @@ def test_fused_front_end_beats_dead_reckoning(demo):
 
 def test_the_visual_heading_holds_xlarge_wheels_where_no_scan_registers(rendered):
     # A hall whose walls are out of range: no scan in the band, only the floor's texture. At
-    # xlarge noise the wheels' heading bias (0.025 deg a frame) is then seen only by the RGB-D
+    # xlarge noise the wheels' heading bias (std 0.025 deg a frame) is then seen only by the RGB-D
     # steps. Measured on seed 0: ATE 0.199 m against dead reckoning's 0.652 m; at the old
     # visual_sigma_yaw (0.05 rad) 0.439 m, which this bound refuses.
     reader = SequenceReader(rendered(get_route("demo"), "xlarge", 0))
