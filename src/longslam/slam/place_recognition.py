@@ -17,7 +17,7 @@ import scipy.sparse as sp
 
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
-from longslam.geometry import invert, rigid_transform
+from longslam.geometry import invert, rigid_transform, xyyaw_from_pose
 from longslam.slam.features import DESCRIPTOR_BYTES, Features
 
 _MATCH_CHUNK = 1 << 17
@@ -418,3 +418,19 @@ def refine_3d(
             return current
         current = rigid_transform(q[inliers], c[inliers])
     return current
+
+
+# A verified loop transform must be planar: the camera neither rises nor tilts on this robot.
+MAX_LOOP_Z = 0.3  # m
+MAX_LOOP_TILT = 0.2  # rad
+
+
+def planar_link(camera_in_base: np.ndarray, camera_transform: np.ndarray) -> np.ndarray | None:
+    """The query robot's pose in the candidate robot's frame as (x, y, yaw), from the verified
+    transform of the query camera in the candidate camera; None if that motion is not planar (a
+    sign of a wrong match)."""
+    base = camera_in_base @ camera_transform @ invert(camera_in_base)
+    tilt = np.arccos(np.clip(base[2, 2], -1.0, 1.0))
+    if abs(base[2, 3]) > MAX_LOOP_Z or tilt > MAX_LOOP_TILT:
+        return None
+    return xyyaw_from_pose(base)

@@ -13,16 +13,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.frame import Intrinsics
-from longslam.geometry import invert, pose_from_xyyaw, wrap_angle, xyyaw_from_pose
+from longslam.geometry import pose_from_xyyaw, wrap_angle
 from longslam.slam.features import Features
 from longslam.slam.graph import PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
-from longslam.slam.place_recognition import refine_3d, verify
+from longslam.slam.place_recognition import planar_link, refine_3d, verify
 
-# A verified loop transform must be planar: the camera neither rises nor tilts on this robot.
-MAX_LOOP_Z = 0.3  # m
-MAX_LOOP_TILT = 0.2  # rad
 APPEARANCE, PROXIMITY = "appearance", "proximity"
 SOURCES = (APPEARANCE, PROXIMITY)
 
@@ -108,8 +105,4 @@ class LoopCloser:
     def planar_link(self, camera_transform: np.ndarray) -> np.ndarray | None:
         """Pose of the query robot in the candidate robot's frame as (x, y, yaw), or None if the
         verified camera motion is not planar (a sign of a wrong match)."""
-        base = self.camera_in_base @ camera_transform @ invert(self.camera_in_base)
-        tilt = np.arccos(np.clip(base[2, 2], -1.0, 1.0))
-        if abs(base[2, 3]) > MAX_LOOP_Z or tilt > MAX_LOOP_TILT:
-            return None
-        return xyyaw_from_pose(base)
+        return planar_link(self.camera_in_base, camera_transform)

@@ -9,13 +9,14 @@
   consecutive submaps; registration between the new finished submap and every finished submap
   whose bounding box overlaps it (its surface points aligned in the other's distance field, the
   result checked before it enters the graph); optionally loop closures from visual place
-  recognition (the `place_recognition` module shared with the keyframe method). GTSAM optimises
+  recognition (the `place_recognition` module shared with the keyframe method; on by default
+  with the fused front end, off in "wheel" mode as in the paper). GTSAM optimises
   it, with a robust kernel on registration and loop edges, whenever a submap is finished.
 - A frame's online pose: its pose in its submap (from the front end) composed onto the submap's
   optimised origin, with the estimate of the moment. The final trajectory: every frame from the
-  front end's smoother, with the graph's loop edges (and registration edges, see
-  `frontend_registrations`) between the submaps' first frames; each submap's origin follows its
-  first frame, so the map moves with the final trajectory.
+  front end's smoother, with each loop the graph kept between the two frames it was seen from
+  (and registration edges, see `frontend_registrations`, between the submaps' first frames);
+  each submap's origin follows its first frame, so the map moves with the final trajectory.
 - The global map: the optimised submaps fused into one TSDF, its iso-surface points as the
   result's cloud (the run engine writes it as map.ply), a marching-cubes mesh (mesh.ply in the run
   folder), and a 2D grid sliced between 0.2 and 1.5 m above the floor, cleared where the
@@ -64,6 +65,7 @@ class Submap:
 
 @dataclass
 class _Keyframe:  # a frame kept for place recognition (loop closure only)
+    frame: int  # its index in the sequence
     submap: int
     time: float
     in_submap: np.ndarray  # (4, 4) camera pose in its submap's frame
@@ -112,9 +114,12 @@ class SubmapMethod:
         self._tried_pairs: set[tuple[int, int]] = set()
         # Loop closure (place recognition shared with the keyframe method).
         self._keyframes: list[_Keyframe] = []
+        # Per accepted loop edge of the graph: (candidate frame, query frame, the query robot's
+        # pose in the candidate robot's frame), for the front end's final smoother.
+        self._frame_loops: dict[int, tuple[int, int, np.ndarray]] = {}
         self._vocabulary = None
         self._last_keyframe_time = -np.inf
-        if c.loop_closure:
+        if c.loops_on:
             from longslam.slam.place_recognition import Vocabulary
 
             self._vocabulary = Vocabulary(max_words_per_image=c.loop_max_features)
@@ -259,7 +264,7 @@ class SubmapMethod:
     def _loop_closure(self, frame: Frame, active: Submap, in_submap: np.ndarray, depth: np.ndarray) -> None:
         """Look for a loop from this frame (its trusted `depth`) to an older submap's keyframe."""
         from longslam.slam import features as feature_module
-        from longslam.slam.place_recognition import verify
+        from longslam.slam.place_recognition import planar_link, refine_3d, verify
 
         c = self.config
         feats = feature_module.extract(frame.rgb, depth, frame.intrinsics, max_features=c.loop_max_features)
@@ -272,15 +277,22 @@ class SubmapMethod:
                 self.counts.loop_hypotheses += 1
                 candidate = self._keyframes[hits[0][0]]
                 check = verify(feats, candidate.features, frame.intrinsics, min_inliers=c.loop_min_inliers)
-                if check.accepted:
-                    self._add_loop(candidate, check.transform, active, in_submap)
+                transform = check.transform
+                if check.accepted and c.loop_refine_3d:
+                    transform = refine_3d(feats, candidate.features, transform)
+                link = planar_link(self._mount.camera_in_base, transform) if check.accepted else None
+                if link is not None:
+                    self._add_loop(candidate, transform, link, active, in_submap)
                 else:
                     self.counts.loops_rejected += 1
         node = len(self._keyframes)
-        self._keyframes.append(_Keyframe(active.index, frame.timestamp, in_submap.copy(), feats))
+        self._keyframes.append(_Keyframe(len(self._stamps), active.index, frame.timestamp, in_submap.copy(), feats))
         self._vocabulary.add(node, feats.descriptors)
 
-    def _add_loop(self, candidate: _Keyframe, query_in_candidate: np.ndarray, active: Submap, in_submap: np.ndarray) -> None:
+    def _add_loop(self, candidate: _Keyframe, query_in_candidate: np.ndarray, link: np.ndarray, active: Submap,
+                  in_submap: np.ndarray) -> None:
+        """`query_in_candidate`: the query camera in the candidate camera; `link`: the same as the
+        query robot's planar pose in the candidate robot's frame."""
         c = self.config
         # Pose of the active submap's origin in the candidate submap's frame.
         origin = candidate.in_submap @ query_in_candidate @ invert(in_submap)
@@ -289,6 +301,7 @@ class SubmapMethod:
         check = self.graph.try_loop(candidate.submap, active.index, delta, information=info, max_error=c.loop_max_error, check="edge")
         if check.accepted:
             self.counts.loops_accepted += 1
+            self._frame_loops[check.edge_id] = (candidate.frame, len(self._stamps), link)
         else:
             self.counts.loops_rejected += 1
 
@@ -364,10 +377,11 @@ class SubmapMethod:
 
 
     def _frontend_final(self) -> np.ndarray:
-        """Every frame's pose from the front end's smoother, with the submap graph's loop edges
-        (and registration edges, see `frontend_registrations`) between the submaps' first
-        frames. An edge the optimised graph explains poorly (the robust kernel down-weighted it)
-        is left out: the smoother takes each edge as a plain Gaussian."""
+        """Every frame's pose from the front end's smoother, with the submap graph's loops
+        between the frames they were seen from (and registration edges, see
+        `frontend_registrations`, between the submaps' first frames). An edge the optimised graph
+        explains poorly (the robust kernel down-weighted it) is left out: the smoother takes each
+        edge as a plain Gaussian."""
         c = self.config
         registrations = c.frontend_registrations
         if registrations is None:
@@ -377,7 +391,14 @@ class SubmapMethod:
             if e.kind != ODOMETRY and (e.kind != REGISTRATION or registrations)
             and self.graph.edge_error(e.edge_id) <= c.frontend_max_edge_error
         ]
-        self.frontend.add_graph_edges(edges, self._submap_frame)
+        # A loop fixes two frames, not two submaps: between its own frames it needs no submap to
+        # be rigid, so it takes keyframe's tight sigmas.
+        loop_information = np.diag([c.loop_frame_sigma_xy**-2, c.loop_frame_sigma_xy**-2, c.loop_frame_sigma_yaw**-2])
+        for edge in edges:
+            if edge.edge_id in self._frame_loops:
+                frame_i, frame_j, link = self._frame_loops[edge.edge_id]
+                self.frontend.add_loop(frame_i, frame_j, link, loop_information)
+        self.frontend.add_graph_edges([e for e in edges if e.edge_id not in self._frame_loops], self._submap_frame)
         return self.frontend.final_trajectory()
 
 
