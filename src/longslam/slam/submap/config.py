@@ -84,8 +84,8 @@ class SubmapConfig:
     # The same closure in the front end's final smoother, between the two frames it was seen
     # from rather than the submaps' first frames, so no submap's rigidity is assumed: keyframe's
     # loop sigmas (RTAB-Map's).
-    loop_frame_sigma_xy: float = 0.05  # m
-    loop_frame_sigma_yaw: float = 0.02  # rad
+    loop_frame_sigma_xy: float = 0.05  # m: std of a loop's translation between its two frames
+    loop_frame_sigma_yaw: float = 0.02  # rad: std of a loop's heading between its two frames
     loop_refine_3d: bool = True  # polish PnP's transform on the 3D-3D matches (keyframe's refine_3d)
     loop_max_error: float = 3.0  # reject a closure whose error after optimisation exceeds this (sigmas)
     # The 2D map sliced from the fused TSDF
