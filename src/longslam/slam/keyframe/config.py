@@ -69,6 +69,16 @@ class KeyframeConfig:
     proximity_radius: float = 3.0  # m around the estimated pose
     proximity_max_angle: float = 0.8  # rad: only nodes that looked the same way
     proximity_candidates: int = 1  # nearby nodes verified by PnP per node (0: none)
+    # Proximity by scan matching (RGBD/ProximityBySpace with ICP, scan_proximity.py): the new
+    # node's obstacle cells registered against older nearby nodes' that shared open space with it,
+    # whichever way they looked.
+    scan_proximity: bool = False
+    scan_proximity_radius: float = 4.0  # m between the estimates of the new node and an older one
+    scan_proximity_min_age: float = 30.0  # s: older nodes only (the front end matched the recent ones)
+    scan_proximity_max_correction: float = 0.5  # m a scan link may move the new node's estimate
+    scan_proximity_max_angle: float = 0.05  # rad a scan link may turn the new node's estimate
+    scan_proximity_min_overlap: float = 0.5  # share of the new node's obstacle cells matched
+    scan_proximity_max_rmse: float = 0.04  # m, point-to-line
     # RGBD/NeighborLinkRefining: consecutive nodes linked by PnP where it verifies, if the visual
     # transform is within these bounds of the odometry (fraction of the step, or 1 m; rad).
     neighbor_refining: bool = False  # measured: PnP links at 320x240 are noisier than wheel odometry
@@ -108,6 +118,8 @@ class KeyframeConfig:
     def __post_init__(self) -> None:
         positive = ("detection_rate", "max_features", "max_words", "min_inliers", "grid_cell", "grid_range",
                     "odom_sigma_min", "loop_sigma_linear", "loop_sigma_angular", "optimize_max_error",
+                    "scan_proximity_radius", "scan_proximity_max_correction", "scan_proximity_max_angle",
+                    "scan_proximity_min_overlap", "scan_proximity_max_rmse",
                     "cloud_voxel", "cloud_stride", "grid_stride", "loop_candidates")
         for name in positive:
             if not getattr(self, name) > 0:

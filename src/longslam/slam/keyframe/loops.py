@@ -18,10 +18,11 @@ from longslam.slam.features import Features
 from longslam.slam.graph import PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
+from longslam.slam.keyframe.scan_proximity import ScanLinkSettings, scan_link
 from longslam.slam.place_recognition import planar_link, refine_3d, verify
 
-APPEARANCE, PROXIMITY = "appearance", "proximity"
-SOURCES = (APPEARANCE, PROXIMITY)
+APPEARANCE, PROXIMITY, SCAN = "appearance", "proximity", "scan_proximity"
+SOURCES = (APPEARANCE, PROXIMITY, SCAN)
 
 
 def counter_names() -> list[str]:
@@ -57,6 +58,38 @@ class LoopCloser:
             for cand in self.proximity_candidates(node, exclude=tried):
                 self.counts[f"{PROXIMITY}_hypotheses"] += 1
                 self.try_link(node, cand, PROXIMITY)
+        if cfg.scan_proximity:
+            self.try_scan_link(node)
+
+    def try_scan_link(self, node: Node) -> bool:
+        """Proximity by scan matching (scan_proximity.py) against the older nodes in working
+        memory near the new node's estimate; kept only if the optimised graph agrees."""
+        cfg = self.config
+        here = self.graph.estimate(node.id)
+        nodes = self.memory.nodes
+        old = [i for i in self.memory.wm if nodes[i].in_ram and node.stamp - nodes[i].stamp >= cfg.scan_proximity_min_age]
+        if not old:
+            return False
+        poses = np.array([self.graph.estimate(i) for i in old])
+        near = np.hypot(poses[:, 0] - here[0], poses[:, 1] - here[1]) <= cfg.scan_proximity_radius
+        if not near.any():
+            return False
+        self.counts[f"{SCAN}_hypotheses"] += 1
+        settings = ScanLinkSettings(cfg.scan_proximity_radius, cfg.scan_proximity_min_age, cfg.scan_proximity_max_correction,
+                                    cfg.scan_proximity_max_angle, cfg.scan_proximity_min_overlap, cfg.scan_proximity_max_rmse,
+                                    (cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular))
+        link = scan_link(node, here, [(nodes[i], poses[k]) for k, i in enumerate(old) if near[k]], settings)
+        if link is None:
+            self.counts[f"{SCAN}_rejected_verification"] += 1
+            return False
+        check = self.graph.try_loop(link.anchor, node.id, link.delta, information=link.information,
+                                    max_error=cfg.optimize_max_error, check="graph")
+        if not check.accepted:
+            self.counts[f"{SCAN}_rejected_graph"] += 1
+            return False
+        self.counts[f"{SCAN}_accepted"] += 1
+        self.memory.db.put_link(link.anchor, node.id, SCAN, pose_from_xyyaw(link.delta), link.information)
+        return True
 
     def proximity_candidates(self, node: Node, exclude: set[int]) -> list[int]:
         cfg = self.config
