@@ -78,7 +78,7 @@ class KeyframeConfig:
     scan_proximity_max_correction: float = 0.5  # m a scan link may move the new node's estimate
     scan_proximity_max_angle: float = 0.05  # rad a scan link may turn the new node's estimate
     scan_proximity_min_overlap: float = 0.5  # share of the new node's obstacle cells matched
-    scan_proximity_max_rmse: float = 0.04  # m, point-to-line
+    scan_proximity_max_rmse: float = 0.04  # m: point-to-line RMS a scan link may have
     # RGBD/NeighborLinkRefining: consecutive nodes linked by PnP where it verifies, if the visual
     # transform is within these bounds of the odometry (fraction of the step, or 1 m; rad).
     neighbor_refining: bool = False  # measured: PnP links at 320x240 are noisier than wheel odometry
