@@ -7,6 +7,7 @@ from scipy import ndimage
 from longslam.errors import InputError
 from longslam.eval.evaluation import evaluate
 from longslam.frame import Frame
+from longslam.geometry import compose_xyyaw, wrap_angle
 from longslam.gridmap import OCCUPIED
 from longslam.io.sequence import SequenceReader
 from longslam.sim.camera import CameraSettings
@@ -76,6 +77,37 @@ def test_long_term_memory_holds_nodes_and_reopens(sequence, tmp_path):
         assert node.arrays["descriptors"].shape[1] == 32
         assert db.statistics()["nodes"] == stats["nodes"]
         assert db.statistics()["database"] == "memory.db"  # never a run's temporary folder
+
+
+def test_scan_links_reach_back_into_long_term_memory_and_agree_with_the_truth(sequence, tmp_path):
+    """Proximity by scan matching takes older nodes from long-term memory too (read for their grid,
+    not brought back): the corridor driven back and forth links to the first pass whichever way
+    the camera looked. A link holds across the corridor and in heading, not along it."""
+    params = {"scan_proximity": True, "scan_proximity_min_age": 10.0, "wm_max_nodes": 4, "stm_size": 3}
+    method, result = _run(sequence, params, output_dir=str(tmp_path))
+    stats = result.stats
+    assert stats["nodes_transferred"] > 0 and stats["scan_proximity_accepted"] >= 3
+    truth = method._mount.to_planar(sequence.ground_truth.poses)
+    with MemoryDatabase(tmp_path / "memory.db") as db:
+        links = db.links("scan_proximity")
+    assert len(links) == stats["scan_proximity_accepted"]
+    for a, b, _, transform in links:
+        delta = np.array([transform[0, 3], transform[1, 3], np.arctan2(transform[1, 0], transform[0, 0])])
+        placed = compose_xyyaw(truth[method._node_frame[a]], delta)
+        true = truth[method._node_frame[b]]
+        assert abs(placed[1] - true[1]) < 0.1  # the corridor runs along x
+        assert abs(wrap_angle(placed[2] - true[2])) < 0.02
+    without = _run(sequence, {"scan_proximity": False, "wm_max_nodes": 4, "stm_size": 3})[1]
+    assert without.stats["scan_proximity_hypotheses"] == 0
+    assert evaluate(sequence.ground_truth, result.trajectory)["ate"] <= 1.1 * evaluate(sequence.ground_truth, without.trajectory)["ate"]
+
+
+def test_scan_proximity_is_on_with_the_fused_front_end_and_off_in_the_papers_configuration():
+    from longslam.slam.frontend import FrontEndConfig
+
+    assert KeyframeConfig().scan_proximity_on
+    assert not KeyframeConfig(frontend=FrontEndConfig(mode="wheel")).scan_proximity_on
+    assert not KeyframeConfig(scan_proximity=False).scan_proximity_on
 
 
 def test_bad_frames_are_counted_not_linked(sequence):

@@ -58,7 +58,7 @@ class LoopCloser:
             for cand in self.proximity_candidates(node, exclude=tried):
                 self.counts[f"{PROXIMITY}_hypotheses"] += 1
                 self.try_link(node, cand, PROXIMITY)
-        if cfg.scan_proximity:
+        if cfg.scan_proximity_on:
             self.try_scan_link(node)
 
     def try_scan_link(self, node: Node) -> bool:
@@ -67,7 +67,9 @@ class LoopCloser:
         cfg = self.config
         here = self.graph.estimate(node.id)
         nodes = self.memory.nodes
-        old = [i for i in self.memory.wm if nodes[i].in_ram and node.stamp - nodes[i].stamp >= cfg.scan_proximity_min_age]
+        # Long-term memory too: a node there is read for its grid and goes back (space, unlike
+        # appearance, needs no vocabulary entry).
+        old = [i for i in nodes if node.stamp - nodes[i].stamp >= cfg.scan_proximity_min_age]
         if not old:
             return False
         poses = np.array([self.graph.estimate(i) for i in old])
@@ -78,7 +80,14 @@ class LoopCloser:
         settings = ScanLinkSettings(cfg.scan_proximity_radius, cfg.scan_proximity_min_age, cfg.scan_proximity_max_correction,
                                     cfg.scan_proximity_max_angle, cfg.scan_proximity_min_overlap, cfg.scan_proximity_max_rmse,
                                     (cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular))
-        link = scan_link(node, here, [(nodes[i], poses[k]) for k, i in enumerate(old) if near[k]], settings)
+        candidates = []
+        for k in np.flatnonzero(near):
+            cand = nodes[old[k]]
+            if not cand.in_ram:
+                grid, _ = self.memory.grid_and_points(cand.id)
+                cand = Node(cand.id, cand.stamp, cand.odom, None, grid, None)
+            candidates.append((cand, poses[k]))
+        link = scan_link(node, here, candidates, settings)
         if link is None:
             self.counts[f"{SCAN}_rejected_verification"] += 1
             return False
