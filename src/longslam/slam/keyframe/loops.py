@@ -58,7 +58,7 @@ class LoopCloser:
             for cand in self.proximity_candidates(node, exclude=tried):
                 self.counts[f"{PROXIMITY}_hypotheses"] += 1
                 self.try_link(node, cand, PROXIMITY)
-        if cfg.scan_proximity_on:
+        if cfg.scan_proximity:
             self.try_scan_link(node)
 
     def try_scan_link(self, node: Node) -> bool:
