@@ -97,13 +97,17 @@ def test_scan_links_reach_back_into_long_term_memory_and_agree_with_the_truth(se
         true = truth[method._node_frame[b]]
         assert abs(placed[1] - true[1]) < 0.1  # the corridor runs along x
         assert abs(wrap_angle(placed[2] - true[2])) < 0.02
-    without = _run(sequence, {"wm_max_nodes": 4, "stm_size": 3})[1]
+    without = _run(sequence, {"scan_proximity": False, "wm_max_nodes": 4, "stm_size": 3})[1]
     assert without.stats["scan_proximity_hypotheses"] == 0
     assert evaluate(sequence.ground_truth, result.trajectory)["ate"] <= 1.1 * evaluate(sequence.ground_truth, without.trajectory)["ate"]
 
 
-def test_scan_proximity_is_opt_in():
-    assert not KeyframeConfig().scan_proximity
+def test_scan_proximity_is_on_with_the_fused_front_end_and_off_in_the_papers_configuration():
+    from longslam.slam.frontend import FrontEndConfig
+
+    assert KeyframeConfig().scan_proximity_on
+    assert not KeyframeConfig(frontend=FrontEndConfig(mode="wheel")).scan_proximity_on
+    assert not KeyframeConfig(scan_proximity=False).scan_proximity_on
 
 
 def test_bad_frames_are_counted_not_linked(sequence):

@@ -1,5 +1,7 @@
 """Proximity by scan matching: nodes that drove a corridor the other way, on synthetic walls."""
 
+from dataclasses import replace
+
 import numpy as np
 
 from longslam.geometry import compose_xyyaw, relative_xyyaw, wrap_angle
@@ -36,9 +38,11 @@ def _node(node_id: int, pose: np.ndarray, walls, open_space, fov=np.pi / 2, reac
         return (np.hypot(p[:, 0], p[:, 1]) <= reach) & (np.abs(np.arctan2(p[:, 1], p[:, 0])) <= fov / 2)
 
     wall_points = np.vstack([np.linspace(a, b, 3001) for a, b in walls])
-    local = to_robot(wall_points)
     # Only the faces that open onto this node's space: a wall cell within 0.1 m of it.
-    facing = open_space(wall_points + [0.0, 0.1]) | open_space(wall_points - [0.0, 0.1])
+    facing = np.zeros(len(wall_points), dtype=bool)
+    for offset in ([0.0, 0.1], [0.1, 0.0]):
+        facing |= open_space(wall_points + offset) | open_space(wall_points - offset)
+    local = to_robot(wall_points)
     obstacles = np.unique(np.floor(local[seen(local) & facing] / CELL).astype(np.int16), axis=0)
     gx, gy = np.meshgrid(np.arange(0.0, reach, CELL), np.arange(-reach, reach, CELL))
     robot = np.column_stack([gx.ravel(), gy.ravel()])
@@ -91,3 +95,51 @@ def test_a_link_is_refused_past_its_correction():
     turned = compose_xyyaw(truth, np.array([0.0, 0.0, 0.2]))  # 11 degrees: beyond max_correction_angle
     assert scan_link(new, turned, [(n, n.odom) for n in old], SETTINGS) is None
     assert relative_xyyaw(truth, turned)[2] > SETTINGS.max_correction_angle
+
+
+# The same corridor with, in its right wall at x = 11..13, either a side corridor (its two walls
+# face along the main one) or a shallow recess (two faces at 30 degrees to the main corridor).
+SIDE_WALLS = [((0.0, -1.25), (11.0, -1.25)), ((13.0, -1.25), (30.0, -1.25)), ((0.0, 1.25), (30.0, 1.25)),
+              ((11.0, -1.25), (11.0, -6.0)), ((13.0, -1.25), (13.0, -6.0))]
+RECESS_DEPTH = np.tan(np.radians(30.0))
+RECESS_WALLS = [((0.0, -1.25), (11.0, -1.25)), ((13.0, -1.25), (30.0, -1.25)), ((0.0, 1.25), (30.0, 1.25)),
+                ((11.0, -1.25), (12.0, -1.25 - RECESS_DEPTH)), ((12.0, -1.25 - RECESS_DEPTH), (13.0, -1.25))]
+
+
+def _inside_corridor_or_side(xy):
+    return _inside_corridor(xy) | ((xy[:, 0] > 11.05) & (xy[:, 0] < 12.95) & (xy[:, 1] > -6.0) & (xy[:, 1] < -1.2))
+
+
+def _inside_corridor_or_recess(xy):
+    floor = -1.25 - RECESS_DEPTH * (1.0 - np.abs(xy[:, 0] - 12.0)) + 0.05
+    return _inside_corridor(xy) | ((np.abs(xy[:, 0] - 12.0) < 1.0) & (xy[:, 1] > floor) & (xy[:, 1] < -1.2))
+
+
+def _drive_back(walls, open_space, settings=SETTINGS):
+    truth = np.array([16.0, 0.0, np.pi])
+    old = [_node(0, np.array([10.0, 0.0, 0.0]), walls, open_space), _node(1, np.array([8.5, 0.0, 0.0]), walls, open_space)]
+    new = _node(2, truth, walls, open_space)
+    estimate = compose_xyyaw(truth, np.array([0.3, 0.12, 0.025]))  # 0.3 m off along the corridor
+    link = scan_link(new, estimate, [(n, n.odom) for n in old], settings)
+    assert link is not None
+    return truth, compose_xyyaw(old[0].odom, link.delta), link
+
+
+def test_faces_at_a_slant_do_not_hold_a_node_along_the_corridor():
+    # The recess's faces give the registration's Hessian some information along the corridor
+    # (on the paper's routes, cells at wall ends, door frames and clutter do the same, and links
+    # that trusted it were up to 1.3 m wrong along the corridor). No cell faces along it, so the
+    # link leaves that direction free.
+    _, _, link = _drive_back(RECESS_WALLS, _inside_corridor_or_recess)
+    assert link.held[0] < SETTINGS.min_constraining <= link.held[1]
+    assert link.information[0, 0] < 1e-3 * link.information[1, 1]
+    # Counted as the Hessian has it, the link would hold the node along the corridor too.
+    _, _, trusting = _drive_back(RECESS_WALLS, _inside_corridor_or_recess, replace(SETTINGS, min_constraining=0))
+    assert trusting.information[0, 0] > 0.02 * trusting.information[1, 1]
+
+
+def test_a_side_corridor_holds_the_node_along_the_main_one():
+    truth, placed, link = _drive_back(SIDE_WALLS, _inside_corridor_or_side)
+    assert link.held[0] >= SETTINGS.min_constraining
+    assert abs(placed[0] - truth[0]) < 0.1  # pulled back the 0.3 m its estimate was off
+    assert link.information[0, 0] > 0.1 * link.information[1, 1]

@@ -71,17 +71,20 @@ class KeyframeConfig:
     proximity_candidates: int = 1  # nearby nodes verified by PnP per node (0: none)
     # Proximity by scan matching (RGBD/ProximityBySpace with ICP, scan_proximity.py): the new
     # node's obstacle cells registered against older nearby nodes' that shared open space with it,
-    # whichever way they looked. Off: on 28 runs of the paper study it took most doubled walls
-    # away (paper-1km medium seed 0: 0.099 -> 0.005) but its links are surer than they should be
-    # (median chi^2 10 against the truth, 30 of 95 over 25 on paper-1km large seed 0), and ATE
-    # rose on some runs (that one 0.146 -> 0.345 m; small seed 2 0.126 -> 0.483). docs/diagnose.md.
-    scan_proximity: bool = False
+    # whichever way they looked. None: on with the fused front end, off in "wheel" mode (the
+    # paper's RTAB-Map: Reg/Strategy 0, visual proximity only). docs/diagnose.md has the 40 runs
+    # of the paper study it was measured on.
+    scan_proximity: bool | None = None
     scan_proximity_radius: float = 4.0  # m between the estimates of the new node and an older one
     scan_proximity_min_age: float = 30.0  # s: older nodes only (the front end matched the recent ones)
     scan_proximity_max_correction: float = 0.5  # m a scan link may move the new node's estimate
     scan_proximity_max_angle: float = 0.05  # rad a scan link may turn the new node's estimate
     scan_proximity_min_overlap: float = 0.5  # share of the new node's obstacle cells matched
     scan_proximity_max_rmse: float = 0.04  # m: point-to-line RMS a scan link may have
+    # Matched cells whose wall faces a direction (within 45 degrees) for a link to hold the node in
+    # it; fewer, and the link leaves that direction free (along a straight corridor). 0: trust the
+    # registration's Hessian in every direction.
+    scan_proximity_min_constraining: int = 10
     # RGBD/NeighborLinkRefining: consecutive nodes linked by PnP where it verifies, if the visual
     # transform is within these bounds of the odometry (fraction of the step, or 1 m; rad).
     neighbor_refining: bool = False  # measured: PnP links at 320x240 are noisier than wheel odometry
@@ -117,6 +120,11 @@ class KeyframeConfig:
     # (the wheel odometry alone: the paper's configuration). Either way the final trajectory
     # comes from the front end's smoother over every frame, with the graph's loop closures.
     frontend: FrontEndConfig = field(default_factory=FrontEndConfig)
+
+    @property
+    def scan_proximity_on(self) -> bool:
+        """Whether proximity is tried by scan matching (`scan_proximity`, or by the front end's mode when unset)."""
+        return self.frontend.mode == "fused" if self.scan_proximity is None else self.scan_proximity
 
     def __post_init__(self) -> None:
         positive = ("detection_rate", "max_features", "max_words", "min_inliers", "grid_cell", "grid_range",

@@ -28,7 +28,7 @@ SOURCES = (APPEARANCE, PROXIMITY, SCAN)
 def counter_names() -> list[str]:
     """The per-source counters this module keeps (hypotheses, accepted, rejected and why)."""
     return [f"{s}_{what}" for s in SOURCES
-            for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")]
+            for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")] + [f"{SCAN}_one_direction"]
 
 
 @dataclass
@@ -58,7 +58,7 @@ class LoopCloser:
             for cand in self.proximity_candidates(node, exclude=tried):
                 self.counts[f"{PROXIMITY}_hypotheses"] += 1
                 self.try_link(node, cand, PROXIMITY)
-        if cfg.scan_proximity:
+        if cfg.scan_proximity_on:
             self.try_scan_link(node)
 
     def try_scan_link(self, node: Node) -> bool:
@@ -79,7 +79,8 @@ class LoopCloser:
         self.counts[f"{SCAN}_hypotheses"] += 1
         settings = ScanLinkSettings(cfg.scan_proximity_radius, cfg.scan_proximity_min_age, cfg.scan_proximity_max_correction,
                                     cfg.scan_proximity_max_angle, cfg.scan_proximity_min_overlap, cfg.scan_proximity_max_rmse,
-                                    (cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular))
+                                    (cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular),
+                                    cfg.scan_proximity_min_constraining)
         candidates = []
         for k in np.flatnonzero(near):
             cand = nodes[old[k]]
@@ -97,6 +98,8 @@ class LoopCloser:
             self.counts[f"{SCAN}_rejected_graph"] += 1
             return False
         self.counts[f"{SCAN}_accepted"] += 1
+        if min(link.held) < cfg.scan_proximity_min_constraining:
+            self.counts[f"{SCAN}_one_direction"] += 1  # along a corridor: across-track and heading only
         self.memory.db.put_link(link.anchor, node.id, SCAN, pose_from_xyyaw(link.delta), link.information)
         return True
 

@@ -35,6 +35,7 @@ class ScanLinkSettings:
     min_overlap: float  # share of the node's cells matched
     max_rmse: float  # m, point-to-line
     sigma_floor: tuple[float, float, float]  # m, m, rad added to the registration's covariance
+    min_constraining: int = 10  # matched cells whose wall faces a direction, for the link to hold it
 
 
 @dataclass
@@ -44,6 +45,7 @@ class ScanLink:
     information: np.ndarray  # (3, 3) in GTSAM's Pose2 tangent of the new node
     correction: float  # m the registration moved the new node's estimate
     matches: int
+    held: tuple[int, int] = (0, 0)  # matched cells facing the weaker and the stronger direction
 
 
 def shares_open_space(a: np.ndarray, b: np.ndarray, a_grid: LocalGrid) -> bool:
@@ -88,6 +90,42 @@ def scan_link(node: Node, node_pose: np.ndarray, candidates: list[tuple[Node, np
     # The registration's Hessian alone is as sure as 500 independent cells; the floor keeps one
     # link from outweighing the nodes' own odometry where the cells agree too well.
     covariance = np.linalg.inv(body + 1e-6 * np.eye(3)) + np.diag(np.square(settings.sigma_floor))
+    held = facing_cells(scan, result.pose, local, result.hessian[:2, :2])
+    for direction, count in zip(np.linalg.eigh(result.hessian[:2, :2])[1].T, held):
+        if count < settings.min_constraining:
+            # Nothing faces this way: the Hessian's share of it is the wall cells' normals'
+            # noise, and the registration stayed where the estimate put it. Free it.
+            c, s = np.cos(result.pose[2]), np.sin(result.pose[2])
+            v = np.array([c * direction[0] + s * direction[1], -s * direction[0] + c * direction[1], 0.0])
+            covariance = covariance + UNHELD_SIGMA ** 2 * np.outer(v, v)
     information = np.linalg.inv(covariance)
     return ScanLink(anchor.id, relative_xyyaw(anchor_pose, result.pose), 0.5 * (information + information.T),
-                    correction, result.matches)
+                    correction, result.matches, held)
+
+
+# m: the std a link gives a direction no wall cell faces (as good as none, but positive definite).
+UNHELD_SIGMA = 100.0
+# A cell faces a direction when its wall's normal is within 45 degrees of it.
+FACING = np.cos(np.pi / 4)
+
+
+def facing_cells(scan_xy: np.ndarray, pose: np.ndarray, local: LocalMap, translation_information: np.ndarray,
+                 max_residual: float = 0.1, max_distance: float = 0.3) -> tuple[int, int]:
+    """How many of the scan's cells, at `pose` against `local`, match a map cell (within
+    `max_distance`, point-to-line within `max_residual`) whose normal faces each eigen direction
+    of the registration's translation information, weaker first.
+
+    Point-to-line registration of a straight corridor's walls has an along-track Hessian that is
+    not zero: the cells' normals are scattered by a few degrees, and 500 cells add that up to
+    a few centimetres. No cell faces along the corridor, though, and the registration has not
+    moved the node along it (after Tuna et al.'s localizability in X-ICP, 2023)."""
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    world = scan_xy @ np.array([[c, s], [-s, c]]) + pose[:2]
+    dist, idx = local.tree.query(world, k=1, distance_upper_bound=max_distance)
+    hit = np.isfinite(dist)
+    n = local.normals[idx[hit]]
+    r = np.abs(np.einsum("ij,ij->i", n, world[hit] - local.points[idx[hit]]))
+    n = n[r <= max_residual]
+    directions = np.linalg.eigh(translation_information)[1].T
+    weak, strong = (int(np.count_nonzero(np.abs(n @ d) >= FACING)) for d in directions)
+    return weak, strong
