@@ -10,7 +10,7 @@ process (an installed plugin's too; a method that is not installed is left out).
 RSS of the whole process (`os.wait4`, what `/usr/bin/time -v` prints), the run's own RSS samples
 every 1,000 frames, the mean ms per frame over the first and the last tenth of the frames, the
 `finish` time, ATE and its ratio to dead reckoning's on the same sequence, and the loop
-constraints further than 0.5 m or 5 degrees from the truth (loops.csv). With --plot-dir: RSS
+constraints further than 0.5 m (in the directions each holds) or 5 degrees from the truth (loops.csv). With --plot-dir: RSS
 against distance and ATE against route length, one line per method.
 
 Targets printed beside the figures: keyframe and submap peak <= 450 MB on a 10 km route, and on a

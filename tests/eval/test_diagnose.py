@@ -45,6 +45,26 @@ def test_loop_errors_against_the_truths_relative_pose():
     assert found[2].error_deg == pytest.approx(8.0) and found[2].wrong
 
 
+def test_a_loop_is_not_wrong_along_a_direction_it_leaves_free():
+    truth = _straight(11, 1.0)
+    # 0.8 m off along x: wrong if it holds x (sigmas 0.05 m), not if it leaves x free (100 m).
+    held = np.diag([400.0, 400.0, 2500.0])
+    free = np.diag([1e-4, 400.0, 2500.0])
+    upper = np.triu_indices(3)
+    rows = np.array([[2, 8, 6.8, 0.0, 0.0, *held[upper]], [2, 8, 6.8, 0.0, 0.0, *free[upper]],
+                     [2, 8, 6.8, 0.6, 0.0, *free[upper]]])
+    found = loop_errors(truth, rows)
+    assert found[0].error_m == pytest.approx(0.8) and found[0].wrong
+    assert found[1].error_m == pytest.approx(0.0, abs=1e-6) and not found[1].wrong
+    assert found[2].error_m == pytest.approx(0.6) and found[2].wrong  # across: still its own
+    # A turned constraint's free direction turns with it: j's frame, not i's.
+    turned = np.array([[2, 8, 6.0, 0.0, np.radians(90.0), *free[upper]]])
+    truth_turned = truth.copy()
+    truth_turned[8, 2] = np.radians(90.0)
+    truth_turned[8, 1] = 0.8  # 0.8 m off along i's y, which is j's x: free
+    assert loop_errors(truth_turned, turned)[0].error_m == pytest.approx(0.0, abs=1e-6)
+
+
 def test_stretches_name_what_they_picked_up_and_their_dominant_factor():
     truth = _straight(201, 0.1)  # 20 m
     estimate = truth.copy()

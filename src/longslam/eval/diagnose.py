@@ -30,6 +30,9 @@ from longslam.geometry.planar import relative_xyyaw, wrap_angle
 # A loop constraint further than this from the truth is wrong (the benchmarks' rule).
 WRONG_LOOP_M = 0.5
 WRONG_LOOP_DEG = 5.0
+# A direction a constraint holds to a std over this (m) it does not hold: its error there is not
+# the constraint's (keyframe's scan links leave the direction along a corridor free).
+FREE_SIGMA_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -71,15 +74,40 @@ class LoopError:
         return self.error_m > WRONG_LOOP_M or self.error_deg > WRONG_LOOP_DEG
 
 
+def held_translation_error(delta: np.ndarray, error_in_i: np.ndarray, information: np.ndarray) -> float:
+    """The norm of a constraint's translation error (in frame i) without its part along the
+    directions the constraint does not hold (std over `FREE_SIGMA_M`). `information` is in
+    GTSAM's Pose2 tangent, the frame of j as the constraint places it."""
+    c, s = np.cos(delta[2]), np.sin(delta[2])
+    error = np.array([c * error_in_i[0] + s * error_in_i[1], -s * error_in_i[0] + c * error_in_i[1]])
+    covariance = np.linalg.inv(information + 1e-12 * np.eye(3))[:2, :2]
+    variances, directions = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    for variance, direction in zip(variances, directions.T):
+        if variance > FREE_SIGMA_M ** 2:
+            error = error - (error @ direction) * direction
+    return float(np.hypot(error[0], error[1]))
+
+
 def loop_errors(truth_xyyaw: np.ndarray, loops: np.ndarray) -> list[LoopError]:
     """Each loop constraint (rows of frame i, frame j, dx, dy, dyaw: frame j's base pose in frame
-    i's) against the truth's relative pose between the two frames."""
+    i's; then, as loops.csv has them, the upper triangle of its information) against the truth's
+    relative pose between the two frames. With the information, a direction the constraint does
+    not hold does not count in its error."""
     truth = np.asarray(truth_xyyaw, dtype=np.float64)
+    rows = np.asarray(loops, dtype=np.float64)
+    rows = rows.reshape(-1, rows.shape[-1] if rows.ndim == 2 else 5)
+    upper = np.triu_indices(3)
     out = []
-    for i, j, *delta in np.asarray(loops, dtype=np.float64).reshape(-1, 5):
-        i, j = int(i), int(j)
-        d = np.asarray(delta) - relative_xyyaw(truth[i], truth[j])
-        out.append(LoopError(i, j, float(np.hypot(d[0], d[1])), float(np.degrees(abs(wrap_angle(d[2]))))))
+    for row in rows:
+        i, j, delta = int(row[0]), int(row[1]), row[2:5]
+        d = delta - relative_xyyaw(truth[i], truth[j])
+        error_m = float(np.hypot(d[0], d[1]))
+        if len(row) >= 11:
+            information = np.zeros((3, 3))
+            information[upper] = row[5:11]
+            information = information + np.triu(information, 1).T
+            error_m = held_translation_error(delta, d[:2], information)
+        out.append(LoopError(i, j, error_m, float(np.degrees(abs(wrap_angle(d[2]))))))
     return out
 
 

@@ -161,7 +161,7 @@ def diagnosis_text(d: Diagnosis) -> str:
         lines.append("  loop constraints: none in loops.csv")
     else:
         wrong = [lp for lp in d.loops if lp.wrong]
-        lines.append(f"  loop constraints: {len(d.loops)}, {len(wrong)} wrong (> 0.5 m or > 5 deg against the truth); "
+        lines.append(f"  loop constraints: {len(d.loops)}, {len(wrong)} wrong (> 0.5 m, in the directions it holds, or > 5 deg against the truth); "
                      f"median error {np.median([lp.error_m for lp in d.loops]):.3f} m, "
                      f"{np.median([lp.error_deg for lp in d.loops]):.2f} deg")
         for lp in sorted(d.loops, key=lambda lp: -lp.error_m)[:10]:

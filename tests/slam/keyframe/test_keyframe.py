@@ -59,7 +59,9 @@ def test_loops_close_and_beat_odometry(sequence, tmp_path):
     # stats; each node's time is a row of the nodes table.
     loops, nodes = result.tables["loops"], result.tables["nodes"]
     assert len(loops.rows) == stats["frontend"]["loops"] >= stats["loops_accepted"]
-    assert loops.columns == ("frame_i", "frame_j", "dx_m", "dy_m", "dyaw_rad")
+    assert loops.columns[:5] == ("frame_i", "frame_j", "dx_m", "dy_m", "dyaw_rad")
+    assert loops.columns[5:] == ("info_xx", "info_xy", "info_xyaw", "info_yy", "info_yyaw", "info_yawyaw")
+    assert np.all(loops.column("info_xx") >= 0) and np.all(loops.column("info_yawyaw") > 0)
     assert np.all(loops.column("frame_i") < len(sequence)) and np.all(loops.column("frame_j") < len(sequence))
     assert len(nodes.rows) == stats["nodes"] and np.all(nodes.column("time_ms") > 0)
     assert "loop_constraints" not in stats["frontend"] and "node_time_ms" not in stats

@@ -46,8 +46,10 @@ from longslam.slam.graph.factors import WheelStep
 relative = relative_xyyaw
 
 MODES = ("fused", "wheel")
-# loops.csv: frame i, frame j, and j's base pose in i's frame.
-LOOP_COLUMNS = ("frame_i", "frame_j", "dx_m", "dy_m", "dyaw_rad")
+# loops.csv: frame i, frame j, j's base pose in i's frame, and the constraint's information (the
+# upper triangle of its 3x3 matrix, in GTSAM's Pose2 tangent: body dx, dy, dyaw).
+LOOP_COLUMNS = ("frame_i", "frame_j", "dx_m", "dy_m", "dyaw_rad",
+                "info_xx", "info_xy", "info_xyaw", "info_yy", "info_yyaw", "info_yawyaw")
 # frontend.csv: see `FrontEnd.frame_table`.
 FRAME_COLUMNS = ("frame", "wheel", "visual", "scan", "scan_shift_m", "scan_turn_deg")
 SCAN_REGISTERED, SCAN_REFUSED = 1.0, -1.0
@@ -374,7 +376,8 @@ class FrontEnd:
     def loop_table(self) -> Table:
         """Every constraint a method added (`add_loop`), so that a benchmark can check each
         against ground truth: the run folder's loops.csv."""
-        rows = [[i, j, *map(float, delta)] for i, j, delta, _ in self._smoother.loops]
+        upper = np.triu_indices(3)
+        rows = [[i, j, *map(float, delta), *np.asarray(info, dtype=np.float64)[upper]] for i, j, delta, info in self._smoother.loops]
         return Table(LOOP_COLUMNS, np.array(rows, dtype=np.float64).reshape(-1, len(LOOP_COLUMNS)))
 
     @property
