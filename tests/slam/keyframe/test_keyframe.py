@@ -79,6 +79,10 @@ def test_long_term_memory_holds_nodes_and_reopens(sequence, tmp_path):
         assert node.arrays["descriptors"].shape[1] == 32
         assert db.statistics()["nodes"] == stats["nodes"]
         assert db.statistics()["database"] == "memory.db"  # never a run's temporary folder
+        # A long-term node's grid alone, as scan proximity reads it (its features left undecoded).
+        part = db.get_arrays(0, ("grid_obstacles", "grid_free"))
+        assert set(part) == {"grid_obstacles", "grid_free"}
+        np.testing.assert_array_equal(part["grid_free"], node.arrays["grid_free"])
 
 
 def test_scan_links_reach_back_into_long_term_memory_and_agree_with_the_truth(sequence, tmp_path):

@@ -219,7 +219,7 @@ def test_loops_reach_the_smoother_between_the_frames_they_were_seen_from(rendere
     # Each is the two frames' true relative pose, within what its sigmas say.
     truth = method.frontend.mount.to_planar(reader.ground_truth.poses)
     config = SubmapConfig()
-    for i, j, dx, dy, dyaw in rows:
+    for i, j, dx, dy, dyaw, *_ in rows:
         true = relative_xyyaw(truth[int(i)], truth[int(j)])
         assert np.hypot(dx - true[0], dy - true[1]) < 3 * config.loop_frame_sigma_xy
         assert abs(wrap_angle(dyaw - true[2])) < 3 * config.loop_frame_sigma_yaw
@@ -337,3 +337,19 @@ def test_fusing_with_release_gives_the_same_map_and_empties_the_submaps():
         np.testing.assert_array_equal(a, b)
     assert fused.num_blocks == kept.num_blocks > 0
     assert all(t.num_blocks == 0 and t.nbytes < 1000 for t in released)
+
+
+def test_a_route_driven_again_keeps_no_keyframe_where_a_kept_one_stands(rendered):
+    """Issue 22: place-recognition keyframes (and their words) grew with the route, about 14 MB a
+    km, though a route that drives the same corridors again sees the same places. With
+    `loop_keyframe_min_distance` a keyframe is kept only where no kept one stands."""
+    reader = SequenceReader(rendered(get_route("demo-x2"), "large", 0))
+    _, _, every = run(reader)
+    _, _, sparse = run(reader, loop_keyframe_min_distance=1.5)
+    assert every.stats["loop_keyframes_known_place"] == 0
+    tried = every.stats["loop_keyframes_kept"]
+    kept, known = sparse.stats["loop_keyframes_kept"], sparse.stats["loop_keyframes_known_place"]
+    assert kept + known == tried  # the same frames were tried; only what is kept differs
+    assert kept < 0.6 * tried  # the second lap stands where the first one kept its keyframes
+    assert sparse.stats["map_bytes"]["vocabulary"] < every.stats["map_bytes"]["vocabulary"]
+    assert ate(reader.ground_truth, sparse.trajectory) < 1.25 * ate(reader.ground_truth, every.trajectory) + 0.02

@@ -85,8 +85,7 @@ class LoopCloser:
         for k in np.flatnonzero(near):
             cand = nodes[old[k]]
             if not cand.in_ram:
-                grid, _ = self.memory.grid_and_points(cand.id)
-                cand = Node(cand.id, cand.stamp, cand.odom, None, grid, None)
+                cand = Node(cand.id, cand.stamp, cand.odom, None, self.memory.grid(cand.id), None)
             candidates.append((cand, poses[k]))
         link = scan_link(node, here, candidates, settings)
         if link is None:

@@ -8,7 +8,7 @@ leaves the visual vocabulary. A loop closure brings a few LTM neighbours of its 
 
 from __future__ import annotations
 
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -22,6 +22,10 @@ from longslam.slam.place_recognition import Vocabulary
 
 # A node id -> its (estimated, odometry) camera poses, as the database stores them.
 NodePoses = Callable[[int], tuple[np.ndarray, np.ndarray]]
+
+
+# Long-term nodes' grids kept after a read (a few KB each).
+LTM_GRIDS_CACHED = 256
 
 
 @dataclass
@@ -50,6 +54,9 @@ class KeyframeMemory:
         self.nodes: dict[int, Node] = {}
         self.stm: deque[int] = deque()
         self.wm: set[int] = set()
+        # The local grids of long-term nodes read lately: scan proximity reads the same few back
+        # from the database for node after node as the robot drives past them.
+        self._ltm_grids: OrderedDict[int, LocalGrid] = OrderedDict()
 
     def add(self, node: Node) -> None:
         """A new node: known from now on (loop closure may retrieve around it), not yet searchable."""
@@ -110,6 +117,22 @@ class KeyframeMemory:
             return node.grid, node.points
         _, grid, points = self.load(node_id)
         return grid, points
+
+    def grid(self, node_id: int) -> LocalGrid | None:
+        """A node's local grid, from RAM, from the last `LTM_GRIDS_CACHED` read back, or from the database."""
+        node = self.nodes[node_id]
+        if node.in_ram:
+            return node.grid
+        grid = self._ltm_grids.get(node_id)
+        if grid is None:
+            stored = self.db.get_arrays(node_id, ("grid_obstacles", "grid_free"))
+            grid = LocalGrid(stored["grid_obstacles"], stored["grid_free"], self.config.grid_cell)
+            self._ltm_grids[node_id] = grid
+            if len(self._ltm_grids) > LTM_GRIDS_CACHED:
+                self._ltm_grids.popitem(last=False)
+        else:
+            self._ltm_grids.move_to_end(node_id)
+        return grid
 
     def retrieve_around(self, node_id: int) -> None:
         """Bring back up to max_retrieved long-term nodes next to a loop closure (graph neighbours)."""

@@ -149,6 +149,14 @@ class MemoryDatabase:
                 (int(from_id), int(to_id), kind, _blob(transform), _blob(info)),
             )
 
+    def get_arrays(self, node_id: int, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+        """Some of a node's stored arrays, the others left undecoded."""
+        row = self._db.execute("SELECT arrays FROM Data WHERE id=?", (int(node_id),)).fetchone()
+        if row is None:
+            raise KeyError(f"{self.path}: no node {node_id} in the long-term memory")
+        with np.load(io.BytesIO(row[0])) as npz:
+            return {name: npz[name] for name in names}
+
     def links(self, kind: str | None = None) -> list[tuple[int, int, str, np.ndarray]]:
         query = "SELECT from_id, to_id, type, transform FROM Link" + (" WHERE type=?" if kind else "") + " ORDER BY from_id, to_id"
         rows = self._db.execute(query, (kind,) if kind else ())

@@ -88,6 +88,11 @@ class SubmapConfig:
     loop_frame_sigma_yaw: float = 0.02  # rad: std of a loop's heading between its two frames
     loop_refine_3d: bool = True  # polish PnP's transform on the 3D-3D matches (keyframe's refine_3d)
     loop_max_error: float = 3.0  # reject a closure whose error after optimisation exceeds this (sigmas)
+    # A place-recognition keyframe is kept only where no kept one stands within this distance (m,
+    # camera positions at the graph's estimates) and angle (rad, camera headings): on a route that
+    # drives the same corridors again its keyframes and vocabulary stop growing. 0: keep every one.
+    loop_keyframe_min_distance: float = 0.0
+    loop_keyframe_min_angle: float = 0.5
     # The 2D map sliced from the fused TSDF
     grid_min_height: float = 0.2
     grid_max_height: float = 1.5  # m above the floor: the top of the slice the 2D map is cut from
@@ -120,7 +125,8 @@ class SubmapConfig:
                 raise InputError(f"submap parameter {name} must be positive, got {value!r}")
         if self.grid_free_space_margin < 0:
             raise InputError(f"submap parameter grid_free_space_margin must be >= 0, got {self.grid_free_space_margin!r}")
-        for name in ("registration_min_overlap_area", "loop_min_score", "loop_min_age"):
+        for name in ("registration_min_overlap_area", "loop_min_score", "loop_min_age", "loop_keyframe_min_distance",
+                     "loop_keyframe_min_angle"):
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:
                 raise InputError(f"submap parameter {name} must be >= 0, got {value!r}")

@@ -82,6 +82,8 @@ class _Counts:
     loops_accepted: int = 0
     loops_rejected: int = 0
     loop_hypotheses: int = 0
+    loop_keyframes_kept: int = 0
+    loop_keyframes_known_place: int = 0  # not kept: a kept one stands there (loop_keyframe_min_distance)
     rejection_reasons: dict[str, int] = field(default_factory=dict)
 
 
@@ -285,9 +287,31 @@ class SubmapMethod:
                     self._add_loop(candidate, transform, link, active, in_submap)
                 else:
                     self.counts.loops_rejected += 1
+        if self._known_place(active.index, in_submap):
+            self.counts.loop_keyframes_known_place += 1
+            return
         node = len(self._keyframes)
         self._keyframes.append(_Keyframe(len(self._stamps), active.index, frame.timestamp, in_submap.copy(), feats))
         self._vocabulary.add(node, feats.descriptors)
+        self.counts.loop_keyframes_kept += 1
+
+    def _known_place(self, submap: int, in_submap: np.ndarray) -> bool:
+        """Whether a kept keyframe's camera stands within `loop_keyframe_min_distance` and
+        `loop_keyframe_min_angle` of this camera (`in_submap` in `submap`), both at the graph's
+        current estimates."""
+        c = self.config
+        if c.loop_keyframe_min_distance <= 0 or not self._keyframes:
+            return False
+        here = self._world_pose(submap, in_submap)
+        submaps = np.array([k.submap for k in self._keyframes])
+        origins = {int(i): self._origin_pose(self.graph.estimate(int(i))) for i in np.unique(submaps)}
+        kept = np.einsum("kij,kjl->kil", np.stack([origins[int(i)] for i in submaps]),
+                         np.stack([k.in_submap for k in self._keyframes]))
+        near = np.hypot(*(kept[:, :2, 3] - here[:2, 3]).T) <= c.loop_keyframe_min_distance
+        # Camera headings: the optical axis (z) on the floor plane.
+        turn = np.arctan2(kept[:, 1, 2], kept[:, 0, 2]) - np.arctan2(here[1, 2], here[0, 2])
+        turned = np.abs(np.angle(np.exp(1j * turn))) <= c.loop_keyframe_min_angle
+        return bool(np.any(near & turned))
 
     def _add_loop(self, candidate: _Keyframe, query_in_candidate: np.ndarray, link: np.ndarray, active: Submap,
                   in_submap: np.ndarray) -> None:
@@ -362,6 +386,8 @@ class SubmapMethod:
             stats.LOOP_HYPOTHESES: counts.loop_hypotheses,
             stats.LOOPS_ACCEPTED: counts.loops_accepted,
             stats.LOOPS_REJECTED: counts.loops_rejected,
+            "loop_keyframes_kept": counts.loop_keyframes_kept,
+            "loop_keyframes_known_place": counts.loop_keyframes_known_place,
             "graph_edges": {k: self.graph.count(k) for k in (ODOMETRY, REGISTRATION, LOOP)},
             stats.OPTIMIZATIONS: self.graph.optimizations,
             stats.CAMERA_HEIGHT: self._mount.camera_height,
