@@ -88,11 +88,10 @@ class SubmapConfig:
     loop_frame_sigma_yaw: float = 0.02  # rad: std of a loop's heading between its two frames
     loop_refine_3d: bool = True  # polish PnP's transform on the 3D-3D matches (keyframe's refine_3d)
     loop_max_error: float = 3.0  # reject a closure whose error after optimisation exceeds this (sigmas)
-    # A place-recognition keyframe is kept only where no kept one stands within this distance (m,
-    # camera positions at the graph's estimates) and angle (rad, camera headings): on a route that
-    # drives the same corridors again its keyframes and vocabulary stop growing. 0: keep every one.
-    loop_keyframe_min_distance: float = 0.0
-    loop_keyframe_min_angle: float = 0.5
+    # On a route that drives the same corridors again, place-recognition keyframes and their words
+    # stop growing: a keyframe is kept only where no kept one stands (docs/scale.md).
+    loop_keyframe_min_distance: float = 0.0  # m between camera positions at the graph's estimates (0: keep every keyframe)
+    loop_keyframe_min_angle: float = 0.5  # rad between camera headings for a kept keyframe to stand there
     # The 2D map sliced from the fused TSDF
     grid_min_height: float = 0.2
     grid_max_height: float = 1.5  # m above the floor: the top of the slice the 2D map is cut from
