@@ -93,8 +93,8 @@ def scan_link(node: Node, node_pose: np.ndarray, candidates: list[tuple[Node, np
     held = facing_cells(scan, result.pose, local, result.hessian[:2, :2])
     for direction, count in zip(np.linalg.eigh(result.hessian[:2, :2])[1].T, held):
         if count < settings.min_constraining:
-            # Nothing faces this way: the Hessian's share of it is the wall cells' normals'
-            # noise, and the registration stayed where the estimate put it. Free it.
+            # Nothing faces this way: the Hessian's share of it comes from tilted normals, and the
+            # registration stayed where the estimate put it. Free it.
             c, s = np.cos(result.pose[2]), np.sin(result.pose[2])
             v = np.array([c * direction[0] + s * direction[1], -s * direction[0] + c * direction[1], 0.0])
             covariance = covariance + UNHELD_SIGMA ** 2 * np.outer(v, v)
@@ -115,10 +115,12 @@ def facing_cells(scan_xy: np.ndarray, pose: np.ndarray, local: LocalMap, transla
     `max_distance`, point-to-line within `max_residual`) whose normal faces each eigen direction
     of the registration's translation information, weaker first.
 
-    Point-to-line registration of a straight corridor's walls has an along-track Hessian that is
-    not zero: the cells' normals are scattered by a few degrees, and 500 cells add that up to
-    a few centimetres. No cell faces along the corridor, though, and the registration has not
-    moved the node along it (after Tuna et al.'s localizability in X-ICP, 2023)."""
+    Point-to-line registration along a corridor has an along-track Hessian that is not zero: the
+    normals, fitted to a few neighbouring cells, tilt by tens of degrees at wall ends, door frames
+    and clutter, and a few hundred such cells add up to a covariance of centimetres along it
+    (3-9 cm for links that were 1 m wrong along the corridor, docs/diagnose.md). No cell faces
+    along the corridor, though, and the registration has not moved the node along it (after Tuna
+    et al.'s localizability in X-ICP, 2023)."""
     c, s = np.cos(pose[2]), np.sin(pose[2])
     world = scan_xy @ np.array([[c, s], [-s, c]]) + pose[:2]
     dist, idx = local.tree.query(world, k=1, distance_upper_bound=max_distance)
