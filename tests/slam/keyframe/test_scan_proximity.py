@@ -131,7 +131,7 @@ def test_faces_at_a_slant_do_not_hold_a_node_along_the_corridor():
     # that trusted it were up to 1.3 m wrong along the corridor). No cell faces along it, so the
     # link leaves that direction free.
     _, _, link = _drive_back(RECESS_WALLS, _inside_corridor_or_recess)
-    assert link.held[0] < SETTINGS.min_constraining <= link.held[1]
+    assert link.held[0] < SETTINGS.min_constraining <= link.held[1] and link.freed == 1
     assert link.information[0, 0] < 1e-3 * link.information[1, 1]
     # Counted as the Hessian has it, the link would hold the node along the corridor too.
     _, _, trusting = _drive_back(RECESS_WALLS, _inside_corridor_or_recess, replace(SETTINGS, min_constraining=0))
@@ -140,6 +140,6 @@ def test_faces_at_a_slant_do_not_hold_a_node_along_the_corridor():
 
 def test_a_side_corridor_holds_the_node_along_the_main_one():
     truth, placed, link = _drive_back(SIDE_WALLS, _inside_corridor_or_side)
-    assert link.held[0] >= SETTINGS.min_constraining
+    assert link.held[0] >= SETTINGS.min_constraining and link.freed == 0
     assert abs(placed[0] - truth[0]) < 0.1  # pulled back the 0.3 m its estimate was off
     assert link.information[0, 0] > 0.1 * link.information[1, 1]

@@ -97,7 +97,7 @@ class LoopCloser:
             self.counts[f"{SCAN}_rejected_graph"] += 1
             return False
         self.counts[f"{SCAN}_accepted"] += 1
-        if min(link.held) < cfg.scan_proximity_min_constraining:
+        if link.freed:
             self.counts[f"{SCAN}_one_direction"] += 1  # along a corridor: across-track and heading only
         self.memory.db.put_link(link.anchor, node.id, SCAN, pose_from_xyyaw(link.delta), link.information)
         return True

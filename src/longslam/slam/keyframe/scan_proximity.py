@@ -46,6 +46,7 @@ class ScanLink:
     correction: float  # m the registration moved the new node's estimate
     matches: int
     held: tuple[int, int] = (0, 0)  # matched cells facing the weaker and the stronger direction
+    freed: int = 0  # directions left free (too few cells face them)
 
 
 def shares_open_space(a: np.ndarray, b: np.ndarray, a_grid: LocalGrid) -> bool:
@@ -90,17 +91,20 @@ def scan_link(node: Node, node_pose: np.ndarray, candidates: list[tuple[Node, np
     # The registration's Hessian alone is as sure as 500 independent cells; the floor keeps one
     # link from outweighing the nodes' own odometry where the cells agree too well.
     covariance = np.linalg.inv(body + 1e-6 * np.eye(3)) + np.diag(np.square(settings.sigma_floor))
-    held = facing_cells(scan, result.pose, local, result.hessian[:2, :2])
-    for direction, count in zip(np.linalg.eigh(result.hessian[:2, :2])[1].T, held):
+    directions = np.linalg.eigh(result.hessian[:2, :2])[1].T  # world frame, weaker first
+    held = facing_cells(scan, result.pose, local, directions)
+    c, s = np.cos(result.pose[2]), np.sin(result.pose[2])
+    freed = 0
+    for direction, count in zip(directions, held):
         if count < settings.min_constraining:
             # Nothing faces this way: the Hessian's share of it comes from tilted normals, and the
             # registration stayed where the estimate put it. Free it.
-            c, s = np.cos(result.pose[2]), np.sin(result.pose[2])
             v = np.array([c * direction[0] + s * direction[1], -s * direction[0] + c * direction[1], 0.0])
             covariance = covariance + UNHELD_SIGMA ** 2 * np.outer(v, v)
+            freed += 1
     information = np.linalg.inv(covariance)
     return ScanLink(anchor.id, relative_xyyaw(anchor_pose, result.pose), 0.5 * (information + information.T),
-                    correction, result.matches, held)
+                    correction, result.matches, held, freed)
 
 
 # m: the std a link gives a direction no wall cell faces (as good as none, but positive definite).
@@ -109,11 +113,12 @@ UNHELD_SIGMA = 100.0
 FACING = np.cos(np.pi / 4)
 
 
-def facing_cells(scan_xy: np.ndarray, pose: np.ndarray, local: LocalMap, translation_information: np.ndarray,
-                 max_residual: float = 0.1, max_distance: float = 0.3) -> tuple[int, int]:
+def facing_cells(scan_xy: np.ndarray, pose: np.ndarray, local: LocalMap, directions: np.ndarray,
+                 max_residual: float = 0.1, max_distance: float = 0.3) -> tuple[int, ...]:
     """How many of the scan's cells, at `pose` against `local`, match a map cell (within
-    `max_distance`, point-to-line within `max_residual`) whose normal faces each eigen direction
-    of the registration's translation information, weaker first.
+    `max_distance`, point-to-line within `max_residual`) whose normal faces each of `directions`
+    (rows of world-frame unit vectors: the eigen directions of the registration's translation
+    information).
 
     Point-to-line registration along a corridor has an along-track Hessian that is not zero: the
     normals, fitted to a few neighbouring cells, tilt by tens of degrees at wall ends, door frames
@@ -128,6 +133,4 @@ def facing_cells(scan_xy: np.ndarray, pose: np.ndarray, local: LocalMap, transla
     n = local.normals[idx[hit]]
     r = np.abs(np.einsum("ij,ij->i", n, world[hit] - local.points[idx[hit]]))
     n = n[r <= max_residual]
-    directions = np.linalg.eigh(translation_information)[1].T
-    weak, strong = (int(np.count_nonzero(np.abs(n @ d) >= FACING)) for d in directions)
-    return weak, strong
+    return tuple(int(np.count_nonzero(np.abs(n @ d) >= FACING)) for d in directions)

@@ -36,7 +36,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, xyyaw_from_pose
+from longslam.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.frontend import FrontEnd
@@ -310,7 +310,7 @@ class SubmapMethod:
         near = np.hypot(*(kept[:, :2, 3] - here[:2, 3]).T) <= c.loop_keyframe_min_distance
         # Camera headings: the optical axis (z) on the floor plane.
         turn = np.arctan2(kept[:, 1, 2], kept[:, 0, 2]) - np.arctan2(here[1, 2], here[0, 2])
-        turned = np.abs(np.angle(np.exp(1j * turn))) <= c.loop_keyframe_min_angle
+        turned = np.abs(wrap_angle(turn)) <= c.loop_keyframe_min_angle
         return bool(np.any(near & turned))
 
     def _add_loop(self, candidate: _Keyframe, query_in_candidate: np.ndarray, link: np.ndarray, active: Submap,
