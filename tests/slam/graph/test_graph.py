@@ -143,3 +143,34 @@ def test_bad_input_is_named():
     with pytest.raises(InputError):
         graph.remove_edge(99)
     assert PoseGraph().optimize() == {}
+
+
+def test_a_loop_tried_in_working_memory_moves_only_the_free_nodes_and_is_judged_there():
+    """Issue 22: a loop try solved over the whole graph costs time in proportion to the route.
+    Tried with `free` nodes (RTAB-Map's working memory), only they move; the held nodes are the
+    other ends of their edges."""
+    truth = square_route()
+    graph, odo = build_graph(truth)
+    last = len(truth) - 1
+    free = set(range(25, last + 1))  # the last side and a half: node 24 is held
+    check = graph.try_loop(last, 0, relative_xyyaw(truth[last], truth[0]), sigmas=LOOP_SIGMAS, max_error=3.0,
+                           free=free)
+    assert not check.accepted  # 40 steps of drift pushed into 15 edges: not what the graph says
+    np.testing.assert_array_equal(np.array([graph.estimate(i) for i in range(len(truth))]), odo)  # as before the try
+    assert graph.num_loops == 0
+    # A closure the free nodes can absorb: the truth's relative pose between 30 and 36 (6 steps
+    # of drift) is kept, and the nodes before 25 stay exactly where they were.
+    check = graph.try_loop(30, last, relative_xyyaw(truth[30], truth[last]), sigmas=(0.5, 0.5, 0.2), max_error=3.0,
+                           free=free)
+    assert check.accepted and graph.num_loops == 1
+    est = np.array([graph.estimate(i) for i in range(len(truth))])
+    np.testing.assert_array_equal(est[:25], odo[:25])
+    assert np.abs(est[26:] - odo[26:]).max() > 1e-3
+    # Every node free: the warm whole solve's answer, anchored at the first node's estimate.
+    whole, _ = build_graph(truth)
+    whole.add_loop(30, last, relative_xyyaw(truth[30], truth[last]), (0.5, 0.5, 0.2), robust=False)
+    everywhere, _ = build_graph(truth)
+    everywhere.add_loop(30, last, relative_xyyaw(truth[30], truth[last]), (0.5, 0.5, 0.2), robust=False)
+    everywhere.optimize_local(range(len(truth)))
+    np.testing.assert_allclose(np.array([everywhere.estimate(i) for i in range(len(truth))]),
+                               as_array(whole.optimize(), len(truth)), atol=1e-6)

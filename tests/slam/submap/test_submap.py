@@ -142,8 +142,9 @@ def test_method_gives_a_pose_per_frame_a_grid_and_stats(hall_sequences, tmp_path
     method = create_method("submap", context, {"submap_interval": 10})
     frames = list(noisy)
     online = [method.step(f) for f in frames]
-    # Finished submaps keep compacted voxels only.
-    assert all(s.tsdf.compacted for s in method.submaps if s.finished)
+    # Finished submaps' voxels wait in the store (compacted), the active one's in memory.
+    assert all(s.tsdf is None for s in method.submaps if s.finished) and method.submaps[-1].tsdf is not None
+    assert (tmp_path / "submaps.db").is_file()
     result = method.finish()
     assert len(result.trajectory) == len(frames) == len(result.online)
     np.testing.assert_allclose(result.online.poses, np.array(online))
@@ -157,8 +158,9 @@ def test_method_gives_a_pose_per_frame_a_grid_and_stats(hall_sequences, tmp_path
     assert result.grid is not None and (result.grid.data == 100).sum() > 100 and (result.grid.data == 0).sum() > 100
     assert result.cloud.shape[1] == 3 and len(result.cloud) > 1000
     assert (tmp_path / "mesh.ply").exists()
-    # The submaps' voxels went into the fused map; the submaps keep none.
-    assert all(s.tsdf.compacted and s.tsdf.num_blocks == 0 for s in method.submaps)
+    # The submaps' voxels went into the fused map, read back from the store, which is gone.
+    assert all(s.tsdf is None for s in method.submaps) and not (tmp_path / "submaps.db").exists()
+    assert stats["submaps_read_back"] >= stats["submaps"]
 
 
 def test_without_noise_the_trajectory_is_the_odometry(hall_sequences):
@@ -318,25 +320,61 @@ def test_cell_averages_are_the_sorted_groups_means_to_the_bit(spread):
         np.testing.assert_array_equal(average(xyz, cell), expected)
 
 
+def _wall_submap(shift: float) -> TSDF:
+    tsdf = TSDF(0.2, 0.8)
+    ys, zs = np.meshgrid(np.linspace(-2, 2, 60), np.linspace(0, 2, 30))
+    wall = np.column_stack([np.full(ys.size, 3.0 + shift), ys.ravel(), zs.ravel()])
+    tsdf.integrate_points(wall, np.zeros(3))
+    tsdf.compact()
+    return tsdf
+
+
 def test_fusing_with_release_gives_the_same_map_and_empties_the_submaps():
     from longslam.slam.submap.global_map import fuse_submaps
 
-    def submap(shift):
-        tsdf = TSDF(0.2, 0.8)
-        ys, zs = np.meshgrid(np.linspace(-2, 2, 60), np.linspace(0, 2, 30))
-        wall = np.column_stack([np.full(ys.size, 3.0 + shift), ys.ravel(), zs.ravel()])
-        tsdf.integrate_points(wall, np.zeros(3))
-        tsdf.compact()
-        return tsdf
-
     poses = [np.eye(4), pose_from_xyyaw((0.3, 0.1, 0.05))]
-    kept = fuse_submaps([(submap(0.0), poses[0]), (submap(0.1), poses[1])], 0.2, 0.8)
-    released = [submap(0.0), submap(0.1)]
-    fused = fuse_submaps(list(zip(released, poses)), 0.2, 0.8, release=True)
-    for a, b in zip(kept.observed(), fused.observed()):
+    kept = [_wall_submap(0.0), _wall_submap(0.1)]
+    fused_kept = fuse_submaps(lambda i: kept[i], poses, 0.2, 0.8)
+    released = [_wall_submap(0.0), _wall_submap(0.1)]
+    fused = fuse_submaps(lambda i: released[i], poses, 0.2, 0.8, release=True)
+    for a, b in zip(fused_kept.observed(), fused.observed()):
         np.testing.assert_array_equal(a, b)
-    assert fused.num_blocks == kept.num_blocks > 0
+    assert fused.num_blocks == fused_kept.num_blocks > 0
+    assert all(t.num_blocks > 0 for t in kept)
     assert all(t.num_blocks == 0 and t.nbytes < 1000 for t in released)
+
+
+def test_the_submap_store_gives_back_what_it_was_given_and_holds_only_the_newest(tmp_path):
+    """Issue 22: finished submaps' TSDFs wait on disk, so that memory does not grow with the route."""
+    from longslam.slam.submap.global_map import fuse_submaps
+    from longslam.slam.submap.store import FILE_NAME, SubmapStore
+
+    originals = [_wall_submap(0.1 * i) for i in range(3)]
+    store = SubmapStore(0.2, 0.8, in_memory=1, folder=tmp_path)
+    for i, tsdf in enumerate(originals):
+        store.put(i, tsdf)
+    assert (tmp_path / FILE_NAME).is_file()
+    assert store.cached_bytes == originals[2].nbytes  # only the newest stays in memory
+    assert store.stored_bytes == sum(sum(a.nbytes for a in t.compacted_arrays().values()) for t in originals)
+    back = store.get(0)
+    assert store.reads == 1 and back is not originals[0]
+    for a, b in zip(originals[0].observed(), back.observed()):
+        np.testing.assert_array_equal(a, b)
+    assert store.get(0) is back and store.reads == 1  # now the cached one
+    points = np.array([[3.0, 0.1, 1.0], [2.9, -0.5, 0.5]])
+    for a, b in zip(originals[0].interpolate(points), back.interpolate(points)):
+        np.testing.assert_array_equal(a, b)
+    poses = [np.eye(4), pose_from_xyyaw((0.3, 0.1, 0.05)), pose_from_xyyaw((-0.2, 0.4, -0.1))]
+    from_memory = fuse_submaps(lambda i: originals[i], poses, 0.2, 0.8)
+    from_disk = fuse_submaps(lambda i: store.get(i, cache=False), poses, 0.2, 0.8)
+    for a, b in zip(from_memory.observed(), from_disk.observed()):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(KeyError, match="no submap 7"):
+        store.get(7)
+    store.close()
+    assert not (tmp_path / FILE_NAME).exists()
+    with pytest.raises(InputError, match="only a compacted TSDF"):
+        TSDF(0.2, 0.8).compacted_arrays()
 
 
 def test_a_route_driven_again_keeps_no_keyframe_where_a_kept_one_stands(rendered):

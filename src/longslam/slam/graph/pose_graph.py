@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from collections.abc import Collection
 from typing import Literal
 
 import gtsam
@@ -138,6 +139,7 @@ class PoseGraph:
         self.optimizations = 0  # optimisations actually run
         self.batch_nodes = int(batch_nodes)
         self._incremental: _Incremental | None = None  # set once the graph outgrows batch_nodes
+        self._order_of: dict[int, int] = {}  # node id -> its place in the adding order
 
     # --- building
 
@@ -147,6 +149,7 @@ class PoseGraph:
         node_id = int(node_id)
         if self._incremental is not None and node_id not in self._initial:
             self._incremental.new_nodes.append(node_id)
+        self._order_of.setdefault(node_id, len(self._order_of))
         self._initial[node_id] = _xyyaw(xyyaw, f"node {node_id}")
 
     def has_node(self, node_id: int) -> bool:
@@ -198,14 +201,21 @@ class PoseGraph:
 
     def try_loop(
         self, a: int, b: int, delta_xyyaw, *, max_error: float, sigmas=None, information=None,
-        check: Literal["graph", "edge"] = "graph", kind: str = LOOP,
+        check: Literal["graph", "edge"] = "graph", kind: str = LOOP, free: Collection[int] | None = None,
     ) -> LoopCheck:
         """Add a closure, optimise (warm), and keep it only if the graph agrees; else remove it and
-        re-optimise, so a rejected closure leaves the estimates as they were before it."""
+        re-optimise, so a rejected closure leaves the estimates as they were before it.
+
+        With `free` (node ids), only those nodes move: the solve and the "graph" check take the
+        edges that touch them, with the nodes at those edges' other ends held where they are
+        (`optimize_local`). That is RTAB-Map's optimisation of the map in working memory: its cost
+        is bounded by the memory's budget, not the route's length."""
         edge_id = self.add_edge(a, b, delta_xyyaw, sigmas=sigmas, information=information, kind=kind, robust=False)
         if check not in ("graph", "edge"):
             self.remove_edge(edge_id)
             raise InputError(f"try_loop: check must be 'graph' or 'edge', got {check!r}")
+        if free is not None and self._incremental is None:
+            return self._try_loop_local(edge_id, set(map(int, free)) | {int(a), int(b)}, max_error, check)
         self._solve(warm_start=True)
         if check == "edge":
             error = self.edge_error(edge_id)
@@ -218,6 +228,78 @@ class PoseGraph:
             self._solve(warm_start=True)
             return LoopCheck(False, None, float(error))
         return LoopCheck(True, edge_id, float(error))
+
+    def _try_loop_local(self, edge_id: int, free: set[int], max_error: float, check: str) -> LoopCheck:
+        before = {n: self._optimized.get(n) for n in free}
+        edges = self.optimize_local(free)
+        if check == "edge":
+            error = self.edge_error(edge_id)
+        else:
+            error = max(max(e.translation_error, e.rotation_error) for e in self._edge_errors(edges))
+        if error > max_error:
+            self.remove_edge(edge_id)
+            # The free nodes go back to where they were: the rest never moved.
+            for node, pose in before.items():
+                if pose is None:
+                    self._optimized.pop(node, None)
+                else:
+                    self._optimized[node] = pose
+            return LoopCheck(False, None, float(error))
+        return LoopCheck(True, edge_id, float(error))
+
+    def optimize_local(self, free: Collection[int], max_iterations: int | None = None) -> list[Edge]:
+        """Optimise the `free` nodes alone, warm: every edge that touches one of them, with the
+        nodes at their other ends held at their estimates (where no such node holds a connected
+        group of free nodes, its first node is held). Returns the edges solved. Whole-graph
+        solves (`optimize`) are left as they are: a free set that holds every node gives the same
+        problem as a warm whole solve, but anchored at the first node's estimate."""
+        if self._incremental is not None:
+            raise InputError("optimize_local: the graph is solved incrementally (batch_nodes)")
+        free = {int(n) for n in free if int(n) in self._initial}
+        edges = [e for e in self._edges.values() if e.a in free or e.b in free]
+        if not edges:
+            return []
+        touched = sorted({n for e in edges for n in (e.a, e.b)}, key=self._order)
+        held = {n for n in touched if n not in free}
+        # A group of free nodes no held node reaches would float: hold its first node.
+        parent = {n: n for n in touched}
+
+        def root(n: int) -> int:
+            while parent[n] != n:
+                parent[n] = parent[parent[n]]
+                n = parent[n]
+            return n
+
+        for e in edges:
+            ra, rb = root(e.a), root(e.b)
+            if ra != rb:
+                parent[max(ra, rb, key=self._order)] = min(ra, rb, key=self._order)
+        anchored = {root(n) for n in held}
+        for n in touched:  # in order: the first node of each group
+            if root(n) not in anchored:
+                anchored.add(root(n))
+                held.add(n)
+        graph = gtsam.NonlinearFactorGraph()
+        values = gtsam.Values()
+        for n in touched:
+            start = gtsam.Pose2(*self.estimate(n))
+            values.insert(n, start)
+            if n in held:
+                graph.add(gtsam.PriorFactorPose2(n, start, noise.diagonal(ANCHOR_SIGMAS)))
+        for e in edges:
+            graph.add(_between_factor(e, self._noise(e)))
+        result, self.last_iterations = gtsam_levenberg_marquardt(
+            graph, values, self.max_iterations if max_iterations is None else max_iterations)
+        self.optimizations += 1
+        for n in touched:
+            if n not in held:
+                p = result.atPose2(n)
+                self._optimized[n] = (float(p.x()), float(p.y()), float(p.theta()))
+        return edges
+
+    def _order(self, node_id: int) -> int:
+        """A node's place in the order nodes were added (node ids need not be sorted)."""
+        return self._order_of[node_id]
 
     # --- inspecting
 
@@ -350,10 +432,11 @@ class PoseGraph:
         shows how badly it disagrees with the rest of the graph. Translation and rotation errors
         use the translation block and the yaw entry of the information (for sigmas: r / sigma).
         """
+        return self._edge_errors(e for e in self._edges.values() if kind is None or e.kind == kind)
+
+    def _edge_errors(self, edges) -> list[EdgeError]:
         out = []
-        for e in self._edges.values():
-            if kind is not None and e.kind != kind:
-                continue
+        for e in edges:
             residual = self._residual(e)
             if e.sigmas is not None:
                 norm = residual / np.asarray(e.sigmas)

@@ -29,7 +29,8 @@ SIZE_LIMITS = {
 @dataclass(frozen=True)
 class KeyframeConfig:
     # The values a text parameter takes (`longslam list --params` shows them).
-    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"vocabulary_index": tuple(WORD_INDEXES)}
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"vocabulary_index": tuple(WORD_INDEXES),
+                                                     "loop_check_scope": ("working_memory", "graph")}
 
     # Node creation (Rtabmap/DetectionRate, RGBD/LinearUpdate, RGBD/AngularUpdate).
     detection_rate: float = 1.0  # Hz: at most this many new nodes per second
@@ -81,6 +82,7 @@ class KeyframeConfig:
     scan_proximity_max_angle: float = 0.05  # rad a scan link may turn the new node's estimate
     scan_proximity_min_overlap: float = 0.5  # share of the new node's obstacle cells matched
     scan_proximity_max_rmse: float = 0.04  # m: point-to-line RMS a scan link may have
+    scan_proximity_max_candidates: int = 8  # nearest older nodes registered against (0: every one in the radius)
     # Matched cells whose wall faces a direction (within 45 degrees) for a link to hold the node in
     # it; fewer, and the link leaves that direction free (along a straight corridor). 0: trust the
     # registration's Hessian in every direction.
@@ -96,6 +98,11 @@ class KeyframeConfig:
     # graph can be solved incrementally instead (iSAM2). Off by default: on the 10 km tour it
     # kept the per-frame cost flat but accepted 644 loops against 2,324 (ATE 2.35 m against 0.67).
     graph_batch_nodes: int = 0  # nodes solved whole by Levenberg-Marquardt, beyond them by iSAM2; 0: always whole
+    # What a loop try optimises and checks: "working_memory" (RTAB-Map's optimizeCurrentMap: the
+    # nodes in short-term and working memory move, the long-term nodes their edges reach are held),
+    # so a try costs what the memory's budget allows whatever the route's length; or "graph" (every
+    # node, a whole solve per try: cost in proportion to the route).
+    loop_check_scope: str = "working_memory"
     odom_sigma_linear: float = 0.05  # odometry link std per metre travelled
     # Wheels barely slip sideways: drift is forward scale and heading, so a link's lateral std is
     # a fraction of its forward std, and the graph explains drift by turning rather than sliding.
@@ -143,5 +150,8 @@ class KeyframeConfig:
         if self.vocabulary_index not in WORD_INDEXES:
             raise InputError(f"method 'keyframe': parameter vocabulary_index must be one of {', '.join(WORD_INDEXES)}, "
                              f"got {self.vocabulary_index!r}")
+        if self.loop_check_scope not in self.CHOICES["loop_check_scope"]:
+            raise InputError(f"method 'keyframe': parameter loop_check_scope must be working_memory or graph, "
+                             f"got {self.loop_check_scope!r}")
         if self.obstacle_max_height <= self.obstacle_min_height:
             raise InputError("method 'keyframe': obstacle_max_height must exceed obstacle_min_height")

@@ -8,14 +8,14 @@ and is kept only if the optimised graph agrees with it (RGBD/OptimizeMaxError).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from longslam.frame import Intrinsics
 from longslam.geometry import pose_from_xyyaw, wrap_angle
 from longslam.slam.features import Features
-from longslam.slam.graph import PoseGraph
+from longslam.slam.graph import LoopCheck, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
 from longslam.slam.keyframe.scan_proximity import ScanLinkSettings, scan_link
@@ -31,6 +31,35 @@ def counter_names() -> list[str]:
             for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")] + [f"{SCAN}_one_direction"]
 
 
+class NodePositions:
+    """Every node's id, stamp and estimate as arrays, for the spatial searches: built from the
+    graph node by node at each search, a route's thousands of nodes cost more than the search."""
+
+    def __init__(self) -> None:
+        self.ids = np.zeros(0, np.int64)
+        self.stamps = np.zeros(0)
+        self.estimates = np.zeros((0, 3))
+        self._rows: dict[int, int] = {}
+
+    def sync(self, nodes: dict[int, Node], graph: PoseGraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The arrays, with the nodes added since the last call (`nodes` in the order they were made)."""
+        if len(nodes) > len(self.ids):
+            new = list(nodes)[len(self.ids):]
+            for i in new:
+                self._rows[i] = len(self._rows)
+            self.ids = np.concatenate([self.ids, np.array(new, np.int64)])
+            self.stamps = np.concatenate([self.stamps, [nodes[i].stamp for i in new]])
+            self.estimates = np.concatenate([self.estimates, np.array([graph.estimate(i) for i in new]).reshape(-1, 3)])
+        return self.ids, self.stamps, self.estimates
+
+    def refresh(self, graph: PoseGraph, ids: set[int] | None) -> None:
+        """Take the graph's estimates of `ids` (None: every node) after it moved them."""
+        for i in (self._rows if ids is None else ids):
+            row = self._rows.get(i)
+            if row is not None:
+                self.estimates[row] = graph.estimate(i)
+
+
 @dataclass
 class LoopCloser:
     config: KeyframeConfig
@@ -39,6 +68,7 @@ class LoopCloser:
     memory: KeyframeMemory  # whose working memory is searched and whose database keeps the links
     camera_in_base: np.ndarray  # (4, 4)
     counts: dict[str, int]  # the method's counters, which this updates
+    positions: NodePositions = field(default_factory=NodePositions)
 
     def detect(self, node: Node, words: np.ndarray) -> None:
         """Try the new node against working memory: the best appearance hypotheses (one loop at
@@ -69,10 +99,11 @@ class LoopCloser:
         nodes = self.memory.nodes
         # Long-term memory too: a node there is read for its grid and goes back (space, unlike
         # appearance, needs no vocabulary entry).
-        old = [i for i in nodes if node.stamp - nodes[i].stamp >= cfg.scan_proximity_min_age]
-        if not old:
+        ids, stamps, estimates = self.positions.sync(nodes, self.graph)
+        rows = np.flatnonzero(node.stamp - stamps >= cfg.scan_proximity_min_age)
+        if not len(rows):
             return False
-        poses = np.array([self.graph.estimate(i) for i in old])
+        old, poses = ids[rows], estimates[rows]
         near = np.hypot(poses[:, 0] - here[0], poses[:, 1] - here[1]) <= cfg.scan_proximity_radius
         if not near.any():
             return False
@@ -82,7 +113,13 @@ class LoopCloser:
                                     (cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular),
                                     cfg.scan_proximity_min_constraining)
         candidates = []
-        for k in np.flatnonzero(near):
+        # The nearest few: a corridor driven for the n-th time has n passes of nodes within the
+        # radius, and the registration's cost (and the map's) would grow with every lap.
+        distance = np.hypot(poses[:, 0] - here[0], poses[:, 1] - here[1])
+        nearest = np.flatnonzero(near)[np.argsort(distance[near], kind="stable")]
+        if cfg.scan_proximity_max_candidates:
+            nearest = nearest[: cfg.scan_proximity_max_candidates]
+        for k in np.sort(nearest):
             cand = nodes[old[k]]
             if not cand.in_ram:
                 cand = Node(cand.id, cand.stamp, cand.odom, None, self.memory.grid(cand.id), None)
@@ -91,8 +128,7 @@ class LoopCloser:
         if link is None:
             self.counts[f"{SCAN}_rejected_verification"] += 1
             return False
-        check = self.graph.try_loop(link.anchor, node.id, link.delta, information=link.information,
-                                    max_error=cfg.optimize_max_error, check="graph")
+        check = self._try_loop(node, link.anchor, link.delta, information=link.information)
         if not check.accepted:
             self.counts[f"{SCAN}_rejected_graph"] += 1
             return False
@@ -101,6 +137,23 @@ class LoopCloser:
             self.counts[f"{SCAN}_one_direction"] += 1  # along a corridor: across-track and heading only
         self.memory.db.put_link(link.anchor, node.id, SCAN, pose_from_xyyaw(link.delta), link.information)
         return True
+
+    def _try_loop(self, node: Node, anchor: int, delta: np.ndarray, **uncertainty) -> LoopCheck:
+        """The graph's verdict on a link from `anchor` to the new node (`loop_check_scope`)."""
+        free = self.free_nodes(node)
+        check = self.graph.try_loop(anchor, node.id, delta, max_error=self.config.optimize_max_error, check="graph",
+                                    free=free, **uncertainty)
+        # A rejected try in working memory leaves every estimate as it was; a whole solve does not.
+        if check.accepted or free is None:
+            self.positions.refresh(self.graph, free)
+        return check
+
+    def free_nodes(self, node: Node) -> set[int] | None:
+        """The nodes a loop try may move (`loop_check_scope`): short-term and working memory and
+        the new node; None: every node."""
+        if self.config.loop_check_scope == "graph":
+            return None
+        return self.memory.wm | set(self.memory.stm) | {node.id}
 
     def proximity_candidates(self, node: Node, exclude: set[int]) -> list[int]:
         cfg = self.config
@@ -135,7 +188,7 @@ class LoopCloser:
             self.counts[f"{source}_rejected_verification"] += 1
             return False
         sigmas = np.array([cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular])
-        check = self.graph.try_loop(cand_id, node.id, delta, sigmas=sigmas, max_error=cfg.optimize_max_error, check="graph")
+        check = self._try_loop(node, cand_id, delta, sigmas=sigmas)
         if not check.accepted:
             self.counts[f"{source}_rejected_graph"] += 1
             return False

@@ -41,6 +41,9 @@ class SubmapConfig:
     integration_stride: int = 2  # every n-th pixel in each direction (a 0.1 m footprint at 8 m)
     # Submaps (the paper and Voxgraph: a new submap every 20 s)
     submap_interval: float = 20.0
+    # Finished submaps' TSDFs held in memory (the most recently used); the others wait on disk
+    # (store.py) until registration or the global map needs them: memory stays flat with the route.
+    submaps_in_memory: int = 8
     # Where each frame's motion comes from (longslam.slam.frontend), every field a parameter
     # (`frontend.mode=wheel`, `frontend.camera_height=1.3`...): mode "fused" (wheels with their
     # biases estimated, scan-to-map and gated RGB-D steps; runs without odometry.txt) or "wheel"
@@ -122,6 +125,8 @@ class SubmapConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value <= 0:
                 raise InputError(f"submap parameter {name} must be positive, got {value!r}")
+        if self.submaps_in_memory < 0:
+            raise InputError(f"submap parameter submaps_in_memory must be >= 0, got {self.submaps_in_memory!r}")
         if self.grid_free_space_margin < 0:
             raise InputError(f"submap parameter grid_free_space_margin must be >= 0, got {self.grid_free_space_margin!r}")
         for name in ("registration_min_overlap_area", "loop_min_score", "loop_min_age", "loop_keyframe_min_distance",

@@ -3,7 +3,7 @@ from it, and a mesh."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -15,23 +15,32 @@ from longslam.geometry.cells import pack_3d
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 
 
-def fuse_submaps(submaps: list[tuple[TSDF, np.ndarray]], voxel: float, truncation: float, release: bool = False) -> TSDF:
-    """One world-frame TSDF from (submap TSDF, submap origin pose 4x4) pairs: every observed voxel
-    of every submap moved by its submap's pose into the voxel of the global grid containing it,
-    where the submaps' distances are averaged by weight. With `release`, each submap's voxels
-    are dropped once fused, so that the submaps and the fused map are not held in full together
-    (at 1 km: 43 MB of submaps beside 68 MB of fused map)."""
+def fuse_submaps(load: Callable[[int], TSDF], poses: Sequence[np.ndarray], voxel: float, truncation: float,
+                 release: bool = False) -> TSDF:
+    """One world-frame TSDF from submaps (`load(i)` gives submap i's TSDF, `poses[i]` its origin
+    pose 4x4): every observed voxel of every submap moved by its submap's pose into the voxel of
+    the global grid containing it, where the submaps' distances are averaged by weight.
+
+    Each submap is loaded twice (its blocks counted, then merged) and held only while it is used,
+    so `load` may read it from disk (SubmapStore): the submaps are never all held beside the
+    fused map (at 1 km: 43 MB of submaps beside 68 MB of fused map). With `release`, each loaded
+    TSDF's voxels are dropped once fused (for TSDFs that live on elsewhere)."""
     fused = TSDF(voxel, truncation)
     # The blocks the fused map will have, counted first, so that its arrays are allocated once:
     # growing them by doubling would copy 32 MB at 1 km, with the old copy still held.
-    fused.reserve(len(np.unique(np.concatenate(
-        [np.zeros(0, np.int64)] + [_fused_blocks(moved, voxel) for one in submaps for moved, _, _ in _moved_voxels(*one)]))))
-    for tsdf, pose in submaps:
+    blocks = np.zeros(0, np.int64)
+    for i, pose in enumerate(poses):
+        blocks = np.unique(np.concatenate([blocks] + [_fused_blocks(moved, voxel) for moved, _, _ in _moved_voxels(load(i), pose)]))
+    fused.reserve(len(blocks))
+    del blocks
+    for i, pose in enumerate(poses):
+        tsdf = load(i)
         for moved, sdf, weight in _moved_voxels(tsdf, pose):
             fused.merge(moved, sdf, weight)
         if release:
             tsdf.release()
-            release_free_memory(collect=False)  # the submap's arrays lived on the heap
+        del tsdf
+        release_free_memory(collect=False)  # the submap's arrays lived on the heap
     return fused
 
 

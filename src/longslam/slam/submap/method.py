@@ -45,6 +45,7 @@ from longslam.slam.submap.free_space import SubmapFreeSpace, carve, fuse_free_sp
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
 from longslam.slam.submap.registration import RegistrationSettings, register
+from longslam.slam.submap.store import SubmapStore
 from longslam.slam.submap.tsdf import TSDF
 from longslam.trajectory import Trajectory
 
@@ -55,7 +56,7 @@ MIN_VERTICAL_NORMAL = 0.7  # |normal z| above this: floor or ceiling, useless fo
 class Submap:
     index: int
     start_time: float
-    tsdf: TSDF
+    tsdf: TSDF | None  # the active submap's; a finished one's is in the method's SubmapStore
     frames: int = 0
     finished: bool = False
     points: np.ndarray | None = None  # (N, 3) float32 iso-surface sample for registration
@@ -100,6 +101,8 @@ class SubmapMethod:
         )
         self.graph = PoseGraph(c.robust_kernel, c.robust_k, max_iterations=50)
         self.submaps: list[Submap] = []
+        # Finished submaps' TSDFs: on disk beside the run's files, a few in memory.
+        self.store = SubmapStore(c.voxel_size, c.truncation, c.submaps_in_memory, context.output_dir)
         self.counts = _Counts()
         self._mount: CameraMount | None = None  # the front end's, known at the first frame
         self.frontend = FrontEnd(context.intrinsics, c.frontend)
@@ -207,6 +210,8 @@ class SubmapMethod:
         points, normals = submap.tsdf.surface_points()
         bounds = submap.tsdf.bounds()
         submap.tsdf.compact()
+        self.store.put(submap.index, submap.tsdf)
+        submap.tsdf = None
         if submap.free_space is not None:
             submap.free_space.finish()
         submap.finished = True
@@ -252,7 +257,7 @@ class SubmapMethod:
                 continue
             self._tried_pairs.add(pair)
             initial = relative_xyyaw(self.graph.estimate(reference.index), self.graph.estimate(reading.index))
-            result = register(reference.tsdf, reading.points, initial, self.registration_settings)
+            result = register(self.store.get(reference.index), reading.points, initial, self.registration_settings)
             if result.accepted:
                 self.counts.registrations_accepted += 1
                 self.graph.add_edge(reference.index, reading.index, result.relative, information=result.information,
@@ -334,7 +339,8 @@ class SubmapMethod:
         finished = [s for s in self.submaps if s.finished]
         active = [s for s in self.submaps if not s.finished]
         out = {
-            "submap_tsdfs_finished": int(sum(s.tsdf.nbytes for s in finished)),
+            "submap_tsdfs_finished": self.store.cached_bytes,  # those in memory
+            "submap_tsdfs_on_disk": self.store.stored_bytes,
             "submap_tsdf_active": int(sum(s.tsdf.nbytes for s in active)),
             "registration_points": int(sum(s.points.nbytes for s in finished if s.points is not None)),
             "frame_poses": int(len(self._in_submap) * (12 * 8 + 8 + 8)),
@@ -361,9 +367,12 @@ class SubmapMethod:
         trajectory = Trajectory(stamps, poses, source="submap")
         online = Trajectory(stamps, np.array(self._online), source="submap online")
         map_bytes = self.map_bytes()
-        # The submaps' voxels go into the fused map and are dropped as they go: the run is over,
-        # and holding both at once would be the 1 km run's peak.
-        fused = fuse_submaps([(s.tsdf, origins[s.index]) for s in self.submaps], c.voxel_size, c.truncation, release=True)
+        # The submaps are read back one at a time into the fused map: the run is over, and holding
+        # them all beside it would be the run's peak.
+        self.store.drop_cache()
+        fused = fuse_submaps(lambda i: self.store.get(i, cache=False), origins, c.voxel_size, c.truncation)
+        submaps_read = self.store.reads
+        self.store.close()
         cloud, _ = fused.surface_points(with_normals=False)
         grid = grid_from_tsdf(fused, cloud, self._mount.floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)
         if c.grid_free_space:
@@ -394,6 +403,7 @@ class SubmapMethod:
             stats.MAP_BYTES: map_bytes,
             "map_bytes_before_finish": bytes_before,
             "fused_map_bytes": fused.nbytes,
+            "submaps_read_back": submaps_read,  # TSDFs read from the store (registration and fusion)
             "fused_blocks": fused.num_blocks,
             "mesh": mesh_path.name if mesh_path else None,  # in the run folder
         }

@@ -179,6 +179,30 @@ class TSDF:
         self._sorted = None
         self.compacted = True
 
+    def compacted_arrays(self) -> dict[str, np.ndarray]:
+        """A compacted TSDF's state as plain arrays (block keys, int8 distances, float16 weights),
+        what `from_compacted_arrays` rebuilds it from: how a finished submap goes to disk."""
+        if not self.compacted:
+            raise InputError("only a compacted TSDF is stored as arrays")
+        n = len(self._slot)
+        return {"keys": self._keys[:n], "sdf": self._sdf[:n], "weight": self._weight[:n]}
+
+    @classmethod
+    def from_compacted_arrays(cls, voxel: float, truncation: float, keys: np.ndarray, sdf: np.ndarray,
+                              weight: np.ndarray, max_weight: float = MAX_WEIGHT) -> "TSDF":
+        """The compacted, read-only TSDF whose `compacted_arrays` these are."""
+        tsdf = cls(voxel, truncation, max_weight)
+        tsdf._keys = np.asarray(keys, np.int64)
+        tsdf._sdf = np.asarray(sdf, np.int8).reshape(-1, BLOCK_VOXELS)
+        tsdf._weight = np.asarray(weight, np.float16).reshape(-1, BLOCK_VOXELS)
+        if not len(tsdf._keys) == len(tsdf._sdf) == len(tsdf._weight):
+            raise InputError(f"a stored TSDF needs one distance and one weight block per key; got {len(tsdf._keys)} keys, "
+                             f"{len(tsdf._sdf)} and {len(tsdf._weight)} blocks")
+        tsdf._slot = {int(k): i for i, k in enumerate(tsdf._keys.tolist())}
+        tsdf._sdf_scale = truncation / 127.0
+        tsdf.compacted = True
+        return tsdf
+
     # --- integration ----------------------------------------------------------------------------
     def integrate_points(
         self, points: np.ndarray, origin: np.ndarray, normals: np.ndarray | None = None,
