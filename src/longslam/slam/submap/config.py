@@ -65,6 +65,7 @@ class SubmapConfig:
     registration_max_points: int = 1500  # most iso-surface points matched per submap pair
     registration_max_rms: float = 0.15  # metres (submaps built on drifting odometry are not rigid)
     registration_min_overlap_area: float = 4.0  # square metres of bounding-box overlap
+    registration_max_references: int = 8  # most overlapping finished submaps a new one is registered to (0: all)
     registration_max_correction: float = 2.0  # metres; a larger jump is taken as a wrong minimum
     registration_effective_points: float = 20.0  # scales the constraint's information
     # Odometry constraints between consecutive submaps (Voxgraph: information x, y 1; yaw 2500)
@@ -92,8 +93,9 @@ class SubmapConfig:
     loop_refine_3d: bool = True  # polish PnP's transform on the 3D-3D matches (keyframe's refine_3d)
     loop_max_error: float = 3.0  # reject a closure whose error after optimisation exceeds this (sigmas)
     # On a route that drives the same corridors again, place-recognition keyframes and their words
-    # stop growing: a keyframe is kept only where no kept one stands (docs/scale.md).
-    loop_keyframe_min_distance: float = 0.0  # m between camera positions at the graph's estimates (0: keep every keyframe)
+    # stop growing: a keyframe is kept only where no kept one stands (docs/scale.md). Every
+    # keyframe kept (0) held 41 MB of features and words, and more in the word index, at 3 km.
+    loop_keyframe_min_distance: float = 1.5  # m between camera positions at the graph's estimates (0: keep every keyframe)
     loop_keyframe_min_angle: float = 0.5  # rad between camera headings for a kept keyframe to stand there
     # The 2D map sliced from the fused TSDF
     grid_min_height: float = 0.2
@@ -125,8 +127,9 @@ class SubmapConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value <= 0:
                 raise InputError(f"submap parameter {name} must be positive, got {value!r}")
-        if self.submaps_in_memory < 0:
-            raise InputError(f"submap parameter submaps_in_memory must be >= 0, got {self.submaps_in_memory!r}")
+        for name in ("submaps_in_memory", "registration_max_references"):
+            if getattr(self, name) < 0:
+                raise InputError(f"submap parameter {name} must be >= 0, got {getattr(self, name)!r}")
         if self.grid_free_space_margin < 0:
             raise InputError(f"submap parameter grid_free_space_margin must be >= 0, got {self.grid_free_space_margin!r}")
         for name in ("registration_min_overlap_area", "loop_min_score", "loop_min_age", "loop_keyframe_min_distance",

@@ -243,6 +243,7 @@ class SubmapMethod:
         box = self._world_box(reading)
         if box is None:
             return
+        overlapping = []
         for reference in self.submaps:
             if reference.index == reading.index or not reference.finished or reference.box is None:
                 continue
@@ -255,7 +256,14 @@ class SubmapMethod:
             pair = (reference.index, reading.index)
             if pair in self._tried_pairs:
                 continue
-            self._tried_pairs.add(pair)
+            overlapping.append((float(overlap.prod()), reference))
+        if self.config.registration_max_references:
+            # The most overlapping few: a corridor driven for the n-th time overlaps n passes of
+            # submaps, and registering against all of them made the cost grow with every lap.
+            overlapping.sort(key=lambda item: -item[0])  # stable: older submaps first among equals
+            overlapping = sorted(overlapping[: self.config.registration_max_references], key=lambda item: item[1].index)
+        for _, reference in overlapping:
+            self._tried_pairs.add((reference.index, reading.index))
             initial = relative_xyyaw(self.graph.estimate(reference.index), self.graph.estimate(reading.index))
             result = register(self.store.get(reference.index), reading.points, initial, self.registration_settings)
             if result.accepted:
