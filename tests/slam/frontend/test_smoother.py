@@ -96,7 +96,7 @@ def _long_smoother(window: int, frames: int = 400) -> tuple[FullSmoother, np.nda
     """`_smoother`'s problem over more frames, with loops that cross windows, solved in windows
     of at most `window` frames (0: whole)."""
     smoother, truth = _smoother(frames)
-    smoother.config = SmootherConfig(relative_tolerance=1e-9, iterations=100, window=window)
+    smoother.config = SmootherConfig(relative_tolerance=1e-9, iterations=100, window=window, whole_frames=0)
     for i, j in ((frames // 4, 3 * frames // 4), (3 * frames // 8, 19 * frames // 20), (20, 60)):
         smoother.add_loop(i, j, relative(truth[i], truth[j]), np.diag([100.0, 100.0, 400.0]))
     return smoother, truth
@@ -147,6 +147,20 @@ def test_a_route_within_the_window_is_solved_whole():
     within, _ = _long_smoother(window=120, frames=120)
     whole, _ = _long_smoother(window=0, frames=120)
     assert np.array_equal(within.solve(), whole.solve())
+
+
+def test_a_route_of_up_to_whole_frames_is_solved_whole_and_a_longer_one_in_windows():
+    import dataclasses
+
+    short, _ = _long_smoother(window=100, frames=230)
+    short.config = dataclasses.replace(short.config, whole_frames=230)
+    whole, _ = _long_smoother(window=0, frames=230)
+    assert np.array_equal(short.solve(), whole.solve())
+    longer, _ = _long_smoother(window=100, frames=230)
+    longer.config = dataclasses.replace(longer.config, whole_frames=229)
+    windowed = longer.solve()
+    assert not np.array_equal(windowed, whole.solve())  # another sum order: the windows' steps
+    assert np.abs(windowed - whole.solve()).max() < 1e-6
 
 
 def test_a_window_too_small_for_the_bias_blocks_is_refused():

@@ -54,14 +54,22 @@ class SmootherConfig:
     # frame, but no more than one window's linear system is held at a time. Measured on the
     # final graph of paper-1km-x3 (3 km, large noise, seed 0; 20,980 frames, 712 loops): the
     # solve's own peak +142 MiB whole, +65 MiB in windows of 2,000 frames, the result within
-    # 5 um of the whole solve's, in 17.5 s against 4.2 s. 2,500 leaves paper-300m whole.
-    window: int = 2500
+    # 5 um of the whole solve's, in 17.5 s against 4.2 s. Shorter windows hold less and take less
+    # time (final graph of paper-1km-x3 with 2,029 loops, whole-process peak over the solve's
+    # start: +180 MB in 43.7 s in windows of 2,500, +156 MB in 22.7 s in windows of 500, whole
+    # +238 MB in 10.2 s; paper-1km, 532 loops: +55, +30 and +55 MB), the result within 0.1 um.
+    window: int = 500
+    # A route of up to this many frames is solved whole (0: by `window` from the start): faster,
+    # and at that length it holds no more than the windows (paper-300m is solved whole).
+    whole_frames: int = 2500
 
     def __post_init__(self) -> None:
         if self.optimizer not in self.CHOICES["optimizer"]:
             raise InputError(f"front end: smoother.optimizer must be lm or gn, got {self.optimizer!r}")
         if not self.nonholonomic_sigma >= 0:
             raise InputError(f"front end: smoother.nonholonomic_sigma must be >= 0 m (0: off), got {self.nonholonomic_sigma}")
+        if self.whole_frames < 0:
+            raise InputError(f"front end: smoother.whole_frames must be >= 0, got {self.whole_frames}")
         if self.window != 0 and self.window < 2 * self.bias_block:
             raise InputError(f"front end: smoother.window must be 0 (no limit) or at least twice bias_block "
                              f"({2 * self.bias_block} frames), got {self.window}")
@@ -107,7 +115,7 @@ class FullSmoother:
         if n == 0:
             return np.zeros((0, 3))
         window = self.config.window
-        if window == 0 or n <= window:
+        if window == 0 or n <= max(window, self.config.whole_frames):
             out, self.iterations = self.build_graph().solve(
                 n, iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
                 damping=self.config.optimizer != "gn")
