@@ -156,6 +156,12 @@ class KeyframeMemory:
         for node_id in sorted(self.wm | set(self.stm)):
             self.transfer(node_id, count=False)
 
+    def release_search(self) -> None:
+        """Drop what only loop search needs (the vocabulary and the long-term grids read back), at
+        the end of a run: nothing searches any more."""
+        self.vocabulary = Vocabulary(self.vocabulary.max_distance, self.vocabulary.max_words_per_image, "bruteforce")
+        self._ltm_grids.clear()
+
     def census(self) -> dict[str, int]:
         return {
             "wm_nodes": len(self.wm), "stm_nodes": len(self.stm),

@@ -21,6 +21,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
+from longslam.memory_release import release_free_memory
 from longslam.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, Table
@@ -217,20 +218,26 @@ class KeyframeMethod:
         if self.graph.num_loops:
             self.graph.optimize(warm_start=True)
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
+        map_bytes = self.memory_bytes()
+        census = self.memory.census()
+        vocabulary = {"vocabulary_words": self.memory.vocabulary.n_words,
+                      "vocabulary_index_rebuilds": self.memory.vocabulary.index_rebuilds}
+        # Mapping is over: every node to the database and the vocabulary dropped before the final
+        # smoother, the finish's peak, is built; the maps read the nodes' grids back.
+        self.memory.flush()
+        self.memory.release_search()
+        release_free_memory()
         final = self._frontend_final()
         poses = self._mount.to_camera(final)
         stamps = self._frame_stamps.array()
         trajectory = Trajectory(stamps, poses, source="keyframe")
         online = Trajectory(stamps, self._online.array(), source="keyframe online")
 
-        map_bytes = self.memory_bytes()
-        census = self.memory.census()
         grid_map, cloud = assemble_maps(sorted(self.nodes), lambda node_id: final[self._node_frame[node_id]], self.memory.grid_and_points,
                                         self._mount, self.config.grid_cell, self.config.cloud_voxel,
                                         scratch_dir=self.db_path.parent, grid_reach=self.config.grid_range)
 
         # The database ends holding every node at its optimised pose, so a user can reopen it.
-        self.memory.flush()
         self.db.update_poses({i: self._node_camera_poses(i)[0] for i in self.nodes})
         counts = self.counts
         run_stats = dict(counts)
@@ -241,8 +248,7 @@ class KeyframeMethod:
             stats.MAP_BYTES: map_bytes,
             stats.CAMERA_HEIGHT: self._mount.camera_height,
             **census,
-            "vocabulary_words": self.memory.vocabulary.n_words, "graph_loops": self.graph.num_loops,
-            "vocabulary_index_rebuilds": self.memory.vocabulary.index_rebuilds,
+            **vocabulary, "graph_loops": self.graph.num_loops,
             "database": str(self.db_path) if self._own_dir is None else None,
         })
         run_stats["frontend"] = self.frontend.stats

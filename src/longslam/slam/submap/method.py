@@ -36,6 +36,7 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
+from longslam.memory_release import release_free_memory
 from longslam.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result
@@ -366,6 +367,11 @@ class SubmapMethod:
         bytes_before = self.map_bytes()
         self._finish_submap(self.submaps[-1])
         c = self.config
+        map_bytes = self.map_bytes()
+        # Mapping is over: the place-recognition keyframes and their vocabulary go before the
+        # final smoother, the finish's peak, is built.
+        self._keyframes, self._vocabulary = [], None
+        release_free_memory()
         stamps = np.array(self._stamps)
         final = self._frontend_final()
         poses = self._mount.to_camera(final)
@@ -374,7 +380,6 @@ class SubmapMethod:
         origins = np.array([self._origin_pose(final[self._submap_frame[s.index]]) for s in self.submaps])
         trajectory = Trajectory(stamps, poses, source="submap")
         online = Trajectory(stamps, np.array(self._online), source="submap online")
-        map_bytes = self.map_bytes()
         # The submaps are read back one at a time into the fused map: the run is over, and holding
         # them all beside it would be the run's peak.
         self.store.drop_cache()
