@@ -329,21 +329,6 @@ def _wall_submap(shift: float) -> TSDF:
     return tsdf
 
 
-def test_fusing_with_release_gives_the_same_map_and_empties_the_submaps():
-    from longslam.slam.submap.global_map import fuse_submaps
-
-    poses = [np.eye(4), pose_from_xyyaw((0.3, 0.1, 0.05))]
-    kept = [_wall_submap(0.0), _wall_submap(0.1)]
-    fused_kept = fuse_submaps(lambda i: kept[i], poses, 0.2, 0.8)
-    released = [_wall_submap(0.0), _wall_submap(0.1)]
-    fused = fuse_submaps(lambda i: released[i], poses, 0.2, 0.8, release=True)
-    for a, b in zip(fused_kept.observed(), fused.observed()):
-        np.testing.assert_array_equal(a, b)
-    assert fused.num_blocks == fused_kept.num_blocks > 0
-    assert all(t.num_blocks > 0 for t in kept)
-    assert all(t.num_blocks == 0 and t.nbytes < 1000 for t in released)
-
-
 def test_the_submap_store_gives_back_what_it_was_given_and_holds_only_the_newest(tmp_path):
     """Issue 22: finished submaps' TSDFs wait on disk, so that memory does not grow with the route."""
     from longslam.slam.submap.global_map import fuse_submaps

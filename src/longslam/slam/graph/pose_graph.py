@@ -26,8 +26,8 @@ loops where the whole solve accepted 2,324 (docs/scale.md), so it is an option t
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
 from collections.abc import Collection
+from dataclasses import dataclass
 from typing import Literal
 
 import gtsam
@@ -209,7 +209,8 @@ class PoseGraph:
         With `free` (node ids), only those nodes move: the solve and the "graph" check take the
         edges that touch them, with the nodes at those edges' other ends held where they are
         (`optimize_local`). That is RTAB-Map's optimisation of the map in working memory: its cost
-        is bounded by the memory's budget, not the route's length."""
+        is bounded by the memory's budget, not the route's length. A graph already solved
+        incrementally (`batch_nodes`) goes on with iSAM2 and ignores `free`."""
         edge_id = self.add_edge(a, b, delta_xyyaw, sigmas=sigmas, information=information, kind=kind, robust=False)
         if check not in ("graph", "edge"):
             self.remove_edge(edge_id)

@@ -21,8 +21,8 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.frame import Frame
-from longslam.memory_release import release_free_memory
 from longslam.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
+from longslam.memory_release import release_free_memory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, Table
 from longslam.slam.features import Features, extract

@@ -15,16 +15,14 @@ from longslam.geometry.cells import pack_3d
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 
 
-def fuse_submaps(load: Callable[[int], TSDF], poses: Sequence[np.ndarray], voxel: float, truncation: float,
-                 release: bool = False) -> TSDF:
+def fuse_submaps(load: Callable[[int], TSDF], poses: Sequence[np.ndarray], voxel: float, truncation: float) -> TSDF:
     """One world-frame TSDF from submaps (`load(i)` gives submap i's TSDF, `poses[i]` its origin
     pose 4x4): every observed voxel of every submap moved by its submap's pose into the voxel of
     the global grid containing it, where the submaps' distances are averaged by weight.
 
     Each submap is loaded twice (its blocks counted, then merged) and held only while it is used,
     so `load` may read it from disk (SubmapStore): the submaps are never all held beside the
-    fused map (at 1 km: 43 MB of submaps beside 68 MB of fused map). With `release`, each loaded
-    TSDF's voxels are dropped once fused (for TSDFs that live on elsewhere)."""
+    fused map (at 1 km: 43 MB of submaps beside 68 MB of fused map)."""
     fused = TSDF(voxel, truncation)
     # The blocks the fused map will have, counted first, so that its arrays are allocated once:
     # growing them by doubling would copy 32 MB at 1 km, with the old copy still held.
@@ -37,8 +35,6 @@ def fuse_submaps(load: Callable[[int], TSDF], poses: Sequence[np.ndarray], voxel
         tsdf = load(i)
         for moved, sdf, weight in _moved_voxels(tsdf, pose):
             fused.merge(moved, sdf, weight)
-        if release:
-            tsdf.release()
         del tsdf
         release_free_memory(collect=False)  # the submap's arrays lived on the heap
     return fused

@@ -155,15 +155,6 @@ class TSDF:
         for start in range(0, len(self._slot), blocks_per_chunk):
             yield self.observed(min_weight, slice(start, start + blocks_per_chunk))
 
-    def release(self) -> None:
-        """Drop every voxel (the map's fusion took them over): an empty, read-only TSDF."""
-        self._slot = {}
-        self._keys = np.zeros(0, np.int64)
-        self._sdf = np.zeros((0, BLOCK_VOXELS), np.int8 if self.compacted else np.float32)
-        self._weight = np.zeros((0, BLOCK_VOXELS), np.float16 if self.compacted else np.float32)
-        self._sorted = None
-        self.compacted = True
-
     def compact(self) -> None:
         """Make read-only and small: int8 distances, float16 weights, unobserved blocks dropped."""
         if self.compacted:
