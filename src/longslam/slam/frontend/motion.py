@@ -351,12 +351,14 @@ class FrontEnd:
     def online_trajectory(self) -> np.ndarray:
         return np.array(self._online).reshape(-1, 3)
 
-    def final_trajectory(self) -> np.ndarray:
+    def final_trajectory(self, held: Mapping[int, np.ndarray] | None = None) -> np.ndarray:
         """(N, 3) planar poses of every frame from the smoother over all frames. In wheel mode
-        without loops this is the online trajectory itself."""
+        without loops this is the online trajectory itself. `held`: a method's optimised graph
+        nodes ({frame: pose}); on a route longer than `smoother.hold_nodes_beyond` frames they are
+        held and the frames between smoothed chunk by chunk (`FullSmoother.solve_held`)."""
         if self.config.mode == "wheel" and not self._smoother.loops:
             return self.online_trajectory()
-        poses = self._smoother.solve()
+        poses = self._smoother.solve(held)
         # The solve's graphs are gone; what comes next (a method's map) should not start on top
         # of their freed heap.
         release_free_memory()
@@ -387,6 +389,8 @@ class FrontEnd:
         out["odometry_source"] = ("wheels" if self._has_wheels else
                                   "none: visual steps and scan registration (constant velocity where tracking fails)")
         out["ms_per_frame"] = 1000.0 * self._time / max(self.counts["frames"], 1)
+        if self._smoother.solved_by:
+            out["final_solve"] = self._smoother.solved_by
         if self.counts["depth_limited"]:
             out["trusted_range_mean_m"] = self._range_sum / self.counts["depth_limited"]
         if self._axes is not None:

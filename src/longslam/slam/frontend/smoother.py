@@ -8,6 +8,7 @@ final trajectory comes from it, so a loop correction spreads as smooth curvature
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -15,14 +16,20 @@ import gtsam
 import numpy as np
 
 from longslam.errors import InputError
+from longslam.geometry import compose_xyyaw, relative_xyyaw
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.frame_store import FrameRecord, FrameStore
-from longslam.slam.graph.factors import FactorGraph, WheelStep, pose_array
+from longslam.slam.graph.factors import X, FactorGraph, WheelStep, pose_array
 from longslam.slam.graph.parts import levenberg_marquardt_parts
+from longslam.slam.graph.solver import levenberg_marquardt
 
 
 # Added to a scan's or loop's information: a registration's Hessian is singular along a corridor.
 INFORMATION_RIDGE = 1e-6
+# A pose the solve keeps where it is given (the route's first frame, a held graph node): stds of
+# x, y (m) and yaw (rad).
+HELD_SIGMAS = np.array([1e-4, 1e-4, 1e-5])
+HELD_AXES_SIGMA = 1e-5  # rad: the building's axes, held in a solve between held nodes
 
 
 @dataclass
@@ -62,12 +69,19 @@ class SmootherConfig:
     # A route of up to this many frames is solved whole (0: by `window` from the start): faster,
     # and at that length it holds no more than the windows (paper-300m is solved whole).
     whole_frames: int = 2500
+    # Routes longer than this many frames are finished with the graph's nodes held (0: every route).
+    # A method that hands over its graph's optimised nodes (keyframe, submap) then has only the
+    # frames between them smoothed, chunk by chunk (`solve_held`): the finish holds one chunk's
+    # graph, where the solve over every frame grows with the loops that tie the laps together.
+    hold_nodes_beyond: int = 10000
 
     def __post_init__(self) -> None:
         if self.optimizer not in self.CHOICES["optimizer"]:
             raise InputError(f"front end: smoother.optimizer must be lm or gn, got {self.optimizer!r}")
         if not self.nonholonomic_sigma >= 0:
             raise InputError(f"front end: smoother.nonholonomic_sigma must be >= 0 m (0: off), got {self.nonholonomic_sigma}")
+        if self.hold_nodes_beyond < 0:
+            raise InputError(f"front end: smoother.hold_nodes_beyond must be >= 0 frames, got {self.hold_nodes_beyond}")
         if self.whole_frames < 0:
             raise InputError(f"front end: smoother.whole_frames must be >= 0, got {self.whole_frames}")
         if self.window != 0 and self.window < 2 * self.bias_block:
@@ -91,6 +105,7 @@ class FullSmoother:
         self.walls: list[tuple[int, float, float]] = []
         self.axes_initial = 0.0
         self.bias_init: dict[int, np.ndarray] = {}
+        self.solved_by = ""  # how the last solve went: "every frame" or "held nodes"
 
     def add_frame(self, online_pose: np.ndarray, wheel: WheelStep | None, wheel_sigmas: np.ndarray | None,
                   cv_step: np.ndarray | None, scan: tuple[int, np.ndarray, np.ndarray] | None,
@@ -109,11 +124,16 @@ class FullSmoother:
     def add_loop(self, i: int, j: int, delta: np.ndarray, information: np.ndarray) -> None:
         self.loops.append((int(i), int(j), np.asarray(delta, dtype=np.float64), np.asarray(information, dtype=np.float64)))
 
-    def solve(self) -> np.ndarray:
-        """Every frame's smoothed base pose (x, y, yaw), (frames, 3)."""
+    def solve(self, held: Mapping[int, np.ndarray] | None = None) -> np.ndarray:
+        """Every frame's smoothed base pose (x, y, yaw), (frames, 3). `held`: a method's optimised
+        graph nodes ({frame: pose}), held on a route longer than `hold_nodes_beyond` frames."""
         n = len(self.initial)
         if n == 0:
             return np.zeros((0, 3))
+        if held is not None and n > self.config.hold_nodes_beyond:
+            self.solved_by = "held nodes"
+            return self.solve_held(held)
+        self.solved_by = "every frame"
         window = self.config.window
         if window == 0 or n <= max(window, self.config.whole_frames):
             out, self.iterations = self.build_graph().solve(
@@ -142,6 +162,90 @@ class FullSmoother:
             iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
             damping=self.config.optimizer != "gn")
         return pose_array(result, range(n))
+
+    def solve_held(self, held: Mapping[int, np.ndarray]) -> np.ndarray:
+        """Every frame's pose, (frames, 3), with the frames in `held` kept at the poses given (a
+        method's optimised graph nodes) and the frames between them smoothed by their own factors,
+        one chunk of about `window` frames at a time, in order.
+
+        The loops are left out: they join graph nodes, whose poses already carry them. What a
+        chunk reaches before its first frame (a scan's anchor, the bias block running on) is held
+        at the earlier chunk's result, so no more than one chunk's graph is held, however long
+        the route and however many its loops; the price is that nothing flows back from a later
+        chunk into an earlier one but through the held nodes."""
+        n = len(self.initial)
+        out = np.zeros((n, 3))
+        if n == 0:
+            return out
+        held = {int(k): np.asarray(pose, dtype=np.float64) for k, pose in held.items() if 0 <= int(k) < n}
+        out[0] = held.get(0, self.initial[0])
+        bias_range = self._bias_range()
+        solved_bias: dict[int, np.ndarray] = {}
+        self.iterations = 0
+        for first, last in _held_chunks(sorted(held), n, max(self.config.window, 2 * self.config.bias_block)):
+            graph = FactorGraph()
+            self._add_held_chunk(graph, first, last, held, out, bias_range, solved_bias)
+            result, taken = levenberg_marquardt(graph.graph, graph.values, graph.dims, iterations=self.config.iterations,
+                                                relative_tolerance=self.config.relative_tolerance,
+                                                damping=self.config.optimizer != "gn")
+            self.iterations = max(self.iterations, taken)
+            out[first:last + 1] = pose_array(result, range(first, last + 1))
+            for key in graph.dims:
+                if gtsam.Symbol(key).chr() == ord("b"):
+                    solved_bias[gtsam.Symbol(key).index()] = np.asarray(result.atPoint2(key))
+        return out
+
+    def _add_held_chunk(self, graph: FactorGraph, first: int, last: int, held: Mapping[int, np.ndarray], out: np.ndarray,
+                        bias_range: tuple[int, int] | None, solved_bias: Mapping[int, np.ndarray]) -> None:
+        """Chunk `first`..`last`'s variables and factors for `solve_held`: its frames from the online
+        poses, carried along from the last held frame; frame `first` (solved or held) and the held
+        frames held; each frame's own factors, a scan's anchor before the chunk held where it was
+        solved; the chunk's bias blocks, the first one drawn toward where the chunk before left it."""
+        start = out[first]
+        for k in range(first, last + 1):
+            if k in held:
+                start = held[k]
+                graph.add_pose(k, start)
+                reference = k
+            elif k == first:
+                graph.add_pose(k, start)
+                reference = k
+            else:
+                graph.add_pose(k, compose_xyyaw(start, relative_xyyaw(self.initial[reference], self.initial[k])))
+        graph.prior_pose(first, out[first] if first not in held else held[first], HELD_SIGMAS)
+        for k in range(first + 1, last + 1):
+            if k in held:
+                graph.prior_pose(k, held[k], HELD_SIGMAS)
+            scan = self.records[k].scan
+            if scan is not None and scan[0] < first and X(scan[0]) not in graph.dims:
+                graph.add_pose(scan[0], out[scan[0]])
+                graph.prior_pose(scan[0], out[scan[0]], HELD_SIGMAS)
+            self._add_frame_factors(graph, k)
+        walls = [(k, direction, sigma) for k, direction, sigma in self.walls if first < k <= last]
+        if walls:
+            graph.add_axes(self.axes_initial)
+            graph.prior_axes(self.axes_initial, HELD_AXES_SIGMA)
+            for k, direction, sigma in walls:
+                graph.wall(k, direction, sigma)
+        if bias_range is None:
+            return
+        bb = self.config.bias_block
+        b0, b1 = bias_range
+        lo, hi = max(b0, first // bb), min(b1, (last - 1) // bb)
+        if lo > hi:
+            return
+        nz = self.noise
+        walk = np.sqrt(bb) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
+        value = solved_bias.get(lo, solved_bias.get(lo - 1, np.zeros(2)))
+        for b in range(lo, hi + 1):
+            value = self.bias_init.get(b, value) if b not in solved_bias else solved_bias[b]
+            graph.add_bias(b, value)
+            if b > lo:
+                graph.bias_walk(b - 1, b, walk)
+        if lo == b0 and first <= bb * b0 + 1 <= last:
+            graph.prior_bias(b0, np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
+        else:  # the block before (or this block's first frames) solved in the chunk before
+            graph.prior_bias(lo, solved_bias.get(lo, solved_bias.get(lo - 1, value)), walk)
 
     def _bias_range(self) -> tuple[int, int] | None:
         """The first and last bias block the whole graph has, or None (no bias states)."""
@@ -182,7 +286,7 @@ class FullSmoother:
         the whole graph's, in its order."""
         nz = self.noise
         if first == 0:
-            graph.prior_pose(0, self.initial[0], np.array([1e-4, 1e-4, 1e-5]))
+            graph.prior_pose(0, self.initial[0], HELD_SIGMAS)
         for k in range(max(first, 1), last + 1):
             self._add_frame_factors(graph, k)
         if bias_range is not None:
@@ -231,3 +335,18 @@ class FullSmoother:
         if rec.scan is not None:
             anchor, meas, info = rec.scan
             graph.between(anchor, k, meas, information=info, ridge=INFORMATION_RIDGE)
+
+
+def _held_chunks(held: list[int], frames: int, length: int) -> list[tuple[int, int]]:
+    """Consecutive chunks (first, last) over `frames` frames, each but the last ending at a held
+    frame at least `length` frames after its start (the next one starts there), or at the route's
+    end."""
+    chunks = []
+    first = 0
+    for k in held:
+        if k - first >= length and k < frames - 1:
+            chunks.append((first, k))
+            first = k
+    if first < frames - 1 or not chunks:
+        chunks.append((first, frames - 1))
+    return chunks

@@ -110,6 +110,9 @@ class FactorGraph:
         self.values.insert(AXES, gtsam.Rot2(direction))
         self.dims[AXES] = 1
 
+    def prior_axes(self, direction: float, sigma: float) -> None:
+        self.graph.add(gtsam.PriorFactorRot2(AXES, gtsam.Rot2(direction), noise.diagonal(np.array([sigma]))))
+
     def wall(self, k: int, direction: float, sigma: float, huber: float = 1.0) -> None:
         """Pose k saw a wall at `direction` (rad, robot frame) along the axes (modulo 90 degrees),
         within `sigma`, under a Huber kernel (in stds)."""

@@ -207,7 +207,8 @@ class KeyframeMethod:
         """Every frame's pose from the front end's smoother, with the graph's accepted loop
         closures (node to node) added as constraints between the nodes' frames."""
         self.frontend.add_graph_edges([e for e in self.graph.edges if e.kind != ODOMETRY], self._node_frame)
-        return self.frontend.final_trajectory()
+        held = {frame: self.graph.estimate(node_id) for node_id, frame in self._node_frame.items() if self.graph.has_node(node_id)}
+        return self.frontend.final_trajectory(held)
 
     def memory_bytes(self) -> dict[str, int]:
         return {**self.memory.memory_bytes(), "graph": 3 * 8 * self.graph.num_nodes + 64 * len(self.graph.edges)}

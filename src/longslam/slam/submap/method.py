@@ -448,7 +448,8 @@ class SubmapMethod:
                 frame_i, frame_j, link = self._frame_loops[edge.edge_id]
                 self.frontend.add_loop(frame_i, frame_j, link, loop_information)
         self.frontend.add_graph_edges([e for e in edges if e.edge_id not in self._frame_loops], self._submap_frame)
-        return self.frontend.final_trajectory()
+        held = {frame: self.graph.estimate(index) for index, frame in enumerate(self._submap_frame) if self.graph.has_node(index)}
+        return self.frontend.final_trajectory(held)
 
 
 def _reason_key(reason: str) -> str:
