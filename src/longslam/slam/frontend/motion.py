@@ -42,6 +42,7 @@ from longslam.slam.frontend.wall_axes import WallAxes, WallAxesConfig
 from longslam.slam.frontend.filter import BiasFilter, MotionNoise
 from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
 from longslam.slam.graph.factors import WheelStep
+from longslam.slam.rows import Rows
 
 relative = relative_xyyaw
 
@@ -136,7 +137,7 @@ class FrontEnd:
         self._wheels: PlanarOdometry | None = None
         self._odom: np.ndarray | None = None  # jump-corrected wheel odometry of the latest frame
         self._has_wheels: bool | None = None
-        self._online: list[np.ndarray] = []
+        self._online = Rows((3,))  # every frame's online pose
         self._last_insert: np.ndarray | None = None
         self._time = 0.0
         # A row per frame (FRAME_COLUMNS) for `frame_table`: which factors the frame had, and how
@@ -273,7 +274,7 @@ class FrontEnd:
         elif k > 0:
             # No wheels: the visual step where it tracks, else the last step again (constant
             # velocity), loosely.
-            cv = relative(self._online[-2], self._online[-1]) if k > 1 else np.zeros(3)
+            cv = relative(self._online.row(-2), self._online.row(-1)) if k > 1 else np.zeros(3)
             visual = self._gates.against_prediction(frame, cv, cfg.visual_gate_distance_no_wheels,
                                                     cfg.visual_gate_angle_no_wheels)
             vis_sigmas = np.asarray(cfg.visual_sigmas_no_wheels, dtype=np.float64)
@@ -304,7 +305,7 @@ class FrontEnd:
                     flt.update_pose(reg.pose, reg.hessian)
                     anchor = max(0, k - cfg.scan_anchor_lag)
                     if anchor < k:
-                        scan_factor = (anchor, relative(self._online[anchor], reg.pose),
+                        scan_factor = (anchor, relative(self._online.row(anchor), reg.pose),
                                        cfg.scan_information_scale * information_in_body(reg.hessian, reg.pose[2]))
         pose = flt.pose
         if self._axes is not None and len(scan):
@@ -349,7 +350,7 @@ class FrontEnd:
             self.add_loop(frame_of[edge.a], frame_of[edge.b], np.array(edge.delta), edge.information)
 
     def online_trajectory(self) -> np.ndarray:
-        return np.array(self._online).reshape(-1, 3)
+        return self._online.array()
 
     def final_trajectory(self, held: Mapping[int, np.ndarray] | None = None) -> np.ndarray:
         """(N, 3) planar poses of every frame from the smoother over all frames. In wheel mode
