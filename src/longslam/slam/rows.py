@@ -42,6 +42,14 @@ class Rows:
         """The chunks' bytes: whole chunks, however few of their rows are used."""
         return sum(chunk.nbytes for chunk in self._chunks)
 
+    def span(self, first: int, stop: int) -> np.ndarray:
+        """Rows first..stop-1, (stop - first, *shape): a new array."""
+        if not 0 <= first <= stop <= self._count:
+            raise IndexError(f"rows {first}..{stop - 1} of {self._count}")
+        c = self._chunk
+        parts = [self._chunks[i][max(first - i * c, 0):min(stop - i * c, c)] for i in range(first // c, -(-stop // c))]
+        return np.concatenate(parts) if parts else np.zeros((0, *self.shape))
+
     def array(self) -> np.ndarray:
         """Every row, (N, *shape): a new array."""
         if not self._chunks:

@@ -51,6 +51,10 @@ class FrameStore:
     def _row(self, k: int) -> np.ndarray:
         return self._rows.row(k)
 
+    def pose_span(self, first: int, stop: int) -> np.ndarray:
+        """The online poses of frames first..stop-1, (stop - first, 3)."""
+        return self._rows.span(first, stop)[:, POSE[0]:POSE[0] + 3]
+
     def append(self, pose: np.ndarray, record: FrameRecord) -> None:
         row = np.zeros(WIDTH)
         row[POSE[0]:POSE[0] + 3] = pose

@@ -3,7 +3,9 @@
 `FullSmoother` runs over every frame, as a `slam.graph.FactorGraph`: the wheel factors of the
 online filter (`filter.py`; lateral step held tight, the biases as slowly varying states, one per block of frames), the scan-to-map
 factors (information = the registration's Hessian), and the loop closures a method adds. The
-final trajectory comes from it, so a loop correction spreads as smooth curvature.
+final trajectory comes from it, so a loop correction spreads as smooth curvature. On a long route
+a method's optimised graph nodes can be held instead, and only the frames between them smoothed
+(`FullSmoother.solve_held`): a finish whose memory does not grow with the loops.
 """
 
 from __future__ import annotations
@@ -201,26 +203,23 @@ class FullSmoother:
         poses, carried along from the last held frame; frame `first` (solved or held) and the held
         frames held; each frame's own factors, a scan's anchor before the chunk held where it was
         solved; the chunk's bias blocks, the first one drawn toward where the chunk before left it."""
-        start = out[first]
+        online = self.records.pose_span(first, last + 1)
+        # Each frame's latest held frame at or before it (the chunk's first frame counts as held).
+        starts = np.array([first] + [k for k in range(first + 1, last + 1) if k in held])
+        reference = starts[np.searchsorted(starts, np.arange(first, last + 1), side="right") - 1]
+        anchors = np.array([held.get(int(k), out[first]) for k in starts])[np.searchsorted(starts, reference)]
+        start_values = compose_xyyaw(anchors, relative_xyyaw(online[reference - first], online))
         for k in range(first, last + 1):
-            if k in held:
-                start = held[k]
-                graph.add_pose(k, start)
-                reference = k
-            elif k == first:
-                graph.add_pose(k, start)
-                reference = k
-            else:
-                graph.add_pose(k, compose_xyyaw(start, relative_xyyaw(self.initial[reference], self.initial[k])))
-        graph.prior_pose(first, out[first] if first not in held else held[first], HELD_SIGMAS)
+            graph.add_pose(k, start_values[k - first])
+        graph.prior_pose(first, held.get(first, out[first]), HELD_SIGMAS)
         for k in range(first + 1, last + 1):
             if k in held:
                 graph.prior_pose(k, held[k], HELD_SIGMAS)
-            scan = self.records[k].scan
-            if scan is not None and scan[0] < first and X(scan[0]) not in graph.dims:
-                graph.add_pose(scan[0], out[scan[0]])
-                graph.prior_pose(scan[0], out[scan[0]], HELD_SIGMAS)
-            self._add_frame_factors(graph, k)
+            record = self.records[k]
+            if record.scan is not None and record.scan[0] < first and X(record.scan[0]) not in graph.dims:
+                graph.add_pose(record.scan[0], out[record.scan[0]])
+                graph.prior_pose(record.scan[0], out[record.scan[0]], HELD_SIGMAS)
+            self._add_frame_factors(graph, k, record)
         walls = [(k, direction, sigma) for k, direction, sigma in self.walls if first < k <= last]
         if walls:
             graph.add_axes(self.axes_initial)
@@ -306,12 +305,13 @@ class FullSmoother:
             if first <= k <= last:
                 graph.wall(k, direction, sigma)
 
-    def _add_frame_factors(self, graph: FactorGraph, k: int) -> None:
+    def _add_frame_factors(self, graph: FactorGraph, k: int, rec: FrameRecord | None = None) -> None:
         """Frame k's own factors: its step from frame k-1 (the wheels, corrected by their bias
         block's state or by the online filter's biases, or a constant-velocity step; the
-        nonholonomic hold; the visual step) and its scan to its anchor."""
+        nonholonomic hold; the visual step) and its scan to its anchor. `rec`: frame k's record,
+        if read already."""
         nz = self.noise
-        rec = self.records[k]
+        rec = self.records[k] if rec is None else rec
         if rec.wheel is not None:
             sig = np.array(rec.wheel_sigmas, dtype=np.float64)
             sig[1] = min(sig[1], self.config.lateral_sigma)
