@@ -289,3 +289,18 @@ def test_a_route_up_to_hold_nodes_beyond_is_solved_over_every_frame_though_nodes
     smoother.config = replace(smoother.config, hold_nodes_beyond=229)
     smoother.solve(held)
     assert smoother.solved_by == "held nodes"
+
+
+def test_walls_between_held_nodes_hold_headings_against_the_held_axes():
+    # Walls at every frame of the second half, along axes at 0.05 rad: each chunk takes its own.
+    smoother, truth = _long_smoother(window=100)
+    smoother.config = replace(smoother.config, hold_nodes_beyond=0)
+    held = {k: truth[k] for k in range(0, len(truth), 50)}
+    plain = smoother.solve(held)
+    smoother.axes_initial = 0.05
+    for k in range(len(truth) - 1, len(truth) // 2, -1):  # out of order: the solve sorts them
+        smoother.add_wall(k, 0.05 - truth[k, 2], 0.001)
+    walled = smoother.solve(held)
+    second = slice(len(truth) // 2 + 1, None)
+    assert np.abs(walled[second, 2] - truth[second, 2]).max() < 0.5 * np.abs(plain[second, 2] - truth[second, 2]).max()
+    assert np.array_equal(walled[: len(truth) // 2 - 50], plain[: len(truth) // 2 - 50])  # chunks before the walls as they were

@@ -10,6 +10,7 @@ a method's optimised graph nodes can be held instead, and only the frames betwee
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
@@ -184,6 +185,9 @@ class FullSmoother:
         bias_range = self._bias_range()
         solved_bias: dict[int, np.ndarray] = {}
         self.iterations = 0
+        # The walls in frame order, so that each chunk's are one slice of them.
+        self._walls_in_order = sorted(self.walls)
+        self._wall_frames = [k for k, _, _ in self._walls_in_order]
         for first, last in _held_chunks(sorted(held), n, max(self.config.window, 2 * self.config.bias_block)):
             graph = FactorGraph()
             self._add_held_chunk(graph, first, last, held, out, bias_range, solved_bias)
@@ -220,7 +224,7 @@ class FullSmoother:
                 graph.add_pose(record.scan[0], out[record.scan[0]])
                 graph.prior_pose(record.scan[0], out[record.scan[0]], HELD_SIGMAS)
             self._add_frame_factors(graph, k, record)
-        walls = [(k, direction, sigma) for k, direction, sigma in self.walls if first < k <= last]
+        walls = self._walls_in_order[bisect.bisect_right(self._wall_frames, first):bisect.bisect_right(self._wall_frames, last)]
         if walls:
             graph.add_axes(self.axes_initial)
             graph.prior_axes(self.axes_initial, HELD_AXES_SIGMA)
