@@ -186,11 +186,12 @@ class FullSmoother:
         solved_bias: dict[int, np.ndarray] = {}
         self.iterations = 0
         # The walls in frame order, so that each chunk's are one slice of them.
-        self._walls_in_order = sorted(self.walls)
-        self._wall_frames = [k for k, _, _ in self._walls_in_order]
+        walls = sorted(self.walls)
+        wall_frames = [k for k, _, _ in walls]
         for first, last in _held_chunks(sorted(held), n, max(self.config.window, 2 * self.config.bias_block)):
             graph = FactorGraph()
-            self._add_held_chunk(graph, first, last, held, out, bias_range, solved_bias)
+            chunk_walls = walls[bisect.bisect_right(wall_frames, first):bisect.bisect_right(wall_frames, last)]
+            self._add_held_chunk(graph, first, last, held, out, chunk_walls, bias_range, solved_bias)
             result, taken = levenberg_marquardt(graph.graph, graph.values, graph.dims, iterations=self.config.iterations,
                                                 relative_tolerance=self.config.relative_tolerance,
                                                 damping=self.config.optimizer != "gn")
@@ -202,11 +203,13 @@ class FullSmoother:
         return out
 
     def _add_held_chunk(self, graph: FactorGraph, first: int, last: int, held: Mapping[int, np.ndarray], out: np.ndarray,
-                        bias_range: tuple[int, int] | None, solved_bias: Mapping[int, np.ndarray]) -> None:
+                        walls: list[tuple[int, float, float]], bias_range: tuple[int, int] | None,
+                        solved_bias: Mapping[int, np.ndarray]) -> None:
         """Chunk `first`..`last`'s variables and factors for `solve_held`: its frames from the online
         poses, carried along from the last held frame; frame `first` (solved or held) and the held
         frames held; each frame's own factors, a scan's anchor before the chunk held where it was
-        solved; the chunk's bias blocks, the first one drawn toward where the chunk before left it."""
+        solved; its `walls` against the held axes; the chunk's bias blocks, the first one drawn
+        toward where the chunk before left it."""
         online = self.records.pose_span(first, last + 1)
         # Each frame's latest held frame at or before it (the chunk's first frame counts as held).
         starts = np.array([first] + [k for k in range(first + 1, last + 1) if k in held])
@@ -224,7 +227,6 @@ class FullSmoother:
                 graph.add_pose(record.scan[0], out[record.scan[0]])
                 graph.prior_pose(record.scan[0], out[record.scan[0]], HELD_SIGMAS)
             self._add_frame_factors(graph, k, record)
-        walls = self._walls_in_order[bisect.bisect_right(self._wall_frames, first):bisect.bisect_right(self._wall_frames, last)]
         if walls:
             graph.add_axes(self.axes_initial)
             graph.prior_axes(self.axes_initial, HELD_AXES_SIGMA)
@@ -237,18 +239,25 @@ class FullSmoother:
         lo, hi = max(b0, first // bb), min(b1, (last - 1) // bb)
         if lo > hi:
             return
-        nz = self.noise
-        walk = np.sqrt(bb) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
-        value = solved_bias.get(lo, solved_bias.get(lo - 1, np.zeros(2)))
+        start, walk = self._bias_sigmas()
+        carried = solved_bias.get(lo, solved_bias.get(lo - 1))  # where the chunk before left the bias
+        value = np.zeros(2) if carried is None else carried
         for b in range(lo, hi + 1):
-            value = self.bias_init.get(b, value) if b not in solved_bias else solved_bias[b]
+            value = solved_bias[b] if b in solved_bias else self.bias_init.get(b, value)
             graph.add_bias(b, value)
             if b > lo:
                 graph.bias_walk(b - 1, b, walk)
         if lo == b0 and first <= bb * b0 + 1 <= last:
-            graph.prior_bias(b0, np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
+            graph.prior_bias(b0, np.zeros(2), start)
         else:  # the block before (or this block's first frames) solved in the chunk before
-            graph.prior_bias(lo, solved_bias.get(lo, solved_bias.get(lo - 1, value)), walk)
+            graph.prior_bias(lo, value if carried is None else carried, walk)
+
+    def _bias_sigmas(self) -> tuple[np.ndarray, np.ndarray]:
+        """The stds of the route's first bias block from zero and of one block's walk from the
+        block before it (forward, yaw)."""
+        nz = self.noise
+        return (np.array([nz.bias_forward_init, nz.bias_yaw_init]),
+                np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk]))
 
     def _bias_range(self) -> tuple[int, int] | None:
         """The first and last bias block the whole graph has, or None (no bias states)."""
@@ -287,7 +296,6 @@ class FullSmoother:
         from the frame before, its scan to its anchor, its walls), the loops whose later frame it
         is, and the bias factors of the blocks that start there. Over consecutive ranges they are
         the whole graph's, in its order."""
-        nz = self.noise
         if first == 0:
             graph.prior_pose(0, self.initial[0], HELD_SIGMAS)
         for k in range(max(first, 1), last + 1):
@@ -295,9 +303,9 @@ class FullSmoother:
         if bias_range is not None:
             bb = self.config.bias_block
             b0, b1 = bias_range
+            start, walk = self._bias_sigmas()
             if first <= bb * b0 + 1 <= last:  # the route's first block starts from no bias
-                graph.prior_bias(b0, np.zeros(2), np.array([nz.bias_forward_init, nz.bias_yaw_init]))
-            walk = np.sqrt(bb) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk])
+                graph.prior_bias(b0, np.zeros(2), start)
             # Block b+1's walk from block b belongs to b+1's first frame.
             for b in range(max(b0, (first - 2) // bb), min(b1, (last - 1) // bb)):
                 if first <= bb * (b + 1) + 1 <= last:

@@ -24,6 +24,8 @@ from longslam.slam.place_recognition import Vocabulary
 NodePoses = Callable[[int], tuple[np.ndarray, np.ndarray]]
 
 
+# A node's stored arrays that make its local grid.
+GRID_ARRAYS = ("grid_obstacles", "grid_free")
 # Long-term nodes' grids kept after a read (a few KB each).
 LTM_GRIDS_CACHED = 256
 
@@ -107,8 +109,11 @@ class KeyframeMemory:
         """A long-term node's features, local grid and points, read back from the database."""
         stored = self.db.get_node(node_id).arrays
         features = Features(stored["keypoints"], stored["descriptors"], stored["points3d"])
-        grid = LocalGrid(stored["grid_obstacles"], stored["grid_free"], self.config.grid_cell)
-        return features, grid, stored["cloud"]
+        return features, self._stored_grid(stored), stored["cloud"]
+
+    def _stored_grid(self, stored: dict[str, np.ndarray]) -> LocalGrid:
+        """A node's local grid from its stored arrays (`GRID_ARRAYS`)."""
+        return LocalGrid(stored["grid_obstacles"], stored["grid_free"], self.config.grid_cell)
 
     def grid_and_points(self, node_id: int) -> tuple[LocalGrid, np.ndarray]:
         """A node's local grid and points, from RAM or from the database."""
@@ -116,8 +121,8 @@ class KeyframeMemory:
         if node.in_ram:
             return node.grid, node.points
         # Only the arrays the maps need: decoding a node's features too took half the read.
-        stored = self.db.get_arrays(node_id, ("grid_obstacles", "grid_free", "cloud"))
-        return LocalGrid(stored["grid_obstacles"], stored["grid_free"], self.config.grid_cell), stored["cloud"]
+        stored = self.db.get_arrays(node_id, (*GRID_ARRAYS, "cloud"))
+        return self._stored_grid(stored), stored["cloud"]
 
     def grid(self, node_id: int) -> LocalGrid | None:
         """A node's local grid, from RAM, from the last `LTM_GRIDS_CACHED` read back, or from the database."""
@@ -126,8 +131,7 @@ class KeyframeMemory:
             return node.grid
         grid = self._ltm_grids.get(node_id)
         if grid is None:
-            stored = self.db.get_arrays(node_id, ("grid_obstacles", "grid_free"))
-            grid = LocalGrid(stored["grid_obstacles"], stored["grid_free"], self.config.grid_cell)
+            grid = self._stored_grid(self.db.get_arrays(node_id, GRID_ARRAYS))
             self._ltm_grids[node_id] = grid
             if len(self._ltm_grids) > LTM_GRIDS_CACHED:
                 self._ltm_grids.popitem(last=False)
