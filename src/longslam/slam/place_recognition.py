@@ -389,6 +389,22 @@ def verify(
     return Verification(True, n_inliers, transform, f"{n_inliers} inliers of {n_matches} matches", n_matches)
 
 
+# A 3D-3D match supports a transform if it lands within this many pixels' footprint at its
+# distance (or `max_residual`, whichever is more): a fixed 5 cm held no loop at 160 x 120.
+SUPPORT_PIXELS = 3.0
+
+
+@dataclass
+class Refinement:
+    # Query camera in candidate camera: polished if every round had its matches, else the input
+    # unchanged (a half-finished polish is checked by nothing).
+    transform: np.ndarray
+    polished: bool
+    # Matches with depth on both sides that land within max(max_residual, SUPPORT_PIXELS pixels'
+    # footprint) of `transform`: how far both images' depth hold it (0 without `focal`).
+    support: int
+
+
 def refine_3d(
     query: Features,
     candidate: Features,
@@ -402,22 +418,44 @@ def refine_3d(
     PnP uses the candidate's depth only; with depth on both sides, aligning the matched 3D
     points (Kabsch on the inliers, a few rounds with a shrinking gate) removes most of PnP's
     error at low image resolution (RTAB-Map's Vis/EstimationType 0). Returns the input when
-    too few matches have depth on both sides.
+    too few matches have depth on both sides for any round.
     """
+    return refine_3d_checked(query, candidate, transform, None, ratio, max_residual, min_inliers).transform
+
+
+def refine_3d_checked(
+    query: Features,
+    candidate: Features,
+    transform: np.ndarray,
+    focal: float | None,
+    ratio: float = 0.8,
+    max_residual: float = 0.05,
+    min_inliers: int = 10,
+) -> Refinement:
+    """`refine_3d`, with how many 3D-3D matches support the result (`focal`: pixels)."""
     pairs = match_descriptors(query.descriptors, candidate.descriptors, ratio)
+    given = np.asarray(transform, dtype=np.float64)
     if len(pairs) < min_inliers:
-        return transform
+        return Refinement(given, False, 0)
     q, c = query.points[pairs[:, 0]].astype(np.float64), candidate.points[pairs[:, 1]].astype(np.float64)
     both = np.isfinite(q).all(axis=1) & np.isfinite(c).all(axis=1)
     q, c = q[both], c[both]
-    current = np.asarray(transform, dtype=np.float64)
+
+    def residual(t: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(c - (q @ t[:3, :3].T + t[:3, 3]), axis=1)
+
+    current, polished = given, True
     for gate in (3.0 * max_residual, max_residual, max_residual):
-        residual = np.linalg.norm(c - (q @ current[:3, :3].T + current[:3, 3]), axis=1)
-        inliers = residual < gate
+        inliers = residual(current) < gate
         if inliers.sum() < min_inliers:
-            return current
+            current, polished = given, False
+            break
         current = rigid_transform(q[inliers], c[inliers])
-    return current
+    support = 0
+    if focal is not None and len(q):
+        gate = np.maximum(max_residual, SUPPORT_PIXELS * np.linalg.norm(c, axis=1) / focal)
+        support = int((residual(current) < gate).sum())
+    return Refinement(current, polished, support)
 
 
 # A verified loop transform must be planar: the camera neither rises nor tilts on this robot.

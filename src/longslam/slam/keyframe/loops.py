@@ -19,16 +19,20 @@ from longslam.slam.graph import LoopCheck, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
 from longslam.slam.keyframe.scan_proximity import ScanLinkSettings, scan_link
-from longslam.slam.place_recognition import planar_link, refine_3d, verify
+from longslam.slam.place_recognition import planar_link, refine_3d_checked, verify
 
 APPEARANCE, PROXIMITY, SCAN = "appearance", "proximity", "scan_proximity"
 SOURCES = (APPEARANCE, PROXIMITY, SCAN)
+# Visual links PnP verified but both images' depth did not hold (`loop_min_depth_support`); each is
+# also counted in its source's rejected_verification.
+UNHELD_BY_DEPTH = "visual_rejected_depth"
 
 
 def counter_names() -> list[str]:
     """The per-source counters this module keeps (hypotheses, accepted, rejected and why)."""
     return [f"{s}_{what}" for s in SOURCES
-            for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")] + [f"{SCAN}_one_direction"]
+            for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")] + [
+        f"{SCAN}_one_direction", UNHELD_BY_DEPTH]
 
 
 class NodePositions:
@@ -169,21 +173,29 @@ class LoopCloser:
         order = np.argsort(dist[near], kind="stable")
         return [int(i) for i in ids[near][order][: cfg.proximity_candidates]]
 
-    def visual_link(self, query: Features, candidate: Features) -> np.ndarray | None:
+    def visual_link(self, query: Features, candidate: Features, min_support: int = 0) -> np.ndarray | None:
         """The query robot's pose in the candidate robot's frame (x, y, yaw) from their images, or
-        None when PnP does not verify it or the motion is not planar."""
+        None when PnP does not verify it, the motion is not planar, or fewer than `min_support`
+        3D-3D matches hold it."""
         cfg = self.config
         check = verify(query, candidate, self.intrinsics, cfg.min_inliers)
         if not check.accepted:
             return None
-        transform = refine_3d(query, candidate, check.transform) if cfg.refine_3d else check.transform
+        transform = check.transform
+        if cfg.refine_3d or min_support:
+            refined = refine_3d_checked(query, candidate, check.transform, self.intrinsics.fx)
+            if refined.support < min_support:
+                self.counts[UNHELD_BY_DEPTH] += 1
+                return None
+            if cfg.refine_3d:
+                transform = refined.transform
         return self.planar_link(transform)
 
     def try_link(self, node: Node, cand_id: int, source: str) -> bool:
         """Verify a hypothesis, add it to the graph, keep it only if the optimised graph agrees."""
         cfg = self.config
         candidate = self.memory.nodes[cand_id]
-        delta = self.visual_link(node.features, candidate.features)
+        delta = self.visual_link(node.features, candidate.features, min_support=cfg.loop_min_depth_support)
         if delta is None:
             self.counts[f"{source}_rejected_verification"] += 1
             return False

@@ -91,6 +91,7 @@ class SubmapConfig:
     loop_frame_sigma_xy: float = 0.05  # m: std of a loop's translation between its two frames
     loop_frame_sigma_yaw: float = 0.02  # rad: std of a loop's heading between its two frames
     loop_refine_3d: bool = True  # polish PnP's transform on the 3D-3D matches (keyframe's refine_3d)
+    loop_min_depth_support: int = 10  # 3D-3D matches that must hold a loop (keyframe's loop_min_depth_support; 0: not checked)
     loop_max_error: float = 3.0  # reject a closure whose error after optimisation exceeds this (sigmas)
     # On a route that drives the same corridors again, place-recognition keyframes and their words
     # stop growing: a keyframe is kept only where no kept one stands (docs/scale.md). Every
@@ -127,7 +128,7 @@ class SubmapConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value <= 0:
                 raise InputError(f"submap parameter {name} must be positive, got {value!r}")
-        for name in ("submaps_in_memory", "registration_max_references"):
+        for name in ("submaps_in_memory", "registration_max_references", "loop_min_depth_support"):
             if getattr(self, name) < 0:
                 raise InputError(f"submap parameter {name} must be >= 0, got {getattr(self, name)!r}")
         if self.grid_free_space_margin < 0:

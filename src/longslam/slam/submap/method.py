@@ -83,6 +83,7 @@ class _Counts:
     submaps_too_few_points: int = 0
     loops_accepted: int = 0
     loops_rejected: int = 0
+    loops_rejected_depth: int = 0  # of loops_rejected: PnP verified, both images' depth did not hold (loop_min_depth_support)
     loop_hypotheses: int = 0
     loop_keyframes_kept: int = 0
     loop_keyframes_known_place: int = 0  # not kept: a kept one stands there (loop_keyframe_min_distance)
@@ -280,7 +281,7 @@ class SubmapMethod:
     def _loop_closure(self, frame: Frame, active: Submap, in_submap: np.ndarray, depth: np.ndarray) -> None:
         """Look for a loop from this frame (its trusted `depth`) to an older submap's keyframe."""
         from longslam.slam import features as feature_module
-        from longslam.slam.place_recognition import planar_link, refine_3d, verify
+        from longslam.slam.place_recognition import planar_link, refine_3d_checked, verify
 
         c = self.config
         feats = feature_module.extract(frame.rgb, depth, frame.intrinsics, max_features=c.loop_max_features)
@@ -293,10 +294,15 @@ class SubmapMethod:
                 self.counts.loop_hypotheses += 1
                 candidate = self._keyframes[hits[0][0]]
                 check = verify(feats, candidate.features, frame.intrinsics, min_inliers=c.loop_min_inliers)
-                transform = check.transform
-                if check.accepted and c.loop_refine_3d:
-                    transform = refine_3d(feats, candidate.features, transform)
-                link = planar_link(self._mount.camera_in_base, transform) if check.accepted else None
+                transform, held = check.transform, check.accepted
+                if check.accepted and (c.loop_refine_3d or c.loop_min_depth_support):
+                    refined = refine_3d_checked(feats, candidate.features, transform, frame.intrinsics.fx)
+                    held = refined.support >= c.loop_min_depth_support
+                    if not held:
+                        self.counts.loops_rejected_depth += 1
+                    if c.loop_refine_3d:
+                        transform = refined.transform
+                link = planar_link(self._mount.camera_in_base, transform) if held else None
                 if link is not None:
                     self._add_loop(candidate, transform, link, active, in_submap)
                 else:
@@ -408,6 +414,7 @@ class SubmapMethod:
             stats.LOOP_HYPOTHESES: counts.loop_hypotheses,
             stats.LOOPS_ACCEPTED: counts.loops_accepted,
             stats.LOOPS_REJECTED: counts.loops_rejected,
+            "loops_rejected_depth": counts.loops_rejected_depth,
             "loop_keyframes_kept": counts.loop_keyframes_kept,
             "loop_keyframes_known_place": counts.loop_keyframes_known_place,
             "graph_edges": {k: self.graph.count(k) for k in (ODOMETRY, REGISTRATION, LOOP)},
