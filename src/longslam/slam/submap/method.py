@@ -45,6 +45,7 @@ from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.free_space import SubmapFreeSpace, carve, fuse_free_space
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
+from longslam.slam.rows import Rows
 from longslam.slam.submap.registration import RegistrationSettings, register
 from longslam.slam.submap.store import SubmapStore
 from longslam.slam.submap.tsdf import TSDF
@@ -115,9 +116,9 @@ class SubmapMethod:
         self._pose_in_active = np.eye(4)  # camera pose of the latest frame in the active submap
         self._max_depth = c.max_ray_length if context.max_depth is None else min(c.max_ray_length, context.max_depth)
         # Per frame: stamp, camera pose in the submap (12 floats), online pose.
-        self._stamps: list[float] = []
+        self._stamps = Rows()
         self._in_submap: list[np.ndarray] = []
-        self._online: list[np.ndarray] = []
+        self._online = Rows((4, 4))  # every frame's camera pose as step returned it
         self._tried_pairs: set[tuple[int, int]] = set()
         # Loop closure (place recognition shared with the keyframe method).
         self._keyframes: list[_Keyframe] = []
@@ -378,14 +379,14 @@ class SubmapMethod:
         # final smoother, the finish's peak, is built.
         self._keyframes, self._vocabulary = [], None
         release_free_memory()
-        stamps = np.array(self._stamps)
+        stamps = self._stamps.array()
         final = self._frontend_final()
         poses = self._mount.to_camera(final)
         # Each submap's origin is the robot's pose at its first frame: the map moves with the
         # final trajectory.
         origins = np.array([self._origin_pose(final[self._submap_frame[s.index]]) for s in self.submaps])
         trajectory = Trajectory(stamps, poses, source="submap")
-        online = Trajectory(stamps, np.array(self._online), source="submap online")
+        online = Trajectory(stamps, self._online.array(), source="submap online")
         # The submaps are read back one at a time into the fused map: the run is over, and holding
         # them all beside it would be the run's peak.
         self.store.drop_cache()
