@@ -79,25 +79,35 @@ def associate_lists(first: np.ndarray, second: np.ndarray, max_diff: float) -> l
     each stamp used at most once. Returns (index in first, index in second) pairs sorted by the
     first stamp.
     """
-    first = np.asarray(first, dtype=np.float64)
-    second = np.asarray(second, dtype=np.float64)
+    return [(int(i), int(j)) for i, j in associate_indices(first, second, max_diff)]
+
+
+def associate_indices(first: np.ndarray, second: np.ndarray, max_diff: float) -> np.ndarray:
+    """`associate_lists` as a (K, 2) int64 array, with no Python object per candidate: a long
+    route's index files pair 20,000 stamps and more."""
+    first = np.asarray(first, dtype=np.float64).reshape(-1)
+    second = np.asarray(second, dtype=np.float64).reshape(-1)
     order = np.argsort(second, kind="stable")
     sorted_second = second[order]
-    candidates = []
     lo = np.searchsorted(sorted_second, first - max_diff, side="left")
     hi = np.searchsorted(sorted_second, first + max_diff, side="right")
-    for i in range(len(first)):
-        for k in range(lo[i], hi[i]):
-            j = int(order[k])
-            d = abs(first[i] - second[j])
-            if d <= max_diff:
-                candidates.append((d, i, j))
-    candidates.sort()
-    used_first, used_second, pairs = set(), set(), []
-    for _, i, j in candidates:
-        if i not in used_first and j not in used_second:
-            used_first.add(i)
-            used_second.add(j)
-            pairs.append((i, j))
-    pairs.sort(key=lambda p: (first[p[0]], p[0]))
-    return pairs
+    counts = np.maximum(hi - lo, 0)
+    i = np.repeat(np.arange(len(first)), counts)
+    k = lo[i] + (np.arange(len(i)) - np.repeat(np.cumsum(counts) - counts, counts))
+    j = order[k]
+    d = np.abs(first[i] - second[j])
+    keep = d <= max_diff
+    i, j, d = i[keep], j[keep], d[keep]
+    by_closeness = np.lexsort((j, i, d))  # closest first; ties by first index, then second
+    i, j = i[by_closeness], j[by_closeness]
+    if len(np.unique(i)) < len(i) or len(np.unique(j)) < len(j):
+        # Some stamp has two candidates: take them greedily (rare; most lists pair one to one).
+        used_first = np.zeros(len(first), bool)
+        used_second = np.zeros(len(second), bool)
+        take = np.zeros(len(i), bool)
+        for n, (a, b) in enumerate(zip(i.tolist(), j.tolist())):
+            if not used_first[a] and not used_second[b]:
+                used_first[a] = used_second[b] = take[n] = True
+        i, j = i[take], j[take]
+    by_first = np.lexsort((i, first[i]))
+    return np.stack([i[by_first], j[by_first]], axis=1).astype(np.int64).reshape(-1, 2)

@@ -250,6 +250,29 @@ def test_association_is_one_to_one():
     assert associate_lists([1.0], [1.5], max_diff=0.02) == []
 
 
+def _associate_by_candidates(first, second, max_diff):
+    """TUM's associate.py as written: every candidate a tuple, taken closest first."""
+    candidates = sorted((abs(a - b), i, j) for i, a in enumerate(first) for j, b in enumerate(second)
+                        if abs(a - b) <= max_diff)
+    used_first, used_second, pairs = set(), set(), []
+    for _, i, j in candidates:
+        if i not in used_first and j not in used_second:
+            used_first.add(i)
+            used_second.add(j)
+            pairs.append((i, j))
+    return sorted(pairs, key=lambda p: (first[p[0]], p[0]))
+
+
+def test_association_matches_associate_py_on_crowded_stamps():
+    # Stamps on a coarse grid, so that many tie and many have several candidates.
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        first = (rng.integers(0, 30, rng.integers(0, 25)) * 0.01).tolist()
+        second = (rng.integers(0, 30, rng.integers(0, 25)) * 0.01).tolist()
+        max_diff = float(rng.choice([0.0, 0.01, 0.025, 0.1]))
+        assert associate_lists(first, second, max_diff) == _associate_by_candidates(first, second, max_diff)
+
+
 def test_a_folder_without_camera_json_is_never_guessed(tmp_path):
     folder = tmp_path / "my_sequence"
     make_tum_folder(folder, n=2)

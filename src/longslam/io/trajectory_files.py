@@ -13,6 +13,7 @@ import numpy as np
 from longslam.errors import InputError, TrajectoryError
 from longslam.geometry import poses_from_tum, tum_from_poses
 from longslam.io.atomic import write_text_atomic
+from longslam.io.plain_table import plain_table
 from longslam.textfile import read_text
 from longslam.trajectory import Trajectory
 
@@ -57,18 +58,25 @@ def detect_format(path: str | Path, text: str | None = None) -> str:
     )
 
 
+def _table(path: Path, text: str | None, width: int, what: str) -> np.ndarray:
+    text = read_text(path, "trajectory file") if text is None else text
+    table = plain_table(text, width)
+    return table if table is not None else _numbers(path, _read_rows(path, text), width, what)
+
+
 def read_tum(path: str | Path, text: str | None = None) -> Trajectory:
     path = Path(path)
-    data = _numbers(path, _read_rows(path, text), 8, "t tx ty tz qx qy qz qw")
+    data = _table(path, text, 8, "t tx ty tz qx qy qz qw")
     if len(data) and np.any(np.linalg.norm(data[:, 4:8], axis=1) < 1e-9):
         bad = int(np.flatnonzero(np.linalg.norm(data[:, 4:8], axis=1) < 1e-9)[0])
         raise TrajectoryError(f"{path}: pose {bad} has a zero quaternion")
-    return Trajectory(data[:, 0], poses_from_tum(data[:, 1:8]), source=str(path))
+    # A copy of the stamps: a view would keep the whole table alive beside the poses.
+    return Trajectory(data[:, 0].copy(), poses_from_tum(data[:, 1:8]), source=str(path))
 
 
 def read_kitti(path: str | Path, text: str | None = None) -> Trajectory:
     path = Path(path)
-    data = _numbers(path, _read_rows(path, text), 12, "a row-major 3x4 pose matrix")
+    data = _table(path, text, 12, "a row-major 3x4 pose matrix")
     poses = np.tile(np.eye(4), (len(data), 1, 1))
     poses[:, :3, :4] = data.reshape(-1, 3, 4)
     return Trajectory(np.arange(len(data), dtype=np.float64), poses, source=str(path))
