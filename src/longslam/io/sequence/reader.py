@@ -183,11 +183,13 @@ class SequenceReader:
             raise InputError(f"{where}: principal point (cx, cy) = ({k.cx:g}, {k.cy:g}) lies outside "
                              f"the {k.width} x {k.height} image; expected 0 <= cx <= width and 0 <= cy <= height")
 
-        self.ground_truth: Trajectory | None = None
-        if (self.path / GROUND_TRUTH).exists():
-            self.ground_truth = read_tum(self.path / GROUND_TRUTH)
-            self.notes += _coverage_notes(self.timestamps, self.ground_truth.timestamps, self.max_diff,
-                                          str(self.path / GROUND_TRUTH))
+        # The truth is read here for its notes, then again when asked for: a method never reads
+        # it, and a 10 km route's poses are 9 MB held through the whole run.
+        self._ground_truth: Trajectory | None = None
+        self._has_ground_truth = (self.path / GROUND_TRUTH).exists()
+        if self._has_ground_truth:
+            self.notes += _coverage_notes(self.timestamps, read_tum(self.path / GROUND_TRUTH).timestamps,
+                                          self.max_diff, str(self.path / GROUND_TRUTH))
         self.odometry: Trajectory | None = None
         self._odometry_index: np.ndarray | None = None
         if (self.path / ODOMETRY).exists():
@@ -195,6 +197,13 @@ class SequenceReader:
             self._odometry_index = match_every(
                 self.timestamps, self.odometry.timestamps, self.max_diff, str(self.path / ODOMETRY)
             )
+
+    @property
+    def ground_truth(self) -> Trajectory | None:
+        """groundtruth.txt (None without one), read on first use."""
+        if self._ground_truth is None and self._has_ground_truth:
+            self._ground_truth = read_tum(self.path / GROUND_TRUTH)
+        return self._ground_truth
 
     # setup -----------------------------------------------------------------------
 

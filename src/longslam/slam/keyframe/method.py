@@ -69,7 +69,7 @@ class KeyframeMethod:
         self._last_node: Node | None = None
         # Per frame, in flat chunks rather than lists of small objects (slam/rows.py).
         self._frame_stamps = Rows()
-        self._online = Rows((4, 4))
+        self._online = Rows((3,))  # every frame's online robot pose (x, y, yaw): its camera pose is made at the finish
         self._node_seconds: list[float] = []  # time to make each node (features, loops, memory)
 
     @property
@@ -93,10 +93,9 @@ class KeyframeMethod:
             self._node_seconds.append(time.perf_counter() - started)
         node = self._last_node
         xyyaw = compose_xyyaw(self.graph.estimate(node.id), relative_xyyaw(node.odom, odom))
-        pose = self._mount.to_camera(xyyaw[None])[0]
         self._frame_stamps.append(frame.timestamp)
-        self._online.append(pose)
-        return pose
+        self._online.append(xyyaw)
+        return self._mount.to_camera(xyyaw[None])[0]
 
     def _frontend_motion(self, frame: Frame) -> np.ndarray:
         """The front end's online pose of this frame, used as the node's "odometry"."""
@@ -232,7 +231,7 @@ class KeyframeMethod:
         poses = self._mount.to_camera(final)
         stamps = self._frame_stamps.array()
         trajectory = Trajectory(stamps, poses, source="keyframe")
-        online = Trajectory(stamps, self._online.array(), source="keyframe online")
+        online = Trajectory(stamps, self._mount.to_camera(self._online.array()), source="keyframe online")
 
         grid_map, cloud = assemble_maps(sorted(self.nodes), lambda node_id: final[self._node_frame[node_id]], self.memory.grid_and_points,
                                         self._mount, self.config.grid_cell, self.config.cloud_voxel,

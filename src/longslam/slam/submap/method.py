@@ -117,7 +117,6 @@ class SubmapMethod:
         self._max_depth = c.max_ray_length if context.max_depth is None else min(c.max_ray_length, context.max_depth)
         # Per frame: stamp, camera pose in the submap (12 floats), online pose.
         self._stamps = Rows()
-        self._in_submap: list[np.ndarray] = []
         self._online = Rows((4, 4))  # every frame's camera pose as step returned it
         self._tried_pairs: set[tuple[int, int]] = set()
         # Loop closure (place recognition shared with the keyframe method).
@@ -179,7 +178,6 @@ class SubmapMethod:
         self._pose_in_active = in_submap
         pose = self._world_pose(active.index, in_submap)
         self._stamps.append(float(frame.timestamp))
-        self._in_submap.append(in_submap[:3].copy())
         self._online.append(pose)
         return pose
 
@@ -359,7 +357,7 @@ class SubmapMethod:
             "submap_tsdfs_on_disk": self.store.stored_bytes,
             "submap_tsdf_active": int(sum(s.tsdf.nbytes for s in active)),
             "registration_points": int(sum(s.points.nbytes for s in finished if s.points is not None)),
-            "frame_poses": int(len(self._in_submap) * (12 * 8 + 8 + 8)),
+            "frame_poses": int(self._stamps.nbytes + self._online.nbytes),
         }
         if spaces := [s.free_space for s in self.submaps if s.free_space is not None]:
             out["free_space"] = int(sum(f.nbytes for f in spaces))
