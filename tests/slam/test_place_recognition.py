@@ -9,7 +9,7 @@ import pytest
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
 from longslam.slam.features import Features, extract
-from longslam.slam.place_recognition import Vocabulary, verify
+from longslam.slam.place_recognition import SUPPORT_PIXELS, Vocabulary, refine_3d, refine_3d_checked, verify
 
 INTR = Intrinsics.from_fov(320, 240, 90.0)  # fx = fy = 160
 PLANE_Z = 2.0
@@ -92,6 +92,32 @@ def test_verify_recovers_translation(scenes, tx, ty):
     # Query camera pose in the candidate frame: translated by (tx, ty, 0), no rotation.
     np.testing.assert_allclose(result.transform[:3, 3], [tx, ty, 0.0], atol=0.03)
     np.testing.assert_allclose(result.transform[:3, :3], np.eye(3), atol=0.02)
+
+
+def _shifted(transform: np.ndarray, dx: float) -> np.ndarray:
+    out = transform.copy()
+    out[0, 3] += dx
+    return out
+
+
+def test_depth_supports_a_true_link_and_not_one_half_a_metre_off(scenes):
+    candidate, query = feats(scenes[0]), feats(scenes[0], 0.10, 0.0)
+    pnp = verify(query, candidate, INTR).transform
+    true = refine_3d_checked(query, candidate, pnp, INTR.fx)
+    assert true.polished and true.support >= 100
+    np.testing.assert_allclose(true.transform[:3, 3], [0.10, 0.0, 0.0], atol=0.01)
+    np.testing.assert_array_equal(refine_3d(query, candidate, pnp), true.transform)
+    # A transform 0.5 m off (a wrong loop's size) cannot be polished back, and no match supports it.
+    wrong = refine_3d_checked(query, candidate, _shifted(pnp, 0.5), INTR.fx)
+    assert not wrong.polished and wrong.support < 10
+    np.testing.assert_array_equal(wrong.transform, _shifted(pnp, 0.5))  # PnP's, not half polished
+    # The gate is the footprint of SUPPORT_PIXELS pixels at a match's distance: 3.75 cm at 2 m,
+    # so 5 cm (the floor) here; 4 cm off is supported, 8 cm is not.
+    assert SUPPORT_PIXELS * PLANE_Z / INTR.fx < 0.05
+    near = refine_3d_checked(query, candidate, _shifted(true.transform, 0.04), INTR.fx, min_inliers=10**6)
+    far = refine_3d_checked(query, candidate, _shifted(true.transform, 0.08), INTR.fx, min_inliers=10**6)
+    assert not near.polished and near.support >= 100 and far.support < 10  # measured unpolished
+    assert refine_3d_checked(query, candidate, pnp, None).support == 0  # no focal length: nothing measured
 
 
 def test_verify_rejects_unrelated_places(scenes):

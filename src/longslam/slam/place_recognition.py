@@ -435,8 +435,6 @@ def refine_3d_checked(
     """`refine_3d`, with how many 3D-3D matches support the result (`focal`: pixels)."""
     pairs = match_descriptors(query.descriptors, candidate.descriptors, ratio)
     given = np.asarray(transform, dtype=np.float64)
-    if len(pairs) < min_inliers:
-        return Refinement(given, False, 0)
     q, c = query.points[pairs[:, 0]].astype(np.float64), candidate.points[pairs[:, 1]].astype(np.float64)
     both = np.isfinite(q).all(axis=1) & np.isfinite(c).all(axis=1)
     q, c = q[both], c[both]
@@ -444,8 +442,8 @@ def refine_3d_checked(
     def residual(t: np.ndarray) -> np.ndarray:
         return np.linalg.norm(c - (q @ t[:3, :3].T + t[:3, 3]), axis=1)
 
-    current, polished = given, True
-    for gate in (3.0 * max_residual, max_residual, max_residual):
+    current, polished = given, len(pairs) >= min_inliers
+    for gate in (3.0 * max_residual, max_residual, max_residual) if polished else ():
         inliers = residual(current) < gate
         if inliers.sum() < min_inliers:
             current, polished = given, False

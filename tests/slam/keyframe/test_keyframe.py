@@ -67,6 +67,16 @@ def test_loops_close_and_beat_odometry(sequence, tmp_path):
     assert "loop_constraints" not in stats["frontend"] and "node_time_ms" not in stats
 
 
+def test_a_visual_link_needs_its_depth_support(sequence):
+    # Asking for more 3D-3D matches than any image pair has leaves no appearance or proximity
+    # link, and each one PnP verified is counted as refused for its depth.
+    _, result = _run(sequence, {"loop_min_depth_support": 100_000, "scan_proximity": False})
+    stats = result.stats
+    assert stats["appearance_accepted"] == stats["proximity_accepted"] == stats["loops_accepted"] == 0
+    assert stats["visual_rejected_depth"] >= 3
+    assert stats["visual_rejected_depth"] <= stats["appearance_rejected_verification"] + stats["proximity_rejected_verification"]
+
+
 def test_long_term_memory_holds_nodes_and_reopens(sequence, tmp_path):
     method, result = _run(sequence, {"wm_max_nodes": 4, "stm_size": 3}, output_dir=str(tmp_path))
     stats = result.stats
