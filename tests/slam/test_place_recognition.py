@@ -9,7 +9,8 @@ import pytest
 from longslam.errors import InputError
 from longslam.frame import Intrinsics
 from longslam.slam.features import Features, extract
-from longslam.slam.place_recognition import SUPPORT_PIXELS, Vocabulary, refine_3d, refine_3d_checked, verify
+from longslam.slam.place_recognition import (SUPPORT_PIXELS, Vocabulary, depth_held_transform, refine_3d,
+                                             refine_3d_checked, verify)
 
 INTR = Intrinsics.from_fov(320, 240, 90.0)  # fx = fy = 160
 PLANE_Z = 2.0
@@ -118,6 +119,17 @@ def test_depth_supports_a_true_link_and_not_one_half_a_metre_off(scenes):
     far = refine_3d_checked(query, candidate, _shifted(true.transform, 0.08), INTR.fx, min_inliers=10**6)
     assert not near.polished and near.support >= 100 and far.support < 10  # measured unpolished
     assert refine_3d_checked(query, candidate, pnp, None).support == 0  # no focal length: nothing measured
+
+
+def test_a_loop_keeps_the_transform_its_depth_holds(scenes):
+    candidate, query = feats(scenes[0]), feats(scenes[0], 0.10, 0.0)
+    pnp = verify(query, candidate, INTR).transform
+    polished = refine_3d(query, candidate, pnp)
+    assert depth_held_transform(query, candidate, pnp, INTR.fx, polish=False, min_support=0) is pnp
+    np.testing.assert_array_equal(depth_held_transform(query, candidate, pnp, INTR.fx, True, 10), polished)
+    np.testing.assert_array_equal(depth_held_transform(query, candidate, pnp, INTR.fx, False, 10), pnp)
+    assert depth_held_transform(query, candidate, pnp, INTR.fx, True, 100_000) is None
+    assert depth_held_transform(query, candidate, _shifted(pnp, 0.5), INTR.fx, True, 10) is None
 
 
 def test_verify_rejects_unrelated_places(scenes):

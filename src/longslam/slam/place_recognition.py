@@ -456,6 +456,19 @@ def refine_3d_checked(
     return Refinement(current, polished, support)
 
 
+def depth_held_transform(
+    query: Features, candidate: Features, transform: np.ndarray, focal: float, polish: bool, min_support: int,
+) -> np.ndarray | None:
+    """The PnP-verified `transform` a loop keeps: polished on the 3D-3D matches if `polish`, or
+    None when fewer than `min_support` of them hold it (0: not checked)."""
+    if not (polish or min_support):
+        return transform
+    refined = refine_3d_checked(query, candidate, transform, focal)
+    if refined.support < min_support:
+        return None
+    return refined.transform if polish else transform
+
+
 # A verified loop transform must be planar: the camera neither rises nor tilts on this robot.
 MAX_LOOP_Z = 0.3  # m
 MAX_LOOP_TILT = 0.2  # rad

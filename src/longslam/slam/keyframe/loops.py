@@ -19,7 +19,7 @@ from longslam.slam.graph import LoopCheck, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
 from longslam.slam.keyframe.scan_proximity import ScanLinkSettings, scan_link
-from longslam.slam.place_recognition import planar_link, refine_3d_checked, verify
+from longslam.slam.place_recognition import depth_held_transform, planar_link, verify
 
 APPEARANCE, PROXIMITY, SCAN = "appearance", "proximity", "scan_proximity"
 SOURCES = (APPEARANCE, PROXIMITY, SCAN)
@@ -181,14 +181,10 @@ class LoopCloser:
         check = verify(query, candidate, self.intrinsics, cfg.min_inliers)
         if not check.accepted:
             return None
-        transform = check.transform
-        if cfg.refine_3d or min_support:
-            refined = refine_3d_checked(query, candidate, check.transform, self.intrinsics.fx)
-            if refined.support < min_support:
-                self.counts[UNHELD_BY_DEPTH] += 1
-                return None
-            if cfg.refine_3d:
-                transform = refined.transform
+        transform = depth_held_transform(query, candidate, check.transform, self.intrinsics.fx, cfg.refine_3d, min_support)
+        if transform is None:
+            self.counts[UNHELD_BY_DEPTH] += 1
+            return None
         return self.planar_link(transform)
 
     def try_link(self, node: Node, cand_id: int, source: str) -> bool:

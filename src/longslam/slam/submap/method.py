@@ -115,7 +115,7 @@ class SubmapMethod:
         self._last_odometry: np.ndarray | None = None
         self._pose_in_active = np.eye(4)  # camera pose of the latest frame in the active submap
         self._max_depth = c.max_ray_length if context.max_depth is None else min(c.max_ray_length, context.max_depth)
-        # Per frame: stamp, camera pose in the submap (12 floats), online pose.
+        # Per frame: stamp and online pose.
         self._stamps = Rows()
         self._online = Rows((4, 4))  # every frame's camera pose as step returned it
         self._tried_pairs: set[tuple[int, int]] = set()
@@ -280,7 +280,7 @@ class SubmapMethod:
     def _loop_closure(self, frame: Frame, active: Submap, in_submap: np.ndarray, depth: np.ndarray) -> None:
         """Look for a loop from this frame (its trusted `depth`) to an older submap's keyframe."""
         from longslam.slam import features as feature_module
-        from longslam.slam.place_recognition import planar_link, refine_3d_checked, verify
+        from longslam.slam.place_recognition import depth_held_transform, planar_link, verify
 
         c = self.config
         feats = feature_module.extract(frame.rgb, depth, frame.intrinsics, max_features=c.loop_max_features)
@@ -293,15 +293,13 @@ class SubmapMethod:
                 self.counts.loop_hypotheses += 1
                 candidate = self._keyframes[hits[0][0]]
                 check = verify(feats, candidate.features, frame.intrinsics, min_inliers=c.loop_min_inliers)
-                transform, held = check.transform, check.accepted
-                if check.accepted and (c.loop_refine_3d or c.loop_min_depth_support):
-                    refined = refine_3d_checked(feats, candidate.features, transform, frame.intrinsics.fx)
-                    held = refined.support >= c.loop_min_depth_support
-                    if not held:
+                transform = None
+                if check.accepted:
+                    transform = depth_held_transform(feats, candidate.features, check.transform, frame.intrinsics.fx,
+                                                     c.loop_refine_3d, c.loop_min_depth_support)
+                    if transform is None:
                         self.counts.loops_rejected_depth += 1
-                    if c.loop_refine_3d:
-                        transform = refined.transform
-                link = planar_link(self._mount.camera_in_base, transform) if held else None
+                link = planar_link(self._mount.camera_in_base, transform) if transform is not None else None
                 if link is not None:
                     self._add_loop(candidate, transform, link, active, in_submap)
                 else:
