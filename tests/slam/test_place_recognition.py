@@ -236,3 +236,22 @@ def test_unused_words_leave_the_index_and_held_ones_keep_their_ids(index):
     again = vocab.add(9, images[0])
     assert again.min() >= 600 and vocab.n_words == 700
     assert vocab.query(images[5], top_k=1)[0][0] == 5
+
+
+def test_vocabulary_scores_follow_the_nodes_indexed(scenes):
+    """Issue 22: a query keeps the idf and the nodes' norms from the last one (they change only
+    with the nodes indexed). After nodes come and go, its scores must be those of scoring afresh."""
+    vocab = Vocabulary(index="bruteforce")
+    for node, canvas in enumerate(scenes[:6]):
+        vocab.add(node, feats(canvas).descriptors)
+    revisit = feats(scenes[2], 0.05, 0.0).descriptors
+    before = vocab.query(revisit, top_k=6)
+    assert vocab.query(revisit, top_k=6) == before  # the second query, from what the first kept
+    vocab.remove(2)
+    vocab.add(7, feats(scenes[7]).descriptors)
+    after = vocab.query(revisit, top_k=6)
+    vocab.add_words(99, np.zeros(0, np.int64))  # a node in and out: the same nodes, scored afresh
+    vocab.remove(99)
+    assert vocab.query(revisit, top_k=6) == after
+    assert before[0][0] == 2 and all(node != 2 for node, _ in after)
+    assert dict(before)[0] != dict(after)[0]  # one node fewer and one more: the idf moved

@@ -100,6 +100,12 @@ class Vocabulary:
         self._df = np.zeros(1024, np.int64)  # how many nodes in working memory hold each word
         self._matrix: sp.csr_matrix | None = None  # nodes x words term frequencies, rebuilt lazily
         self._row_ids: np.ndarray = np.zeros(0, np.int64)
+        # With the matrix: its columns (a query reads a few words' columns) and each word's idf
+        # and each node's tf-idf norm, which change only with the nodes indexed. Made per query,
+        # they cost time in proportion to every word and node held: on a long route most of a query.
+        self._columns: sp.csc_matrix | None = None
+        self._idf: np.ndarray | None = None
+        self._norms: np.ndarray | None = None
 
     # --- dictionary -------------------------------------------------------------------------
     @property
@@ -253,7 +259,18 @@ class Vocabulary:
             totals = np.array([c.sum() for _, c in bags], np.float64)
             tf = counts / np.maximum(np.repeat(totals, lengths), 1.0)
             self._matrix = sp.csr_matrix((tf, (rows, cols)), shape=(len(bags), self._n_words))
+            self._columns = self._idf = self._norms = None
         return self._matrix
+
+    def _scoring(self) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray]:
+        """The tf matrix by columns, each word's idf and each node's tf-idf norm, as of the nodes
+        indexed now."""
+        tf = self._tf_matrix()
+        if self._norms is None:
+            self._idf = self.idf()
+            self._norms = np.sqrt(tf.multiply(tf) @ (self._idf**2))
+            self._columns = tf.tocsc()
+        return self._columns, self._idf, self._norms
 
     def idf(self) -> np.ndarray:
         """log(N / df) per word over the nodes in working memory (0 for words no node holds)."""
@@ -286,14 +303,12 @@ class Vocabulary:
         if len(word) == 0:
             return []
         ids, counts = np.unique(word, return_counts=True)
-        idf = self.idf()
+        columns, idf, norms = self._scoring()
         q = counts / counts.sum() * idf[ids]
         q_norm = np.linalg.norm(q)
         if q_norm == 0.0:  # every matched word is in every node: nothing discriminates
             return []
-        tf = self._tf_matrix()
-        dots = tf[:, ids] @ (q * idf[ids])
-        norms = np.sqrt(tf.multiply(tf) @ (idf**2))
+        dots = columns[:, ids] @ (q * idf[ids])
         scores = np.where(norms > 0, dots / np.maximum(norms, 1e-300) / q_norm, 0.0)
         rows = np.arange(len(self._row_ids))
         if candidates is not None:

@@ -174,3 +174,33 @@ def test_a_loop_tried_in_working_memory_moves_only_the_free_nodes_and_is_judged_
     everywhere.optimize_local(range(len(truth)))
     np.testing.assert_allclose(np.array([everywhere.estimate(i) for i in range(len(truth))]),
                                as_array(whole.optimize(), len(truth)), atol=1e-6)
+
+
+def test_kept_factors_and_connectivity_follow_the_edges_added_and_removed():
+    """Issue 22: each edge's factor is made once and the graph's connectivity kept as edges come,
+    so a solve no longer rebuilds them. A removed edge's factor must leave the solve, and an edge
+    whose removal splits the graph must make the next solve name the island."""
+    truth = square_route()
+    graph, _ = build_graph(truth)
+    last = len(truth) - 1
+    graph.optimize()
+    wrong = graph.add_loop(last, 0, (3.0, 0.0, 0.5), LOOP_SIGMAS, robust=False)
+    right = graph.add_loop(last, 0, (0.0, 0.0, 0.0), LOOP_SIGMAS, robust=False)
+    with_wrong = as_array(graph.optimize(), len(truth))
+    graph.remove_edge(wrong)
+    without = as_array(graph.optimize(), len(truth))
+    fresh, _ = build_graph(truth)
+    fresh.add_loop(last, 0, (0.0, 0.0, 0.0), LOOP_SIGMAS, robust=False)
+    np.testing.assert_array_equal(without, as_array(fresh.optimize(), len(truth)))
+    assert np.abs(with_wrong - without).max() > 0.1  # the removed edge did pull the solve
+    np.testing.assert_array_equal(graph.estimates([5, 0, last]), [graph.estimate(5), graph.estimate(0), graph.estimate(last)])
+    # A node held by one edge, then that edge removed: an island.
+    graph.add_node(100, (0.0, 5.0, 0.0))
+    bridge = graph.add_odometry(0, 100, (0.0, 5.0, 0.0), ODO_SIGMAS)
+    graph.optimize()
+    graph.remove_edge(bridge)
+    with pytest.raises(InputError, match=r"not connected.*\[100\]"):
+        graph.optimize()
+    graph.add_odometry(3, 100, (0.0, 5.0, 0.0), ODO_SIGMAS)
+    graph.remove_edge(right)
+    graph.optimize()  # connected again

@@ -6,7 +6,10 @@ an edge given as diagonal sigmas keeps them (and GTSAM's diagonal noise model).
 
 The graph keeps its nodes and edges in plain Python containers and rebuilds the GTSAM factor graph
 on every `optimize`: that makes removing a rejected loop closure trivial and the result a pure
-function of the nodes and edges (deterministic), at a cost small next to the optimisation itself.
+function of the nodes and edges (deterministic). Each edge's GTSAM factor is made once and kept
+with it, and whether the graph is connected is kept up to date as edges come (a union-find, built
+again only after an edge is removed): made afresh at every solve, the noise models and the search
+took about as long as the solve itself on a 10 km submap graph (340 nodes, 3,400 edges).
 
 Loop closures can be wrong (look-alike corridors). `try_loop` adds one, optimises, and rolls it
 back when the optimised graph disagrees with it, in one of two ways:
@@ -140,6 +143,8 @@ class PoseGraph:
         self.batch_nodes = int(batch_nodes)
         self._incremental: _Incremental | None = None  # set once the graph outgrows batch_nodes
         self._order_of: dict[int, int] = {}  # node id -> its place in the adding order
+        self._factors: dict[int, gtsam.BetweenFactorPose2] = {}  # edge id -> its factor, made at its first solve
+        self._components: _Components | None = _Components()  # None: rebuilt at the next check (an edge was removed)
 
     # --- building
 
@@ -151,6 +156,8 @@ class PoseGraph:
             self._incremental.new_nodes.append(node_id)
         self._order_of.setdefault(node_id, len(self._order_of))
         self._initial[node_id] = _xyyaw(xyyaw, f"node {node_id}")
+        if self._components is not None:
+            self._components.add(node_id)
 
     def has_node(self, node_id: int) -> bool:
         return int(node_id) in self._initial
@@ -175,6 +182,8 @@ class PoseGraph:
         edge_id = self._next_edge
         self._next_edge += 1
         self._edges[edge_id] = Edge(edge_id, a, b, _xyyaw(delta, what), info, sig, kind, bool(robust))
+        if self._components is not None:
+            self._components.join(a, b)
         if self._incremental is not None:
             self._incremental.add_edge(self._edges[edge_id])
         return edge_id
@@ -196,6 +205,8 @@ class PoseGraph:
         if edge_id not in self._edges:
             raise InputError(f"no edge with id {edge_id}")
         del self._edges[edge_id]
+        self._factors.pop(edge_id, None)
+        self._components = None  # the edge may have held two parts together
         if self._incremental is not None:
             self._incremental.remove_edge(edge_id)
 
@@ -288,7 +299,7 @@ class PoseGraph:
             if n in held:
                 graph.add(gtsam.PriorFactorPose2(n, start, noise.diagonal(ANCHOR_SIGMAS)))
         for e in edges:
-            graph.add(_between_factor(e, self._noise(e)))
+            graph.add(self._factor(e))
         result, self.last_iterations = gtsam_levenberg_marquardt(
             graph, values, self.max_iterations if max_iterations is None else max_iterations)
         self.optimizations += 1
@@ -340,15 +351,37 @@ class PoseGraph:
             return np.array(self._initial[node_id])
         return np.array(self._optimized.get(node_id, self._initial[node_id]))
 
+    def estimates(self, node_ids) -> np.ndarray:
+        """`estimate` of many nodes at once, (N, 3) x, y, yaw."""
+        ids = [int(n) for n in node_ids]
+        if self._incremental is not None:
+            return np.array([self.estimate(n) for n in ids]).reshape(len(ids), 3)
+        optimized, initial = self._optimized, self._initial
+        return np.array([optimized.get(n) or initial[n] for n in ids], dtype=np.float64).reshape(len(ids), 3)
+
     # --- optimising
 
     def _noise(self, edge: Edge) -> gtsam.noiseModel.Base:
         base = noise.diagonal(edge.sigmas) if edge.sigmas is not None else noise.gaussian(edge.information)
         return noise.robust(base, self.robust_kernel, self.robust_k) if edge.robust else base
 
+    def _factor(self, edge: Edge) -> gtsam.BetweenFactorPose2:
+        factor = self._factors.get(edge.edge_id)
+        if factor is None:
+            factor = self._factors[edge.edge_id] = _between_factor(edge, self._noise(edge))
+        return factor
+
     def _check_connected(self) -> None:
         # An island of nodes not linked to the anchored first node makes the system singular
         # and GTSAM fails with an opaque indeterminant-system error; name the culprit instead.
+        if self._components is None:
+            self._components = _Components()
+            for node in self._initial:
+                self._components.add(node)
+            for e in self._edges.values():
+                self._components.join(e.a, e.b)
+        if self._components.count <= 1:
+            return
         adjacency: dict[int, list[int]] = {n: [] for n in self._initial}
         for e in self._edges.values():
             adjacency[e.a].append(e.b)
@@ -400,7 +433,7 @@ class PoseGraph:
         first = next(iter(self._initial))
         graph.add(gtsam.PriorFactorPose2(first, gtsam.Pose2(*self._initial[first]), noise.diagonal(ANCHOR_SIGMAS)))
         for e in self._edges.values():
-            graph.add(_between_factor(e, self._noise(e)))
+            graph.add(self._factor(e))
         values = gtsam.Values()
         for node, xyyaw in self._initial.items():
             start = self._optimized.get(node, xyyaw) if warm_start else xyyaw
@@ -463,6 +496,32 @@ class PoseGraph:
 
 def _between_factor(edge: Edge, noise_model: gtsam.noiseModel.Base) -> gtsam.BetweenFactorPose2:
     return gtsam.BetweenFactorPose2(edge.a, edge.b, gtsam.Pose2(*edge.delta), noise_model)
+
+
+class _Components:
+    """Union-find over the nodes: how many connected parts the edges added so far leave."""
+
+    def __init__(self) -> None:
+        self.parent: dict[int, int] = {}
+        self.count = 0
+
+    def add(self, node: int) -> None:
+        if node not in self.parent:
+            self.parent[node] = node
+            self.count += 1
+
+    def _root(self, node: int) -> int:
+        parent = self.parent
+        while parent[node] != node:
+            parent[node] = parent[parent[node]]
+            node = parent[node]
+        return node
+
+    def join(self, a: int, b: int) -> None:
+        ra, rb = self._root(a), self._root(b)
+        if ra != rb:
+            self.parent[rb] = ra
+            self.count -= 1
 
 
 class _EdgeTable:

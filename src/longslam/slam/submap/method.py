@@ -70,7 +70,6 @@ class Submap:
 class _Keyframe:  # a frame kept for place recognition (loop closure only)
     frame: int  # its index in the sequence
     submap: int
-    time: float
     in_submap: np.ndarray  # (4, 4) camera pose in its submap's frame
     features: Any
 
@@ -121,6 +120,11 @@ class SubmapMethod:
         self._tried_pairs: set[tuple[int, int]] = set()
         # Loop closure (place recognition shared with the keyframe method).
         self._keyframes: list[_Keyframe] = []
+        # The same keyframes' time, submap and camera position and optical axis in their submap,
+        # as arrays: a new keyframe's tests run over every kept one.
+        self._keyframe_times = Rows()
+        self._keyframe_submaps = Rows()
+        self._keyframe_in_submap = Rows((2, 2))  # rows: the camera's x, y; its optical axis's x, y
         # Per accepted loop edge of the graph: (candidate frame, query frame, the query robot's
         # pose in the candidate robot's frame), for the front end's final smoother.
         self._frame_loops: dict[int, tuple[int, int, np.ndarray]] = {}
@@ -286,8 +290,9 @@ class SubmapMethod:
         feats = feature_module.extract(frame.rgb, depth, frame.intrinsics, max_features=c.loop_max_features)
         if len(feats) == 0:
             return
-        old = [i for i, k in enumerate(self._keyframes) if frame.timestamp - k.time >= c.loop_min_age and k.submap < active.index - 1]
-        if old:
+        old = np.flatnonzero((frame.timestamp - self._keyframe_times.array() >= c.loop_min_age)
+                             & (self._keyframe_submaps.array() < active.index - 1))
+        if len(old):
             hits = self._vocabulary.query(feats.descriptors, candidates=old, top_k=1)
             if hits and hits[0][1] >= c.loop_min_score:
                 self.counts.loop_hypotheses += 1
@@ -308,7 +313,10 @@ class SubmapMethod:
             self.counts.loop_keyframes_known_place += 1
             return
         node = len(self._keyframes)
-        self._keyframes.append(_Keyframe(len(self._stamps), active.index, frame.timestamp, in_submap.copy(), feats))
+        self._keyframes.append(_Keyframe(len(self._stamps), active.index, in_submap.copy(), feats))
+        self._keyframe_times.append(frame.timestamp)
+        self._keyframe_submaps.append(active.index)
+        self._keyframe_in_submap.append((in_submap[:2, 3], in_submap[:2, 2]))
         self._vocabulary.add(node, feats.descriptors)
         self.counts.loop_keyframes_kept += 1
 
@@ -320,13 +328,17 @@ class SubmapMethod:
         if c.loop_keyframe_min_distance <= 0 or not self._keyframes:
             return False
         here = self._world_pose(submap, in_submap)
-        submaps = np.array([k.submap for k in self._keyframes])
-        origins = {int(i): self._origin_pose(self.graph.estimate(int(i))) for i in np.unique(submaps)}
-        kept = np.einsum("kij,kjl->kil", np.stack([origins[int(i)] for i in submaps]),
-                         np.stack([k.in_submap for k in self._keyframes]))
-        near = np.hypot(*(kept[:, :2, 3] - here[:2, 3]).T) <= c.loop_keyframe_min_distance
+        submaps, at = np.unique(self._keyframe_submaps.array().astype(np.int64), return_inverse=True)
+        origins = self.graph.estimates(submaps)[at]  # each keyframe's submap origin, x, y, yaw
+        cos, sin = np.cos(origins[:, 2]), np.sin(origins[:, 2])
+        rotation = np.stack([np.stack([cos, -sin], -1), np.stack([sin, cos], -1)], 1)  # (K, 2, 2)
+        in_submap = self._keyframe_in_submap.array()
+        # A submap's origin turns about the vertical only: the floor-plane parts suffice.
+        position = np.einsum("kij,kj->ki", rotation, in_submap[:, 0]) + origins[:, :2]
+        axis = np.einsum("kij,kj->ki", rotation, in_submap[:, 1])
+        near = np.hypot(*(position - here[:2, 3]).T) <= c.loop_keyframe_min_distance
         # Camera headings: the optical axis (z) on the floor plane.
-        turn = np.arctan2(kept[:, 1, 2], kept[:, 0, 2]) - np.arctan2(here[1, 2], here[0, 2])
+        turn = np.arctan2(axis[:, 1], axis[:, 0]) - np.arctan2(here[1, 2], here[0, 2])
         turned = np.abs(wrap_angle(turn)) <= c.loop_keyframe_min_angle
         return bool(np.any(near & turned))
 
@@ -374,6 +386,7 @@ class SubmapMethod:
         # Mapping is over: the place-recognition keyframes and their vocabulary go before the
         # final smoother, the finish's peak, is built.
         self._keyframes, self._vocabulary = [], None
+        self._keyframe_times, self._keyframe_submaps, self._keyframe_in_submap = Rows(), Rows(), Rows((2, 2))
         release_free_memory()
         stamps = self._stamps.array()
         final = self._frontend_final()
