@@ -144,6 +144,7 @@ class PoseGraph:
         self._incremental: _Incremental | None = None  # set once the graph outgrows batch_nodes
         self._order_of: dict[int, int] = {}  # node id -> its place in the adding order
         self._factors: dict[int, gtsam.BetweenFactorPose2] = {}  # edge id -> its factor, made at its first solve
+        self._touching: dict[int, set[int]] = {}  # node id -> the ids of the edges at it (a local solve's edges)
         self._components: _Components | None = _Components()  # None: rebuilt at the next check (an edge was removed)
 
     # --- building
@@ -184,6 +185,8 @@ class PoseGraph:
         self._edges[edge_id] = Edge(edge_id, a, b, _xyyaw(delta, what), info, sig, kind, bool(robust))
         if self._components is not None:
             self._components.join(a, b)
+        self._touching.setdefault(a, set()).add(edge_id)
+        self._touching.setdefault(b, set()).add(edge_id)
         if self._incremental is not None:
             self._incremental.add_edge(self._edges[edge_id])
         return edge_id
@@ -204,7 +207,9 @@ class PoseGraph:
     def remove_edge(self, edge_id: int) -> None:
         if edge_id not in self._edges:
             raise InputError(f"no edge with id {edge_id}")
-        del self._edges[edge_id]
+        edge = self._edges.pop(edge_id)
+        self._touching[edge.a].discard(edge_id)
+        self._touching[edge.b].discard(edge_id)
         self._factors.pop(edge_id, None)
         self._components = None  # the edge may have held two parts together
         if self._incremental is not None:
@@ -247,7 +252,9 @@ class PoseGraph:
         if check == "edge":
             error = self.edge_error(edge_id)
         else:
-            error = max(max(e.translation_error, e.rotation_error) for e in self._edge_errors(edges))
+            # One numpy pass: edge by edge in Python, the check cost more than the solve.
+            error = _max_split_error(np.array([e.delta for e in edges]), np.array([e.information for e in edges]),
+                                     self.estimates([e.a for e in edges]), self.estimates([e.b for e in edges]))
         if error > max_error:
             self.remove_edge(edge_id)
             # The free nodes go back to where they were: the rest never moved.
@@ -268,7 +275,9 @@ class PoseGraph:
         if self._incremental is not None:
             raise InputError("optimize_local: the graph is solved incrementally (batch_nodes)")
         free = {int(n) for n in free if int(n) in self._initial}
-        edges = [e for e in self._edges.values() if e.a in free or e.b in free]
+        # In the order they were added (edge ids grow), as a scan of every edge would give them.
+        touching = self._touching
+        edges = [self._edges[i] for i in sorted({i for n in free for i in touching.get(n, ())})]
         if not edges:
             return []
         touched = sorted({n for e in edges for n in (e.a, e.b)}, key=self._order)
@@ -560,11 +569,17 @@ class _EdgeTable:
             return 0.0
         ends = self.ends[live]
         at = np.searchsorted(keys, ends)
-        residual = log_xyyaw(relative_xyyaw(self.delta[live], relative_xyyaw(poses[at[:, 0]], poses[at[:, 1]])))
-        info = self.information[live]
-        translation = np.sqrt(np.maximum(np.einsum("ni,nij,nj->n", residual[:, :2], info[:, :2, :2], residual[:, :2]), 0.0))
-        rotation = np.abs(residual[:, 2]) * np.sqrt(info[:, 2, 2])
-        return float(max(translation.max(), rotation.max()))
+        return _max_split_error(self.delta[live], self.information[live], poses[at[:, 0]], poses[at[:, 1]])
+
+
+def _max_split_error(delta: np.ndarray, information: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """The largest translation or rotation error of edges (N, 3) `delta` with (N, 3, 3)
+    `information` between poses `a` and `b` (N, 3), each judged in its own sigmas as
+    `PoseGraph.edge_errors` does, in one numpy pass."""
+    residual = log_xyyaw(relative_xyyaw(delta, relative_xyyaw(a, b)))
+    translation = np.sqrt(np.maximum(np.einsum("ni,nij,nj->n", residual[:, :2], information[:, :2, :2], residual[:, :2]), 0.0))
+    rotation = np.abs(residual[:, 2]) * np.sqrt(information[:, 2, 2])
+    return float(max(translation.max(), rotation.max()))
 
 
 class _Incremental:
