@@ -204,3 +204,23 @@ def test_kept_factors_and_connectivity_follow_the_edges_added_and_removed():
     graph.add_odometry(3, 100, (0.0, 5.0, 0.0), ODO_SIGMAS)
     graph.remove_edge(right)
     graph.optimize()  # connected again
+
+
+def test_a_local_try_is_judged_on_the_edges_at_its_free_nodes_as_edge_errors_judges_them():
+    """Issue 22: a local solve finds its edges through each node's edges and judges them in one
+    numpy pass. Its verdict must be `edge_errors`' largest split error over exactly the edges at
+    the free nodes, a removed edge left out."""
+    truth = square_route()
+    graph, _ = build_graph(truth)
+    last = len(truth) - 1
+    free = set(range(25, last + 1))
+    removed = graph.add_loop(26, 38, relative_xyyaw(truth[26], truth[38]) + (0.3, 0.0, 0.0), LOOP_SIGMAS, robust=False)
+    graph.remove_edge(removed)  # it would be the worst edge by far, were it still looked at
+    check = graph.try_loop(30, last, relative_xyyaw(truth[30], truth[last]), sigmas=(0.5, 0.5, 0.2), max_error=3.0,
+                           free=free)
+    assert check.accepted
+    at_free = [e for e in graph.edge_errors(None) if e.a in free or e.b in free]
+    assert removed not in {e.edge_id for e in at_free} and len(at_free) == 17  # 16 steps and the loop
+    expected = max(max(e.translation_error, e.rotation_error) for e in at_free)
+    assert expected > 0.1
+    assert check.error == pytest.approx(expected, rel=1e-9)
