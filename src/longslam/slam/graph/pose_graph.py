@@ -6,8 +6,8 @@ an edge given as diagonal sigmas keeps them (and GTSAM's diagonal noise model).
 
 The graph keeps its nodes and edges in plain Python containers and rebuilds the GTSAM factor graph
 on every `optimize`: that makes removing a rejected loop closure trivial and the result a pure
-function of the nodes and edges (deterministic). Each edge's GTSAM factor is made once and kept
-with it, and whether the graph is connected is kept up to date as edges come (a union-find, built
+function of the nodes and edges (deterministic). Each edge's GTSAM factor is made once for the
+whole solves and kept with it (a local solve makes its own, see `_factor`), and whether the graph is connected is kept up to date as edges come (a union-find, built
 again only after an edge is removed): made afresh at every solve, the noise models and the search
 took about as long as the solve itself on a 10 km submap graph (340 nodes, 3,400 edges).
 
@@ -308,7 +308,7 @@ class PoseGraph:
             if n in held:
                 graph.add(gtsam.PriorFactorPose2(n, start, noise.diagonal(ANCHOR_SIGMAS)))
         for e in edges:
-            graph.add(self._factor(e))
+            graph.add(self._factor(e, keep=False))
         result, self.last_iterations = gtsam_levenberg_marquardt(
             graph, values, self.max_iterations if max_iterations is None else max_iterations)
         self.optimizations += 1
@@ -374,10 +374,15 @@ class PoseGraph:
         base = noise.diagonal(edge.sigmas) if edge.sigmas is not None else noise.gaussian(edge.information)
         return noise.robust(base, self.robust_kernel, self.robust_k) if edge.robust else base
 
-    def _factor(self, edge: Edge) -> gtsam.BetweenFactorPose2:
+    def _factor(self, edge: Edge, keep: bool = True) -> gtsam.BetweenFactorPose2:
+        """The edge's factor, kept for the next solve if `keep`. A local solve does not keep what
+        it makes: its edges move on with working memory, and keeping every edge it ever touched
+        (about 750 bytes an edge) would grow with the route."""
         factor = self._factors.get(edge.edge_id)
         if factor is None:
-            factor = self._factors[edge.edge_id] = _between_factor(edge, self._noise(edge))
+            factor = _between_factor(edge, self._noise(edge))
+            if keep:
+                self._factors[edge.edge_id] = factor
         return factor
 
     def _check_connected(self) -> None:
