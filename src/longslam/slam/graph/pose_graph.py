@@ -7,9 +7,10 @@ an edge given as diagonal sigmas keeps them (and GTSAM's diagonal noise model).
 The graph keeps its nodes and edges in plain Python containers and rebuilds the GTSAM factor graph
 on every `optimize`: that makes removing a rejected loop closure trivial and the result a pure
 function of the nodes and edges (deterministic). Each edge's GTSAM factor is made once for the
-whole solves and kept with it (a local solve makes its own, see `_factor`), and whether the graph is connected is kept up to date as edges come (a union-find, built
-again only after an edge is removed): made afresh at every solve, the noise models and the search
-took about as long as the solve itself on a 10 km submap graph (340 nodes, 3,400 edges).
+whole solves and kept with it (a local solve makes its own, see `_factor`), and whether the graph
+is connected is kept up to date as edges come (a union-find, built again only after an edge is
+removed): made afresh at every solve, the noise models and the search took about as long as the
+solve itself on a 10 km submap graph (340 nodes, 3,400 edges).
 
 Loop closures can be wrong (look-alike corridors). `try_loop` adds one, optimises, and rolls it
 back when the optimised graph disagrees with it, in one of two ways:
