@@ -400,7 +400,8 @@ def cmd_study(args: argparse.Namespace) -> None:
     config = load_study(args.file)
     summary = run_study(
         config, args.out, executor=args.executor, address=args.address, jobs=args.jobs,
-        retry_failed=args.retry_failed, report=not args.no_report, extend=args.extend,
+        retry_failed=args.retry_failed, retry_starved=args.retry_starved, report=not args.no_report,
+        extend=args.extend,
     )
     print(
         f"study {config.name}: {summary.planned} runs, {summary.skipped} done before, {summary.ran} run now "
@@ -610,8 +611,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="study folder: results database, runs, report (resumes if it exists)")
     p.add_argument("--executor", default="local", choices=("local", "ray"), help="local processes (default) or a Ray cluster")
     p.add_argument("--address", help="Ray cluster address (e.g. ray://head:10001 or head:6379); default: start Ray locally")
-    p.add_argument("--jobs", type=int, help="runs at once (default: one per core, or the Ray cluster's CPUs)")
+    p.add_argument("--jobs", type=int, help="cores the study's runs may keep busy at once (default: this machine's cores, or the Ray "
+                        "cluster's CPUs); a run takes its method's cores (1 for keyframe, submap and odometry; "
+                        "3, capped at --jobs, for orbslam3), so nothing runs beside a run that needs them all")
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded with an error")
+    p.add_argument("--retry-starved", action="store_true",
+                   help="run again the runs whose threads waited for a CPU for more than 10%% of their time "
+                        "(cpu_wait_share over 0.10: the report marks them starved)")
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
     p.add_argument("--extend", action="store_true",
                    help="add this study's runs to a folder that holds another study (another name, routes, noise "

@@ -28,6 +28,7 @@ from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
 from longslam.progress import bar
 from longslam.run.observer import RunObserver
+from longslam.run.process_tree import STARVED_SHARE, TreeMonitor
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes, peak_rss_bytes
 from longslam.settings import to_mapping
@@ -91,32 +92,36 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
     first_t = last_t = None
     wall_start = time.perf_counter()
     cpu_start = time.process_time()
-    count = 0
-    observer_time = 0.0
-    if observer is not None:
-        t0 = time.perf_counter()
-        observer.start(method, context)
-        observer_time += time.perf_counter() - t0
-    for frame in bar(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
-        t0 = time.perf_counter()
-        pose = method.step(frame)
-        step_times.append(time.perf_counter() - t0)
-        if np.shape(pose) != (4, 4):
-            raise InputError(f"method {method_name!r} returned a pose of shape {np.shape(pose)} for frame {frame.index}; expected (4, 4)")
-        if first_t is None:
-            first_t = frame.timestamp
-        last_t = frame.timestamp
+    monitor = TreeMonitor().start()
+    try:
+        count = 0
+        observer_time = 0.0
         if observer is not None:
             t0 = time.perf_counter()
-            observer.frame(frame, pose, method)
+            observer.start(method, context)
             observer_time += time.perf_counter() - t0
-        if count % RSS_SAMPLE_EVERY == 0:
-            rss_samples.append((count, current_rss_bytes()))
-        count += 1
-    if count == 0:
-        raise InputError("the sequence has no frames")
-    t0 = time.perf_counter()
-    result = method.finish()
+        for frame in bar(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
+            t0 = time.perf_counter()
+            pose = method.step(frame)
+            step_times.append(time.perf_counter() - t0)
+            if np.shape(pose) != (4, 4):
+                raise InputError(f"method {method_name!r} returned a pose of shape {np.shape(pose)} for frame {frame.index}; expected (4, 4)")
+            if first_t is None:
+                first_t = frame.timestamp
+            last_t = frame.timestamp
+            if observer is not None:
+                t0 = time.perf_counter()
+                observer.frame(frame, pose, method)
+                observer_time += time.perf_counter() - t0
+            if count % RSS_SAMPLE_EVERY == 0:
+                rss_samples.append((count, current_rss_bytes()))
+            count += 1
+        if count == 0:
+            raise InputError("the sequence has no frames")
+        t0 = time.perf_counter()
+        result = method.finish()
+    finally:
+        usage = monitor.stop()
     finish_time = time.perf_counter() - t0
     cpu_time = time.process_time() - cpu_start
     if observer is not None:
@@ -149,7 +154,16 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
         "step_time_mean_s_by_tenth": [float(part.mean()) for part in np.array_split(steps, 10) if len(part)],
         # Simulated seconds per second of the method's own processing (reading frames excluded).
         "real_time_factor": duration / method_time if method_time > 0 else float("inf"),
-        "peak_rss_bytes": peak_rss_bytes(),
+        # The CPU the run was denied: how long its threads (and any child processes') were ready to run
+        # but waited for a core (run/process_tree.py), and that wait's share of wait plus CPU time.
+        "cpu_wait_s": usage.cpu_wait_s,
+        "cpu_wait_share": usage.cpu_wait_share,
+        "starved": usage.cpu_wait_share > STARVED_SHARE,
+        "tree_cpu_time_s": usage.cpu_time_s,
+        "child_processes": usage.child_processes,
+        # The process's own peak, or with child processes (a program run as a method) the largest
+        # sum of the tree's resident memory seen in one sample.
+        "peak_rss_bytes": max(peak_rss_bytes(), usage.peak_rss_bytes),
         "baseline_rss_bytes": baseline_rss,
         "rss_samples": rss_samples,
         "method_stats": result.stats,

@@ -136,6 +136,25 @@ class MethodSpec:
     # the runs start, so that no run's time or peak memory carries it; `longslam run` lets the
     # first run do it.
     prepare: Callable[[Any], None] | None = None
+    # Cores one run keeps busy. A method with threads of its own (ORB-SLAM3's tracking, local
+    # mapping and loop closing) declares them: a study's executors schedule by cores, so its run
+    # never shares them with another run (`--jobs` counts cores).
+    threads: int = 1
+    # Whether the method takes frames at the sequence's own rate (a real-time system): starved of
+    # CPU, it loses work (frames, keyframes), not only time.
+    real_time: bool = False
+    # Whether the same frames give the same result. A system whose threads race is a distribution:
+    # a study repeats its cells (`repeats`) and the report gives the median, spread and failures.
+    deterministic: bool = True
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.threads, int) and self.threads >= 1):
+            raise ValueError(f"method {self.name!r}: threads={self.threads!r}; expected a whole number of cores >= 1")
+
+    def cores(self, available: int) -> int:
+        """The cores a run takes on a machine (or executor) of `available` cores: all of them, for
+        a method that needs more."""
+        return max(1, min(self.threads, available))
 
     def prepare_for(self, params: Mapping[str, Any] | None = None) -> None:
         """Do the method's once-per-machine work for `params` (nothing for most methods)."""

@@ -32,13 +32,17 @@ class Task:
     log_path: Path  # where a local run's stdout and stderr go
     grid_path: Path  # the world's ground-truth occupancy grid (.npz)
     observed_path: Path  # the route's mask of observed walls (.npy)
+    cores: int = 1  # cores the run keeps busy (its method's `threads`, at most the executor's capacity)
 
 
 class Executor(Protocol):
-    capacity: int
+    capacity: int  # cores the executor may keep busy at once (`--jobs`, or the machine's or cluster's)
 
     @property
-    def running(self) -> int: ...
+    def running(self) -> int: ...  # runs going
+
+    @property
+    def busy_cores(self) -> int: ...  # the cores those runs hold
 
     def submit(self, task: Task) -> None: ...
 
@@ -107,7 +111,8 @@ def _death_message(exitcode: int | None) -> str:
 
 
 class LocalExecutor:
-    """Up to `jobs` runs at once, each in a new process (spawned, so nothing is inherited)."""
+    """Runs on up to `jobs` cores at once (a run takes its method's cores), each in a new process
+    (spawned, so nothing is inherited)."""
 
     def __init__(self, jobs: int | None = None):
         self.capacity = max(1, int(jobs or os.cpu_count() or 1))
@@ -117,6 +122,10 @@ class LocalExecutor:
     @property
     def running(self) -> int:
         return len(self._running)
+
+    @property
+    def busy_cores(self) -> int:
+        return sum(task.cores for task, _, _ in self._running.values())
 
     def submit(self, task: Task) -> None:
         task.run_dir.parent.mkdir(parents=True, exist_ok=True)
@@ -270,6 +279,8 @@ class RayExecutor:
             self._started = address is None
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.capacity = max(1, int(jobs or cpus))
+        # Each task asks Ray for its run's cores (num_cpus), so Ray never packs a multi-threaded
+        # system beside other runs on a node that lacks the cores.
         self._remote = ray.remote(num_cpus=1, max_calls=1, max_retries=0)(_ray_run)
         self._truth_refs: dict[tuple[str, str], list] = {}
         self._running: dict[Any, Task] = {}
@@ -277,6 +288,10 @@ class RayExecutor:
     @property
     def running(self) -> int:
         return len(self._running)
+
+    @property
+    def busy_cores(self) -> int:
+        return sum(task.cores for task in self._running.values())
 
     def _truth(self, task: Task) -> list:
         key = (str(task.grid_path), str(task.observed_path))
@@ -289,7 +304,7 @@ class RayExecutor:
         return self._truth_refs[key]
 
     def submit(self, task: Task) -> None:
-        ref = self._remote.remote(task.spec, self._truth(task))
+        ref = self._remote.options(num_cpus=task.cores).remote(task.spec, self._truth(task))
         self._running[ref] = task
 
     def wait(self, timeout: float) -> list[tuple[Task, RunRecord]]:

@@ -57,7 +57,7 @@ from longslam.world.reference import same_world, world_label, world_ref
 
 TOP_KEYS = (
     "name", "world", "routes", "noise", "methods", "seeds", "align", "map_tolerance_cells",
-    "camera", "cameras", "follower", "params", "variants", "sensors",
+    "camera", "cameras", "follower", "params", "variants", "sensors", "repeats",
 )
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
@@ -109,6 +109,9 @@ class StudyConfig:
     # The `sensors` axis; empty for a study without one (the ideal sensor), whose runs keep the
     # keys and folders they had before sensors were an axis.
     sensors: tuple[str, ...] = ()
+    # Runs of each cell: a non-deterministic system (threads that race) gives a distribution, and
+    # the report gives its median, spread and failure rate. 1 keeps a study's keys and hashes.
+    repeats: int = 1
 
     def camera_axis(self) -> list[tuple[str, CameraSettings]]:
         """(name, settings) of each camera of the study; the name is "" for a `[camera]` study."""
@@ -124,7 +127,7 @@ class StudyConfig:
     def run_count(self) -> int:
         """How many runs the study plans: one per route, camera, noise level, method and seed."""
         return (len(self.routes) * len(self.camera_axis()) * len(self.sensor_axis()) * len(self.noise)
-                * len(self.methods) * len(self.seeds))
+                * len(self.methods) * len(self.seeds) * self.repeats)
 
     def grid_text(self) -> str:
         """The grid and its run count, counted without planning a run: '2 routes x 4 noise levels x
@@ -132,6 +135,7 @@ class StudyConfig:
         parts = [(len(self.routes), "route")] + ([(len(self.cameras), "camera")] if self.cameras else [])
         parts += [(len(self.sensors), "sensor")] if self.sensors else []
         parts += [(len(self.noise), "noise level"), (len(self.methods), "method"), (len(self.seeds), "seed")]
+        parts += [(self.repeats, "repeat")] if self.repeats > 1 else []
         return " x ".join(f"{n} {w}{'' if n == 1 else 's'}" for n, w in parts) + f" = {self.run_count} runs"
 
     def to_dict(self) -> dict[str, Any]:
@@ -153,6 +157,8 @@ class StudyConfig:
             described["cameras"] = {c.name: asdict(c.settings) for c in self.cameras}
         if self.sensors:  # absent without the axis, as cameras are
             described["sensors"] = list(self.sensors)
+        if self.repeats != 1:  # absent for one run per cell, as cameras are
+            described["repeats"] = self.repeats
         return described
 
 
@@ -268,10 +274,12 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
         raise r.error("follower", str(err)) from None
 
     sensors = _sensors(r, data) if "sensors" in data else []
+    repeats = _repeats(r, data.get("repeats", 1))
     config = StudyConfig(
         name=name, world=world, routes=tuple(routes), noise=tuple(noise), methods=tuple(methods),
         seeds=tuple(seeds), camera=camera, follower=follower, align=align,
         map_tolerance_cells=float(tolerance), source=str(path), cameras=tuple(cameras), sensors=tuple(sensors),
+        repeats=repeats,
     )
     if config.run_count > MAX_RUNS:
         raise StudyConfigError(f"study file {path}: {config.grid_text()}, more than a study may plan ({MAX_RUNS}); "
@@ -367,6 +375,15 @@ def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
             raise r.error(key, f"a route named {route.name!r} is listed twice (route files are named by their stem)")
         routes.append(route)
     return routes
+
+
+MAX_REPEATS = 1000
+
+
+def _repeats(r: _Reader, value: Any) -> int:
+    if not _is_int(value) or not 1 <= value <= MAX_REPEATS:
+        raise r.error("repeats", f"expected a whole number of runs per cell, 1 to {MAX_REPEATS}, got {value!r}")
+    return int(value)
 
 
 def _seeds(r: _Reader, value: Any) -> list[int]:

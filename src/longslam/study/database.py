@@ -39,10 +39,14 @@ SPEC_COLUMNS = {
     # `camera` was the settings (JSON) before cameras had names, so the name has a column of its own.
     "camera_name": "TEXT",
     "sensor": "TEXT",
+    "repeat": "INTEGER",  # which run of its cell (0 for every run recorded before studies repeated cells)
 }
 OUTCOME_COLUMNS = {
     "status": "TEXT NOT NULL", "error": "TEXT", "traceback": "TEXT",
     "finished_at": "TEXT", "elapsed_s": "REAL", "host": "TEXT", "executor": "TEXT",
+    # When the study handed the run to its executor and when it came back (UTC, ISO 8601 with
+    # microseconds): which runs overlapped in time.
+    "started_at": "TEXT", "ended_at": "TEXT", "cores": "INTEGER",
 }
 FILE_COLUMNS = {f"{kind}_path": "TEXT" for kind in RUN_FILES} | {"run_dir": "TEXT", "log_path": "TEXT"}
 RUN_COLUMNS = {
@@ -52,6 +56,11 @@ RUN_COLUMNS = {
     **FILE_COLUMNS,
 }
 JSON_COLUMNS = ("params", "camera", "follower", "spec", *JSON_PARTS)
+
+
+def utc_now() -> str:
+    """Now, as the database's started_at and ended_at hold it."""
+    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="microseconds")
 
 
 def _finite(value: Any) -> Any:
@@ -118,18 +127,20 @@ class ResultsDB:
         """run key -> (config hash, status) of every recorded run."""
         return {r["key"]: (r["config_hash"], r["status"]) for r in self._conn.execute("SELECT key, config_hash, status FROM runs")}
 
-    def record(self, spec: Any, record: RunRecord, run_dir: str | None, executor: str = "") -> None:
+    def record(self, spec: Any, record: RunRecord, run_dir: str | None, executor: str = "",
+               started_at: str | None = None, cores: int | None = None) -> None:
         """Store one finished run (replacing an older row of the same key), committed at once."""
         row: dict[str, Any] = {
             "key": spec.key, "study": spec.study, "world": spec.world, "route": spec.route, "noise": spec.noise,
             "method": spec.method, "method_name": spec.method_name, "params": spec.params, "seed": spec.seed,
             "camera": spec.camera, "camera_name": getattr(spec, "camera_name", "") or DEFAULT_CAMERA,
-            "sensor": getattr(spec, "sensor", "") or IDEAL,
+            "sensor": getattr(spec, "sensor", "") or IDEAL, "repeat": getattr(spec, "repeat", 0),
             "follower": spec.follower, "align": spec.align,
             "config_hash": spec.config_hash, "spec": spec.describe(),
             "status": record.status, "error": record.error, "traceback": record.traceback,
             "finished_at": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
             "elapsed_s": record.elapsed_s, "host": record.host, "executor": executor, "log_path": record.log,
+            "started_at": started_at, "ended_at": utc_now(), "cores": cores,
         }
         if record.ok:
             row.update({c.name: c.value(record) for c in HEADLINE})
@@ -142,9 +153,14 @@ class ResultsDB:
         with self._conn:
             self._conn.execute(f"INSERT OR REPLACE INTO runs ({names}) VALUES ({marks})", values)
 
+    def starved(self, share: float) -> set[str]:
+        """Keys of the runs whose threads waited for a CPU for more than `share` of their time."""
+        rows = self._conn.execute("SELECT key FROM runs WHERE cpu_wait_share > ?", (share,))
+        return {row[0] for row in rows}
+
     def runs(self, status: str | None = None) -> list[dict[str, Any]]:
         """Every run (or those with `status`) as dicts, JSON columns decoded, in key order."""
-        query = "SELECT * FROM runs" + (" WHERE status = ?" if status else "") + " ORDER BY route, camera_name, sensor, noise, method, seed"
+        query = "SELECT * FROM runs" + (" WHERE status = ?" if status else "") + " ORDER BY route, camera_name, sensor, noise, method, seed, repeat"
         out = []
         for row in self._conn.execute(query, (status,) if status else ()):
             item = dict(row)
@@ -152,6 +168,8 @@ class ResultsDB:
                 item["camera_name"] = DEFAULT_CAMERA
             if item.get("sensor") is None:  # recorded before sensors were an axis: the ideal sensor
                 item["sensor"] = IDEAL
+            if item.get("repeat") is None:  # recorded before studies repeated cells
+                item["repeat"] = 0
             for column in JSON_COLUMNS:
                 if item.get(column) is not None:
                     try:

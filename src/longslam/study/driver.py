@@ -23,7 +23,8 @@ from tqdm import tqdm
 
 from longslam.progress import bar as progress_bar
 from longslam.study.config import StudyConfig, check_method_params
-from longslam.study.database import DB_NAME, ResultsDB
+from longslam.run.process_tree import STARVED_SHARE
+from longslam.study.database import DB_NAME, ResultsDB, utc_now
 from longslam.study.backends import Executor, Task, check_executor_options, make_executor
 from longslam.study.identity import check_same_study
 from longslam.study.lock import study_lock
@@ -44,13 +45,14 @@ class StudySummary:
     report: Path | None
 
 
-def _task(out: Path, spec: RunSpec) -> Task:
+def _task(out: Path, spec: RunSpec, cores: int = 1) -> Task:
     return Task(
         spec=spec,
         run_dir=out / "runs" / spec.key,
         log_path=out / "logs" / f"{spec.key}.log",
         grid_path=world_grid_path(out, spec.world),
         observed_path=route_dir(out, spec.route, spec.camera_name) / "observed.npy",
+        cores=cores,
     )
 
 
@@ -59,12 +61,15 @@ def plan_text(config: StudyConfig) -> str:
     return config.grid_text().rsplit(" = ", 1)[0]
 
 
-def runs_to_do(specs: list[RunSpec], finished: dict[str, tuple[str, str]], retry_failed: bool = False) -> list[RunSpec]:
-    """The planned runs that are not yet in the database with the same configuration."""
+def runs_to_do(specs: list[RunSpec], finished: dict[str, tuple[str, str]], retry_failed: bool = False,
+               again: set[str] = frozenset()) -> list[RunSpec]:
+    """The planned runs that are not yet in the database with the same configuration (or whose
+    keys are in `again`)."""
     todo = []
     for spec in specs:
         done = finished.get(spec.key)
-        if done is None or done[0] != spec.config_hash or (retry_failed and done[1] != "ok"):
+        if (done is None or done[0] != spec.config_hash or (retry_failed and done[1] != "ok")
+                or spec.key in again):
             todo.append(spec)
     return todo
 
@@ -76,6 +81,7 @@ def run_study(
     address: str | None = None,
     jobs: int | None = None,
     retry_failed: bool = False,
+    retry_starved: bool = False,
     report: bool = True,
     progress: bool = True,
     extend: bool = False,
@@ -83,7 +89,9 @@ def run_study(
     """Run every run of `config` not yet in `out`'s database, then write the report.
 
     A folder holding another study (another name or grid) is refused unless `extend`: then the
-    folder's study is widened by this one's routes, noise levels, methods and seeds."""
+    folder's study is widened by this one's routes, noise levels, methods and seeds.
+    `retry_starved` runs again the recorded runs whose threads were starved of CPU (a
+    `cpu_wait_share` over STARVED_SHARE)."""
     start = time.perf_counter()
     out = Path(out)
     # The grid and its run count first, before anything is planned or allocated.
@@ -105,20 +113,22 @@ def run_study(
     try:
         out.mkdir(parents=True, exist_ok=True)
         with study_lock(out):
-            return _run_locked(config, out, specs, start, executor, pool, retry_failed, report, progress, recorded)
+            return _run_locked(config, out, specs, start, executor, pool, retry_failed, report, progress, recorded,
+                               retry_starved)
     finally:
         pool.close()
 
 
 def _run_locked(
     config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, pool: Executor,
-    retry_failed: bool, report: bool, progress: bool, recorded: dict | None = None,
+    retry_failed: bool, report: bool, progress: bool, recorded: dict | None = None, retry_starved: bool = False,
 ) -> StudySummary:
     say = tqdm.write if progress else (lambda *a, **k: None)
 
     with ResultsDB(out / DB_NAME) as db:
         db.set_study(recorded or config.to_dict())
-        todo = runs_to_do(specs, db.finished(), retry_failed)
+        again = db.starved(STARVED_SHARE) if retry_starved else set()
+        todo = runs_to_do(specs, db.finished(), retry_failed, again)
         skipped = len(specs) - len(todo)
         if skipped:
             say(f"{skipped} of {len(specs)} runs are in {out / DB_NAME} already; {len(todo)} to do")
@@ -141,20 +151,26 @@ def _run_locked(
 
         failed = ran = 0
         if todo:
+            from longslam.slam.catalog import get_spec
+
             pending = deque(todo)
-            started: dict[str, float] = {}
+            # Runs start in plan order while their cores are free: a run that needs every core
+            # (ORB-SLAM3) waits for the runs before it to end, and nothing starts beside it.
+            cores = {name: get_spec(name).cores(pool.capacity) for name in {spec.method_name for spec in todo}}
+            started: dict[str, tuple[float, str]] = {}
             bar = progress_bar(total=len(specs), initial=skipped, unit="run", desc=f"study {config.name}",
                        disable=not progress, dynamic_ncols=True, smoothing=0.0)
             try:
                 while pending or pool.running:
-                    while pending and pool.running < pool.capacity:
+                    while pending and pool.busy_cores + cores[pending[0].method_name] <= pool.capacity:
                         spec = pending.popleft()
-                        started[spec.key] = time.perf_counter()
-                        pool.submit(_task(out, spec))
+                        started[spec.key] = (time.perf_counter(), utc_now())
+                        pool.submit(_task(out, spec, cores[spec.method_name]))
                     for task, record in pool.wait(timeout=0.5):
-                        record.elapsed_s = time.perf_counter() - started.pop(task.spec.key)
+                        began, started_at = started.pop(task.spec.key)
+                        record.elapsed_s = time.perf_counter() - began
                         run_dir = str(task.run_dir.relative_to(out)) if record.ok else None
-                        db.record(task.spec, record, run_dir, executor)
+                        db.record(task.spec, record, run_dir, executor, started_at=started_at, cores=task.cores)
                         ran += 1
                         if not record.ok:
                             failed += 1

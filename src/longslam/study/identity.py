@@ -26,6 +26,7 @@ def _grid(config: dict[str, Any]) -> dict[str, Any]:
         "methods": sorted((m.get("label"), m.get("method")) for m in config.get("methods", [])),
         "seeds": sorted(config.get("seeds", [])),
         "sensors": sorted(config.get("sensors", [])),
+        "repeats": config.get("repeats", 1),
     }
 
 
@@ -34,6 +35,7 @@ def _summary(config: dict[str, Any]) -> str:
     methods = ", ".join(m.get("label", "?") for m in config.get("methods", []))
     seeds = config.get("seeds", [])
     sensors = f"; sensors {', '.join(config['sensors'])}" if config.get("sensors") else ""
+    sensors += f"; {config['repeats']} repeats" if config.get("repeats", 1) != 1 else ""
     return (f"study {config.get('name')!r} (routes {routes}; noise {', '.join(config.get('noise', []))}; "
             f"methods {methods}{sensors}; {len(seeds)} seed{'' if len(seeds) == 1 else 's'})")
 
@@ -105,4 +107,6 @@ def merged(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
     if old.get("sensors") or new.get("sensors"):
         # A folder without the axis holds the ideal sensor's runs under keys without a sensor.
         result["sensors"] = union("sensors", lambda s: s)
+    if max(old.get("repeats", 1), new.get("repeats", 1)) != 1:
+        result["repeats"] = max(old.get("repeats", 1), new.get("repeats", 1))
     return result

@@ -77,6 +77,10 @@ HEADLINE = (
     Column("real_time_factor", "REAL", _measured("real_time_factor")),
     Column("peak_rss_bytes", "INTEGER", _measured("peak_rss_bytes")),
     Column("baseline_rss_bytes", "INTEGER", _measured("baseline_rss_bytes")),
+    # The CPU the run was denied (run/process_tree.py): its threads' run-queue wait, and that
+    # wait's share of wait plus CPU time; a share over 0.10 marks the run as starved.
+    Column("cpu_wait_s", "REAL", _measured("cpu_wait_s")),
+    Column("cpu_wait_share", "REAL", _measured("cpu_wait_share")),
     *(Column(key, "REAL", _metric(key)) for key in ("ate", "e_trans", "e_rot", "ape_rmse", "rpe_trans", "rpe_rot", "ate_online")),
     *(Column(key, "REAL", _quality(key)) for key in (
         "map_precision", "map_recall", "map_f1",

@@ -37,6 +37,7 @@ class RunSpec:
     map_tolerance_cells: float = 2.0
     camera_name: str = ""  # a [cameras.NAME] of the study; "" for the one camera of a [camera] study
     sensor: str = ""  # a sensor of the study's `sensors`; "" for a study without them (the ideal sensor)
+    repeat: int = 0  # which run of its cell, 0 to the study's repeats - 1
 
     @property
     def key(self) -> str:
@@ -45,7 +46,9 @@ class RunSpec:
         # old study folder resumes into the same rows and folders.
         camera = f"{self.camera_name}/" if self.camera_name else ""
         sensor = f"{self.sensor}/" if self.sensor else ""
-        return f"{self.route}/{camera}{sensor}{self.noise}/{self.method}/seed-{self.seed}"
+        # A cell's first run keeps the key it had before studies repeated cells.
+        repeat = f"-repeat-{self.repeat}" if self.repeat else ""
+        return f"{self.route}/{camera}{sensor}{self.noise}/{self.method}/seed-{self.seed}{repeat}"
 
     @property
     def config_hash(self) -> str:
@@ -60,6 +63,8 @@ class RunSpec:
         # The ideal sensor, named or not, is the frames as rendered: the hashes from before sensors.
         if described["sensor"] in ("", IDEAL):
             described.pop("sensor")
+        if not described["repeat"]:  # a cell's first run: the hashes from before repeats
+            described.pop("repeat")
         described["world"] = world_identity(self.world)  # a mesh by its content: moving the file is no change
         text = json.dumps(described, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -85,9 +90,10 @@ class RunSpec:
 
 
 def plan_runs(config: StudyConfig) -> list[RunSpec]:
-    """Every run of the study, seed by seed: a study stopped early has whole seeds done."""
+    """Every run of the study, seed by seed (and repeat by repeat): a study stopped early has whole
+    seeds done."""
     runs = []
-    for seed in config.seeds:
+    for seed, repeat in product(config.seeds, range(config.repeats)):
         for route in config.routes:
             for (camera_name, camera), sensor, noise in product(config.camera_axis(), config.sensor_axis(), config.noise):
                 for entry in config.methods:
@@ -108,6 +114,7 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
                             map_tolerance_cells=config.map_tolerance_cells,
                             camera_name=camera_name,
                             sensor=sensor,
+                            repeat=repeat,
                         )
                     )
     return runs

@@ -271,4 +271,6 @@ def prepare(config: OrbSlam3Config) -> None:
 
 SPEC = MethodSpec("orbslam3", OrbSlam3Config, OrbSlam3Method,
                   "ORB-SLAM3 1.0 in RGB-D mode (pyorbslam3): visual only, the wheels place its first map",
-                  prepare=prepare)
+                  # Tracking, local mapping and loop closing work at once (a global bundle
+                  # adjustment adds a fourth); frames come at the sequence's rate; threads race.
+                  prepare=prepare, threads=3, real_time=True, deterministic=False)
