@@ -30,11 +30,12 @@ PLUGIN = '''
 """Test methods registered through the `longslam.methods` entry point, like a user's own."""
 import os
 import signal
+import time
 
 import numpy as np
 
 from longslam.geometry import base_to_camera, planar_from_camera_poses
-from longslam.slam.api import Result
+from longslam.slam.api import MethodSpec, Result
 from longslam.slam.keyframe.occupancy import assemble, local_grid
 from longslam.trajectory import Trajectory
 
@@ -74,6 +75,18 @@ class Dies(Gridded):
         if frame.index == 5:
             os.kill(os.getpid(), signal.SIGKILL)
         return super().step(frame)
+
+
+class Sleepy(Gridded):
+    """Slow enough that two runs started together overlap."""
+
+    def step(self, frame):
+        time.sleep(0.02)
+        return super().step(frame)
+
+
+# A system with threads of its own, as ORB-SLAM3's plugin declares itself.
+HOG = MethodSpec("hog", None, Sleepy, threads=2, real_time=True, deterministic=False)
 '''
 
 
@@ -90,6 +103,7 @@ def env(tmp_path_factory, render_cache):
     (plugins / "longslam_test_plugin-0.1.dist-info" / "entry_points.txt").write_text(
         "[longslam.methods]\ngridded = longslam_test_plugin:Gridded\n"
         "crashy = longslam_test_plugin:Crashy\ndies = longslam_test_plugin:Dies\n"
+        "sleepy = longslam_test_plugin:Sleepy\nhog = longslam_test_plugin:HOG\n"
     )
     (root / "tiny.txt").write_text(ROUTE)
     with pytest.MonkeyPatch.context() as mp:
@@ -467,3 +481,40 @@ def _row_widths(page: str) -> list[int]:
     # One camera: no camera column, as before cameras could be named.
     one = StudyResults(Path("."), {}, runs[:1], runs[:1], ["paper-300m"], ["small"], ["odometry"], ["qvga"])
     assert accuracy_table(one).row_cameras == [] and "| method | metric |" in table_markdown(accuracy_table(one))
+
+
+def _spans(rows: list[dict]) -> list[tuple[str, float, float]]:
+    from datetime import datetime
+
+    return [(r["method"], datetime.fromisoformat(r["started_at"]).timestamp(),
+             datetime.fromisoformat(r["ended_at"]).timestamp()) for r in rows]
+
+
+def _overlap(a: tuple[str, float, float], b: tuple[str, float, float]) -> bool:
+    return a[1] < b[2] and b[1] < a[2]
+
+
+def test_runs_of_one_core_share_the_machine(env):
+    out = env / "sleepy-out"
+    run_study(load_study(_study(env, "sleepy", ["sleepy"], ["large"], [0, 1])), out, jobs=2, progress=False)
+    spans = _spans(_rows(out))
+    assert len(spans) == 2 and _overlap(*spans)  # the check below can fail
+
+
+def test_a_run_that_needs_every_core_runs_alone_and_each_cell_repeats(env):
+    path = _study(env, "cores", ["sleepy", "hog"], ["large"], [0])
+    path.write_text(path.read_text().replace('seeds = [0]', 'seeds = [0]\nrepeats = 3'))
+    out = env / "cores-out"
+    summary = run_study(load_study(path), out, jobs=2, progress=False)
+    assert (summary.planned, summary.failed) == (6, 0)
+    rows = _rows(out)
+    assert sorted((r["method"], r["repeat"]) for r in rows) == [(m, k) for m in ("hog", "sleepy") for k in range(3)]
+    assert {r["key"] for r in rows if r["method"] == "hog"} == {
+        "tiny/large/hog/seed-0", "tiny/large/hog/seed-0-repeat-1", "tiny/large/hog/seed-0-repeat-2"}
+    assert {r["method"]: r["cores"] for r in rows} == {"hog": 2, "sleepy": 1}
+    assert all(r["cpu_wait_share"] is not None and 0.0 <= r["cpu_wait_share"] <= 1.0 for r in rows)
+    spans = _spans(rows)
+    for hog in (s for s in spans if s[0] == "hog"):
+        assert not any(_overlap(hog, other) for other in spans if other is not hog)
+    # Repeats of a cell are runs of their own, with their own folders.
+    assert len({r["run_dir"] for r in rows}) == 6

@@ -215,3 +215,24 @@ def test_cameras_must_be_tables_of_settings(tmp_path, tables):
     with pytest.raises(StudyConfigError, match=r"cameras(\.small)?: expected .*table") as err:
         load_study(path)
     assert str(path) in str(err.value)
+
+
+def test_repeats_run_each_cell_again_and_one_repeat_keeps_keys_and_hashes(tmp_path):
+    once = load_study(_write(tmp_path, GOOD))
+    thrice = load_study(_write(tmp_path, GOOD.replace("seeds = 2", "seeds = 2\nrepeats = 3")))
+    assert thrice.repeats == 3 and thrice.run_count == 3 * once.run_count
+    assert "3 repeats" in thrice.grid_text() and "repeat" not in once.grid_text()
+    assert "repeats" not in once.to_dict() and thrice.to_dict()["repeats"] == 3
+    first, runs = plan_runs(once), plan_runs(thrice)
+    # A cell's first run is the run of a study without repeats: the same key, the same hash.
+    by_key = {run.key: run for run in runs if run.repeat == 0}
+    assert {run.key: run.config_hash for run in first} == {k: r.config_hash for k, r in by_key.items()}
+    again = [run for run in runs if run.repeat == 2]
+    assert again and all(run.key.endswith("-repeat-2") for run in again)
+    assert len({run.config_hash for run in runs}) == len(runs)
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "1.5", '"3"', "1001", "true"])
+def test_repeats_must_be_a_count(tmp_path, value):
+    with pytest.raises(StudyConfigError, match=r"repeats.*whole number of runs per cell, 1 to 1000"):
+        load_study(_write(tmp_path, GOOD.replace("seeds = 2", f"seeds = 2\nrepeats = {value}")))

@@ -1,0 +1,79 @@
+"""The CPU a run was denied and its process tree's memory, measured from outside (run/process_tree.py)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from longslam.run.process_tree import TreeMonitor, descendants, schedstat_available
+
+pytestmark = pytest.mark.skipif(not schedstat_available(), reason="needs Linux per-thread schedstat")
+
+BUSY = "import time\nend = time.time() + {s}\nwhile time.time() < end: pass\n"
+HOLD = "import time\nblock = bytearray({n})\nblock[::4096] = b'x' * len(block[::4096])\ntime.sleep({s})\n"
+
+
+def _busy(seconds: float) -> None:
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        pass
+
+
+@pytest.fixture
+def one_core():
+    """This process pinned to one core (the children it starts inherit it), restored after."""
+    before = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {min(before)})
+    yield
+    os.sched_setaffinity(0, before)
+
+
+def test_a_run_alone_on_its_core_waits_little(one_core):
+    usage = TreeMonitor().start()
+    _busy(0.6)
+    usage = usage.stop()
+    assert usage.cpu_time_s >= 0.4
+    # Other work on a shared machine may take a little; a starved run waits about as long as it runs.
+    assert usage.cpu_wait_share < 0.3
+
+
+def test_a_run_beside_two_busy_processes_on_its_core_is_marked_starved(one_core):
+    hogs = [subprocess.Popen([sys.executable, "-c", BUSY.format(s=3.0)]) for _ in range(2)]
+    try:
+        time.sleep(0.3)  # the hogs are running
+        monitor = TreeMonitor().start()
+        _busy(1.2)
+        usage = monitor.stop()
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+    # Three busy processes on one core: this one runs about a third of the time.
+    assert usage.cpu_wait_share >= 0.4, usage
+    assert usage.starved
+    assert usage.cpu_wait_s >= 0.5
+
+
+def test_the_peak_sums_the_tree_and_child_processes_are_counted():
+    monitor = TreeMonitor(interval_s=0.05).start()
+    own = monitor._peak_rss
+    child = subprocess.Popen([sys.executable, "-c", HOLD.format(n=200 * 2**20, s=1.0)])
+    time.sleep(0.2)
+    assert child.pid in descendants(os.getpid())
+    child.wait()
+    usage = monitor.stop()
+    assert usage.child_processes >= 1
+    assert usage.peak_rss_bytes >= own + 180 * 2**20
+    # The child's CPU (it touched 200 MB) is the tree's too.
+    assert usage.cpu_time_s > 0.0
+
+
+def test_thread_time_from_before_start_is_not_counted():
+    _busy(0.5)
+    monitor = TreeMonitor().start()
+    usage = monitor.stop()
+    assert usage.cpu_time_s < 0.3
