@@ -54,3 +54,25 @@ def test_a_folder_that_is_no_run_is_named(tmp_path, capsys):
     seq = write_tiny_sequence(tmp_path / "seq", n=5)[0]
     assert main(["diagnose", str(seq), str(seq)]) == 2
     one_line_error(capsys, str(seq), "trajectory.txt")
+
+
+def test_a_runs_events_are_read_with_their_frames(tmp_path, capsys):
+    from longslam.run.folder import EVENTS, read_events, write_events
+    from longslam.slam.api import Event
+
+    seq, run = _run(tmp_path)
+    events = [Event("tracking_lost", 4, 9, 0.4, 0.9, "6 frames"), Event("new_map", 10, 10, 1.0, 1.0, "map 2"),
+              Event("loop", 20, 20, 2.0, 2.0, "*Loop detected, with a comma")]
+    write_events(run / EVENTS, events)
+    assert read_events(run / EVENTS) == events
+    capsys.readouterr()
+    assert main(["diagnose", str(run), str(seq), "--json", str(tmp_path / "d.json")]) == 0
+    out = capsys.readouterr().out
+    assert "events: 1 loop, 1 new_map, 1 tracking_lost" in out
+    assert "frames 4-9" in out and "0.4-0.9 s" in out and "map 2" in out
+    found = json.loads((tmp_path / "d.json").read_text())
+    assert [e["kind"] for e in found["events"]] == ["tracking_lost", "new_map", "loop"]
+    # A damaged events file is named, with its line.
+    (run / EVENTS).write_text((run / EVENTS).read_text() + "loop,x,1,0,0,\n")
+    assert main(["diagnose", str(run), str(seq)]) == 2
+    one_line_error(capsys, "events.csv", "line 5")

@@ -4,7 +4,7 @@ folder and its sequence (the maths is `eval/diagnose.py`, the picture `viz/diagn
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +15,8 @@ from longslam.eval.diagnose import (ErrorParts, LoopError, Stretch, error_parts,
                                     stretches, worst_stretches)
 from longslam.geometry import planar_from_camera_poses
 from longslam.io.trajectory_files import read_trajectory
-from longslam.run.folder import TRAJECTORY, read_table
+from longslam.run.folder import EVENTS, TRAJECTORY, read_events, read_table
+from longslam.slam.api import Event
 from longslam.timestamps import one_to_one_nearest
 from longslam.world import load_world
 from longslam.world.model import World
@@ -35,6 +36,9 @@ class Diagnosis:
     loops: list[LoopError]
     has_frontend_table: bool
     world: World | None
+    # The run's events (events.csv: tracking lost, new maps, loops...), each with the region of
+    # the building its first frame was in ("" without a world).
+    events: list[tuple[Event, str]] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
         p = self.parts
@@ -45,6 +49,8 @@ class Diagnosis:
             "max_position_error_m": float(p.position_m.max()), "max_abs_heading_error_deg": float(np.abs(p.heading_deg).max()),
             "ate_m": float(np.mean(p.position_m)),  # the paper's ATE (a mean), of the planar positions
             "loops": len(self.loops), "wrong_loops": sum(lp.wrong for lp in self.loops),
+            "events": {kind: sum(1 for e, _ in self.events if e.kind == kind)
+                       for kind in sorted({e.kind for e, _ in self.events})},
         }
 
     def to_json(self) -> dict[str, Any]:
@@ -52,6 +58,7 @@ class Diagnosis:
                 "units": {"distance": "m", "heading": "deg", "along": "m", "across": "m", "scan_shift": "m"},
                 "stretches": [asdict(s) for s in self.stretches],
                 "loops": [{**asdict(lp), "wrong": lp.wrong} for lp in self.loops],
+                "events": [{**asdict(e), "region": region} for e, region in self.events],
                 "picked_up_most": {part: [[s.start_m, s.end_m] for s in worst_stretches(self.stretches, part)]
                                    for part in ("heading", "along", "across")}}
 
@@ -126,8 +133,11 @@ def diagnose_run(run: str | Path, sequence: str | Path, stretch_m: float = 50.0,
     world = _world_of(sequence) if with_world else None
     regions = regions_of(truth_planar[:, :2], world.plan.free) if world is not None and world.plan is not None else None
     found = stretches(parts, stretch_m, regions, table, matched_loops)
+    events = read_events(run / EVENTS) if (run / EVENTS).is_file() else []
+    placed = [(e, str(regions[position_of[e.first_frame]]) if regions is not None and e.first_frame in position_of else "")
+              for e in events]
     return Diagnosis(str(run), str(sequence), parts, truth_planar[:, :2], est_planar[:, :2], np.asarray(est_idx),
-                     found, loops, table is not None, world)
+                     found, loops, table is not None, world, placed)
 
 
 def diagnosis_text(d: Diagnosis) -> str:
@@ -167,6 +177,25 @@ def diagnosis_text(d: Diagnosis) -> str:
         for lp in sorted(d.loops, key=lambda lp: -lp.error_m)[:10]:
             lines.append(f"    frames {lp.frame_i:6d} -> {lp.frame_j:6d}: {lp.error_m:.3f} m, {lp.error_deg:.2f} deg"
                          + ("  WRONG" if lp.wrong else ""))
+    lines += _events_text(d)
     if not d.has_frontend_table:
         lines.append("  (no frontend.csv in the run folder: the factor columns are empty)")
     return "\n".join(lines)
+
+
+MOST_EVENTS_SHOWN = 20
+
+
+def _events_text(d: Diagnosis) -> list[str]:
+    if not d.events:
+        return ["", "  events: none in events.csv (the method reports none, or nothing happened)"]
+    counts = ", ".join(f"{n} {kind}" for kind, n in d.summary()["events"].items())
+    lines = ["", f"  events: {counts}"]
+    for event, region in d.events[:MOST_EVENTS_SHOWN]:
+        frames = (f"frame {event.first_frame}" if event.first_frame == event.last_frame
+                  else f"frames {event.first_frame}-{event.last_frame}")
+        span = f"{event.first_t:.1f} s" if event.first_frame == event.last_frame else f"{event.first_t:.1f}-{event.last_t:.1f} s"
+        lines.append(f"    {event.kind:14s} {frames:>17s}  {span:>15s}  {region or '-':14s} {event.detail}")
+    if len(d.events) > MOST_EVENTS_SHOWN:
+        lines.append(f"    ... {len(d.events) - MOST_EVENTS_SHOWN} more in events.csv")
+    return lines

@@ -9,11 +9,15 @@
     map.ply         3D map points, if the method builds them
     NAME.csv        rows that grow with the route, one file per table of the result
                     (loops.csv: every loop constraint; nodes.csv: keyframe's time per node)
+    events.csv      what explains the run's course (tracking lost, new maps, loops), if the method
+                    reports events: kind, first and last frame and stamp, a note
     record.json     a study run's scores (study runs only)
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import re
 from pathlib import Path
@@ -29,7 +33,7 @@ from longslam.jsonable import json_default
 from longslam.run.resources import peak_rss_bytes
 from longslam.settings import to_toml
 from longslam.errors import InputError
-from longslam.slam.api import Result, Table
+from longslam.slam.api import Event, Result, Table
 
 TRAJECTORY = "trajectory.txt"
 ONLINE = "online.txt"
@@ -40,6 +44,8 @@ GRID_YAML = "grid.yaml"  # and grid.pgm beside it: map_server's format
 GRID_PGM = "grid.pgm"
 MAP = "map.ply"
 RECORD = "record.json"
+EVENTS = "events.csv"
+EVENT_COLUMNS = ("kind", "first_frame", "last_frame", "first_t", "last_t", "detail")
 TABLE_NAME = re.compile(r"[A-Za-z0-9_-]+")
 # The files a study's database points at, by kind.
 RUN_FILES = {"trajectory": TRAJECTORY, "online": ONLINE, "grid": GRID, "map": MAP, "stats": STATS}
@@ -77,6 +83,32 @@ def write_table(path: Path, table: Table) -> None:
     write_text(path, "\n".join(lines) + "\n")
 
 
+def write_events(path: Path, events: list[Event]) -> None:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(EVENT_COLUMNS)
+    for e in events:
+        writer.writerow([e.kind, e.first_frame, e.last_frame, f"{e.first_t:.6f}", f"{e.last_t:.6f}", e.detail])
+    write_text(path, buffer.getvalue())
+
+
+def read_events(path: Path) -> list[Event]:
+    """The events `write_events` wrote; a damaged file is an error naming its line."""
+    try:
+        rows = list(csv.reader(path.read_text(encoding="utf-8").splitlines()))
+    except (OSError, UnicodeDecodeError, csv.Error) as err:
+        raise InputError(f"events file {path} cannot be read: {err}") from None
+    if not rows or tuple(rows[0]) != EVENT_COLUMNS:
+        raise InputError(f"events file {path}: expected the header line {','.join(EVENT_COLUMNS)}")
+    events = []
+    for number, row in enumerate(rows[1:], start=2):
+        try:
+            events.append(Event(row[0], int(row[1]), int(row[2]), float(row[3]), float(row[4]), row[5]))
+        except (IndexError, ValueError) as err:
+            raise InputError(f"events file {path}, line {number}: {err}") from None
+    return events
+
+
 def read_table(path: Path) -> Table:
     """A table that `write_table` wrote."""
     try:
@@ -108,6 +140,8 @@ def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> Non
         if not TABLE_NAME.fullmatch(name):
             raise InputError(f"result table {name!r}: expected a file name of letters, digits, '_' or '-'")
         write_table(out / f"{name}.csv", table)
+    if result.events:
+        write_events(out / EVENTS, result.events)
     # The peak so far covers writing every other file (Open3D's import and the map included):
     # stats.json, written last, is tiny.
     measurements["peak_rss_bytes"] = peak_rss_bytes()

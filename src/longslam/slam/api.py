@@ -39,6 +39,28 @@ class Table:
         return self.rows[:, self.columns.index(name)]
 
 
+EVENT_KINDS = ("tracking_lost", "new_map", "loop", "merge", "relocalized", "global_ba")
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that explains a run's course, at a frame or over frames: tracking lost (first to
+    last untracked frame), a new map started, a loop closed, maps merged, a relocalisation, a
+    global bundle adjustment started. The run folder gets them as events.csv and `longslam
+    diagnose` names the place of each."""
+
+    kind: str  # one of EVENT_KINDS
+    first_frame: int
+    last_frame: int  # = first_frame for an event at one frame
+    first_t: float
+    last_t: float
+    detail: str = ""  # a short note (a map id, the console's line)
+
+    def __post_init__(self) -> None:
+        if self.kind not in EVENT_KINDS:
+            raise ValueError(f"event kind {self.kind!r}: expected one of {', '.join(EVENT_KINDS)}")
+
+
 @dataclass
 class Result:
     trajectory: Trajectory  # final estimate, one pose per frame (after any optimisation)
@@ -50,6 +72,7 @@ class Result:
     # Per-loop, per-node... rows, by file name (see `Table`): "loops" is every constraint the
     # method added to the front end (frame i, frame j, j's base pose in i's: dx, dy m, dyaw rad).
     tables: dict[str, Table] = field(default_factory=dict)
+    events: list[Event] = field(default_factory=list)  # in frame order (see `Event`)
 
 
 @runtime_checkable

@@ -50,3 +50,40 @@ def read_counts(path: str | Path | None, start: int = 0) -> ConsoleCounts:
     with open(path, "rb") as f:
         f.seek(start)
         return count_markers(f.read().decode("utf-8", errors="replace"))
+
+
+# Console lines that become a run's events (longslam.slam.api.Event), by event kind.
+EVENT_MARKERS = {
+    "loop": MARKERS["loops"],
+    "merge": MARKERS["merges"],
+    "relocalized": MARKERS["relocalizations"],
+    "global_ba": MARKERS["global_ba_started"],
+}
+
+
+class ConsoleFollower:
+    """Reads what ORB-SLAM3 printed since the last call, so that each line is tied to the frame
+    being tracked when it appeared (its threads print when they act, a frame or two late)."""
+
+    def __init__(self, path: str | Path | None, start: int = 0):
+        self.path = path
+        self.position = start
+
+    def new_events(self) -> list[tuple[str, str]]:
+        """(event kind, the console's line) of every marked line printed since the last call."""
+        if self.path is None:
+            return []
+        try:
+            with open(self.path, "rb") as f:
+                f.seek(self.position)
+                data = f.read()
+        except OSError:
+            return []
+        end = data.rfind(b"\n") + 1  # a line still being written is read next time
+        self.position += end
+        found = []
+        for line in data[:end].decode("utf-8", errors="replace").splitlines():
+            for kind, marker in EVENT_MARKERS.items():
+                if marker in line:
+                    found.append((kind, line.strip()[:120]))
+        return found

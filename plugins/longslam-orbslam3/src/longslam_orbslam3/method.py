@@ -23,12 +23,12 @@ from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.geometry import camera_poses_from_planar, poses_from_tum
 from longslam.slam import stats
-from longslam.slam.api import MethodContext, MethodSpec, Result
+from longslam.slam.api import Event, MethodContext, MethodSpec, Result
 from longslam.trajectory import Trajectory
 
 from longslam_orbslam3.anchoring import TRACKED, MapAnchors, final_poses
 from longslam_orbslam3.config import OrbSlam3Config
-from longslam_orbslam3.console_log import read_counts
+from longslam_orbslam3.console_log import ConsoleFollower, read_counts
 from longslam_orbslam3.settings_file import DEPTH_MAP_FACTOR, fps_from_stamps, settings_yaml
 from longslam_orbslam3.vocabulary import resolve_vocabulary
 
@@ -113,6 +113,9 @@ class OrbSlam3Method:
         self._clock: tuple[float, float] | None = None  # (wall time, stamp) pacing starts from
         self._paced_s = 0.0
         self._system_threads: set[str] = set()
+        self._console = ConsoleFollower(context.console_log, self._log_start)
+        self._frames: list[int] = []  # each step's frame index
+        self._console_events: list[Event] = []
 
     # -- the run ------------------------------------------------------------------------------
 
@@ -157,12 +160,16 @@ class OrbSlam3Method:
         if self._slam.map_changed():
             self._map_changes += 1
         self._tracked_points += int(result.num_tracked_points)
+        stamp = float(frame.timestamp)
+        for kind, line in self._console.new_events():
+            self._console_events.append(Event(kind, frame.index, frame.index, stamp, stamp, line))
         return self._anchors.update(state, result.pose_wc if state in TRACKED else None)
 
     def step(self, frame: Frame) -> np.ndarray:
         if self._anchors is None:
             self._anchors = MapAnchors(self._start_pose(frame))
         self._stamps.append(float(frame.timestamp))
+        self._frames.append(frame.index)
         if self._slam is None and self._pending is None:
             # The first frame's pose is the start pose whatever ORB-SLAM3 makes of it: a map
             # begins at the identity, and an untracked frame holds the start.
@@ -219,6 +226,9 @@ class OrbSlam3Method:
             self._pending = None
         waited = self._wait_for_global_ba()
         self._shutdown()
+        last_frame, last_t = self._frames[-1], self._stamps[-1]  # what its threads printed after the last frame
+        self._console_events += [Event(kind, last_frame, last_frame, last_t, last_t, line)
+                                 for kind, line in self._console.new_events()]
         trajectory_file, keyframe_file = self._workdir / SAVED_TRAJECTORY, self._workdir / SAVED_KEYFRAMES
         self._slam.save_trajectory_euroc(str(trajectory_file))
         self._slam.save_keyframe_trajectory_euroc(str(keyframe_file))
@@ -229,6 +239,8 @@ class OrbSlam3Method:
         final, from_saved = final_poses(online, stamps, self._anchors, saved_stamps, saved_poses)
         console = read_counts(self.context.console_log, self._log_start).counts
         frames = len(stamps)
+        events = run_events(self._anchors.segment_of_frame, np.array(self._frames), stamps, self._console_events)
+        losses = [e for e in events if e.kind == "tracking_lost"]
         method_stats = {
             stats.FRAMES: frames,
             stats.NODES: keyframes,
@@ -236,6 +248,10 @@ class OrbSlam3Method:
             stats.MAP_BYTES: {},
             "tracking_states": dict(sorted(self._anchors.states.items())),
             "frames_untracked": self._anchors.frames_untracked,  # online pose held (not OK)
+            # Stretches of untracked frames (events.csv has each, with its frames): the longest
+            # in seconds, from the first untracked frame to the first tracked one after it.
+            "tracking_lost_intervals": len(losses),
+            "tracking_lost_longest_s": max((_loss_seconds(e, stamps) for e in losses), default=0.0),
             "frames_in_final": from_saved,  # the rest of the final trajectory is the online pose
             "maps": len(self._anchors.anchors),
             "maps_created": console["maps_created"],
@@ -260,7 +276,38 @@ class OrbSlam3Method:
             trajectory=Trajectory(stamps, final, source="orbslam3"),
             online=Trajectory(stamps, online, source="orbslam3 online"),
             stats=method_stats,
+            events=events,
         )
+
+
+def _loss_seconds(loss: Event, stamps: np.ndarray) -> float:
+    """How long tracking was lost: to the next frame's stamp (the first tracked again), or to the
+    last frame's plus one frame's time at the end of the run."""
+    after = stamps[stamps > loss.last_t]
+    end = after[0] if len(after) else loss.last_t + (float(np.median(np.diff(stamps))) if len(stamps) > 1 else 0.0)
+    return float(end - loss.first_t)
+
+
+def run_events(segment_of_frame: list[int], frames: np.ndarray, stamps: np.ndarray,
+               console_events: list[Event]) -> list[Event]:
+    """The run's events in frame order: each stretch of untracked frames (after the first map
+    began), each new map after the first, and what the console reported (loops, merges...)."""
+    segments = np.asarray(segment_of_frame, dtype=int)
+    events = list(console_events)
+    tracked = np.flatnonzero(segments >= 0)
+    if len(tracked):
+        lost = segments < 0
+        lost[: tracked[0]] = False  # before the first map: starting up, not lost
+        edges = np.diff(np.concatenate([[0], lost.astype(int), [0]]))
+        for first, end in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+            events.append(Event("tracking_lost", int(frames[first]), int(frames[end - 1]), float(stamps[first]),
+                                float(stamps[end - 1]), f"{end - first} frames"))
+        starts = np.flatnonzero(np.diff(np.concatenate([[segments[tracked[0]]], segments[tracked]])) > 0)
+        for k in starts:
+            i = tracked[k]
+            events.append(Event("new_map", int(frames[i]), int(frames[i]), float(stamps[i]), float(stamps[i]),
+                                f"map {segments[i] + 1}"))
+    return sorted(events, key=lambda e: (e.first_frame, e.kind))
 
 
 def prepare(config: OrbSlam3Config) -> None:

@@ -11,7 +11,9 @@ from pathlib import Path
 
 from longslam.errors import InputError
 from longslam.io.atomic import write_text_atomic
+from longslam.run.process_tree import STARVED_SHARE
 from longslam.study.database import DB_NAME
+from longslam.study.report.distribution import FAILURE_RULE, distribution_table
 from longslam.study.paper import CITATION
 from longslam.study.report.figures import Figure, make_figures
 from longslam.study.report.results import load_results
@@ -154,6 +156,13 @@ def _camera_shown(camera: dict) -> str:
             f"of view, depth to {camera.get('max_depth', '?')} m")
 
 
+E_ROT_NOTE = (
+    "E_rot (Table 1) is the paper's: each frame's rotation error divided by that frame's travel, averaged. On "
+    "short steps small per-frame jitter dominates it (a system that re-estimates each pose independently, as "
+    "ORB-SLAM3 does, gets tens of deg/m from a fraction of a degree per frame); RPE rot in Table 1b, over "
+    "travelled-distance segments, measures rotation drift.")
+
+
 def build_report(out: str | Path, figures: bool = True, left_out: list[str] | None = None) -> Report:
     results = load_results(out)
     config = results.config
@@ -175,7 +184,17 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
     if quality is not None:
         tables.append(quality)
     tables.append(runs_table(results))
-    notes = []
+    distribution = distribution_table(results)
+    if distribution is not None:
+        tables.append(distribution)
+    notes = [E_ROT_NOTE]
+    if distribution is not None:
+        notes.append(FAILURE_RULE)
+    starved = [r["key"] for r in results.ok if (r.get("cpu_wait_share") or 0.0) > STARVED_SHARE]
+    if starved:
+        notes.append(f"{len(starved)} run(s) waited for a CPU for more than {STARVED_SHARE:.0%} of their time (marked "
+                     "'starved' in All runs): their times, and for a real-time system their results, are not the "
+                     "system's own; `longslam study FILE --out DIR --retry-starved` runs them again.")
     if _paper_columns(results.columns):
         notes.append(f"Rows marked (paper) are the paper's own numbers for its route of the same length ({CITATION}); "
                      "its building and systems differ from longslam's, so they are a reference, not a target.")

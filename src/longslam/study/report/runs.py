@@ -10,6 +10,7 @@ from typing import Any
 
 from longslam.run.console import CONSOLE_LOG
 from longslam.run.folder import CONFIG, STATS, TRAJECTORY
+from longslam.run.process_tree import STARVED_SHARE
 from longslam.study.report.results import StudyResults, runs_anchor
 from longslam.study.report.tables import format_number
 
@@ -31,6 +32,7 @@ MAP_METRICS = (
 FIGURES = (
     ("peak_rss_bytes", "peak memory [MB]", 1e-6),
     ("elapsed_s", "time [s]", 1.0),
+    ("cpu_wait_share", "CPU wait share", 1.0),
     ("frames", "frames", 1.0),
 )
 ERROR_SHOWN = 120  # characters of a failed run's error in its row
@@ -123,20 +125,22 @@ def _order(results: StudyResults):
 
     return lambda r: (index(results.routes, r["route"]), index(results.cameras, r.get("camera_name", "")),
                       index(results.sensors, r.get("sensor") or "ideal"), index(results.noise, r["noise"]),
-                      index(results.methods, r["method"]), r["seed"])
+                      index(results.methods, r["method"]), r["seed"], r.get("repeat") or 0)
 
 
 def every_run_table(results: StudyResults) -> RunsTable:
     out = results.out
     with_maps = any(r.get("map_precision") is not None for r in results.ok)
     columns = METRICS + (MAP_METRICS if with_maps else ()) + FIGURES
+    repeats = any(r.get("repeat") for r in results.runs)
     identity = (["route"] + (["camera"] if results.by_camera else []) + (["sensor"] if results.by_sensor else [])
-                + ["noise", "method", "seed"])
+                + ["noise", "method", "seed"] + (["repeat"] if repeats else []))
     table = RunsTable(
         "All runs",
         "Every recorded run, one row each: its metrics (ATE, E_trans and E_rot as in Table 1, APE and RPE as "
         "in Table 1b, the ATE of the online trajectory), peak memory (MB, as in Table 2), the time of its "
-        "process from start to end, and links to the files of its folder (final trajectory, stats.json, "
+        "process from start to end, its CPU wait share (how long its threads were ready but waited for a core, "
+        f"over that wait plus their CPU time; 'starved' above {STARVED_SHARE:g}), and links to the files of its folder (final trajectory, stats.json, "
         "config.toml, and console.log: what native code such as ORB-SLAM3 printed) and to its log when the log "
         "holds anything. A cell of Tables 1 to 3 links to its rows.",
         identity, ["status"] + [heading for _, heading, _ in columns] + ["files"],
@@ -148,10 +152,13 @@ def every_run_table(results: StudyResults) -> RunsTable:
         ok = run["status"] == "ok"
         error = (run.get("error") or "").splitlines()[0] if not ok and run.get("error") else ""
         status = "ok" if ok else f"{run['status']}: {error[:ERROR_SHOWN]}" + ("…" if len(error) > ERROR_SHOWN else "")
+        if ok and (run.get("cpu_wait_share") or 0.0) > STARVED_SHARE:
+            status = "ok, starved"
         table.rows.append(RunRow(
             key=run["key"], status=status, ok=ok,
             identity=([run["route"]] + ([group.camera or ""] if results.by_camera else [])
-                      + ([group.sensor or ""] if results.by_sensor else []) + [run["noise"], run["method"], str(run["seed"])]),
+                      + ([group.sensor or ""] if results.by_sensor else []) + [run["noise"], run["method"], str(run["seed"])]
+                      + ([str(run.get("repeat") or 0)] if repeats else [])),
             cells=[_value(run, column, scale) for column, _, scale in columns],
             links=_links(out, run),
             anchor=None if anchor in seen else anchor,

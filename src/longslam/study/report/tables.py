@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from longslam.run.process_tree import STARVED_SHARE
 from longslam.run.speed import format_real_time_factor
 from longslam.study.paper import (
     ACCURACY_METRICS, CITATION, PAPER_METHODS, PAPER_NOISE, PAPER_ROUTES, paper_accuracy, paper_memory_gb, paper_route,
@@ -242,8 +243,10 @@ def runs_table(results: StudyResults) -> Table:
         "Runs recorded per method (ok / failed); mean over the successful runs of: the time of a run "
         "(its process from start to end: start-up, reading frames, the method, scoring), the method's "
         "own processing time, the real-time factor (simulated seconds per second of the method's "
-        "processing) and the frames per run.",
-        [("", "runs ok / failed"), ("", "time per run [s]"), ("", "method time [s]"), ("", "real-time factor"), ("", "frames")], [],
+        "processing) and the frames per run; and the runs starved of CPU (their threads waited for a core for "
+        "more than 10% of their time) with the largest CPU wait share.",
+        [("", "runs ok / failed"), ("", "time per run [s]"), ("", "method time [s]"), ("", "real-time factor"), ("", "frames"),
+         ("", "starved"), ("", "CPU wait share, max")], [],
         group_title=results.group_title or "camera",
     )
     for method in results.methods:
@@ -257,9 +260,21 @@ def runs_table(results: StudyResults) -> Table:
                 return form(float(np.mean(values))) if values else "–"
             table.add_row((method, ""), [Cell(f"{len(ok)} / {len(mine) - len(ok)}"), Cell(mean("elapsed_s")),
                                          Cell(mean("method_time_s")), Cell(mean("real_time_factor", format_real_time_factor)),
-                                         Cell(mean("frames"))],
+                                         Cell(mean("frames")), Cell(_starved(ok)), Cell(_max(ok, "cpu_wait_share"))],
                           camera)
     return table
+
+
+def _starved(runs: list[dict]) -> str:
+    measured = [r for r in runs if r.get("cpu_wait_share") is not None]
+    if not measured:
+        return "–"
+    return f"{sum(1 for r in measured if r['cpu_wait_share'] > STARVED_SHARE)} / {len(measured)}"
+
+
+def _max(runs: list[dict], column: str) -> str:
+    values = [r[column] for r in runs if r.get(column) is not None]
+    return format_number(float(max(values))) if values else "–"
 
 
 def paper_tables() -> list[Table]:
