@@ -208,6 +208,39 @@ def test_survives_frames_it_cannot_track(corridor):
     assert method["maps"] >= 1
     final = read_tum(out / "trajectory.txt")
     assert np.isfinite(final.poses).all()
+    # Why: the stretch of black frames in the middle is an event of the run, with its frames.
+    from longslam.run.folder import EVENTS, read_events
+
+    losses = [e for e in read_events(out / EVENTS) if e.kind == "tracking_lost"]
+    assert any(e.first_frame <= 26 and e.last_frame >= 31 for e in losses), losses
+    assert method["tracking_lost_longest_s"] >= 0.7
+
+
+BUSY = "import time\nend = time.time() + {s}\nwhile time.time() < end: pass\n"
+
+
+@needs_orbslam3
+def test_a_run_beside_busy_processes_reports_the_cpu_it_was_denied(corridor):
+    """Two busy processes on the one core the run may use: its threads wait for it, and the run says so."""
+    import os
+
+    root, seq, vocabulary = corridor
+    core = min(os.sched_getaffinity(0))
+    pin = (lambda: os.sched_setaffinity(0, {core}))
+    hogs = [subprocess.Popen([sys.executable, "-c", BUSY.format(s=240)], preexec_fn=pin) for _ in range(2)]
+    try:
+        out = root / "starved-run"
+        command = LONGSLAM + ["run", "--method", "orbslam3", str(seq), "--out", str(out),
+                              "--param", f"vocabulary={vocabulary}", "--param", "pace=0"]
+        done = subprocess.run(command, capture_output=True, text=True, timeout=240, preexec_fn=pin)
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+    assert done.returncode == 0, done.stderr
+    stats = json.loads((out / "stats.json").read_text())
+    assert stats["cpu_wait_share"] >= 0.2 and stats["starved"], stats["cpu_wait_share"]
+    assert stats["cpu_wait_s"] > 0 and stats["tree_cpu_time_s"] > 0
 
 
 @pytest.mark.parametrize("text, message", [
