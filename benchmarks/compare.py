@@ -9,7 +9,7 @@ REV is checked out into a git worktree of its own under --work (removed at the e
 and both sides read that same folder, so the figures differ only by the method's code. Each run
 is its own `longslam run` process with this interpreter and PYTHONPATH set to that side's `src`
 (the working tree is the checkout this script is in), alternating tree, REV, tree, REV... for
---repeats rounds. Per run:
+--repeats rounds (both `src` folders byte-compiled first, so that no run pays for it). Per run:
 
 - wall: wall-clock seconds of the whole process, start to exit (imports, reading, writing);
 - peak: the process's peak resident memory as the kernel counts it (`os.wait4`'s ru_maxrss, what
@@ -225,6 +225,8 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{args.rev}: {sha[:12]}, worktree {rev_src_root}{' (made now)' if made else ' (reused)'}")
     print(f"interpreter {sys.executable}; {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}", flush=True)
     try:
+        for src in srcs.values():  # bytecode up front: a fresh worktree's first run would compile its modules
+            subprocess.run([sys.executable, "-m", "compileall", "-q", str(src)], check=True, stdout=subprocess.DEVNULL)
         pairs = {(side, m): side_params(srcs[side], labels[side], m, args.params) for side in SIDES for m in args.methods}
         seqs = []
         for route in args.routes:
