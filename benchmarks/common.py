@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 from longslam.simulate import simulate
@@ -17,3 +21,18 @@ def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
     if not path.exists():
         simulate(get_route(route), get_noise(noise), seed, path, progress=False)
     return path
+
+
+def run_process(command: list[str], log: Path, env: dict[str, str] | None = None) -> tuple[float, float, int]:
+    """(wall seconds, peak RSS in MiB, exit status) of one child process (environment `env`, or
+    this one's); its output goes to `log`."""
+    with open(log, "w") as out:
+        start = time.perf_counter()
+        child = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT, env=env)
+        # wait4 gives this child's own rusage (a fork of a large parent would inherit its peak).
+        _, status, usage = os.wait4(child.pid, 0)
+        wall = time.perf_counter() - start
+    code = os.waitstatus_to_exitcode(status)
+    if code:
+        print(log.read_text()[-2000:], file=sys.stderr)
+    return wall, usage.ru_maxrss / 1024.0, code

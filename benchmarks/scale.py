@@ -27,8 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from speed_memory import run_process
-
+from common import run_process
 from longslam.eval.diagnose import loop_errors
 from longslam.geometry import planar_from_camera_poses
 from longslam.io.sequence import SequenceReader

@@ -20,34 +20,18 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-from common import sequence
+from common import run_process, sequence
 from longslam.io.sequence import SequenceReader
 
 RTABMAP_300M_WALL_S = 16.1  # the real RTAB-Map 0.23.8 on paper-300m large seed 0, this machine
 FUSED_MIN_REAL_TIME = 5.0
 PEAK_TARGET_MB = {"keyframe": 400, "submap": 300}
 GROWTH_TARGET = 0.20
-
-
-def run_process(command: list[str], log: Path) -> tuple[float, float, int]:
-    """(wall seconds, peak RSS in MiB, exit status) of one child process; its output goes to `log`."""
-    with open(log, "w") as out:
-        start = time.perf_counter()
-        child = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT)
-        # wait4 gives this child's own rusage (a fork of a large parent would inherit its peak).
-        _, status, usage = os.wait4(child.pid, 0)
-        wall = time.perf_counter() - start
-    code = os.waitstatus_to_exitcode(status)
-    if code:
-        print(log.read_text()[-2000:], file=sys.stderr)
-    return wall, usage.ru_maxrss / 1024.0, code
 
 
 def rss_at(stats: dict, distance: np.ndarray, metres: float) -> float:
