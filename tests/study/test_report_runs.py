@@ -184,3 +184,37 @@ def test_the_interactive_trajectories_have_every_seed_and_a_menu_for_one():
     curves = curves_figure({"noise large": {"keyframe": {0: curve, 1: curve * 1.1}}, "noise small": {"keyframe": {0: curve}}},
                            "position error [m]")
     assert len(curves.data) == 3 and sum(bool(t.showlegend) for t in curves.data) == 1  # a line per run, one legend entry
+
+
+def test_a_starved_run_is_marked_and_a_repeated_cell_is_a_distribution():
+    from longslam.study.report.distribution import FAILURE_RULE, distribution_table
+
+    odometry = [_run(0, "odometry", method_name="odometry")]
+    odometry[0]["ate"] = 2.0
+    stats = lambda **s: {"measurements": {"method_stats": s}}  # noqa: E731
+    system = [
+        _run(0, "system", method_name="system", repeat=0, cpu_wait_share=0.01, **stats(maps=1)),
+        _run(0, "system", method_name="system", repeat=1, cpu_wait_share=0.35, **stats(maps=2)),  # a new map
+        _run(0, "system", method_name="system", repeat=2, cpu_wait_share=0.02,
+             **stats(maps=1, tracking_lost_longest_s=3.2)),
+        _run(0, "system", method_name="system", repeat=3, cpu_wait_share=0.0, **stats(maps=1)),
+        _run(0, "system", "error", method_name="system", repeat=4),
+    ]
+    for run, ate in zip(system, (0.06, 11.6, 0.09, 2.5)):
+        run["ate"] = ate  # the last: worse than dead reckoning's 2.0
+    runs = odometry + system
+    results = _results(Path("."), runs)
+    results.config["repeats"] = 5
+    table = every_run_table(results)
+    assert table.identity[-1] == "repeat"
+    assert [row.status for row in table.rows if row.key.endswith("seed-0") and "system" in row.key][:2] == ["ok", "ok, starved"]
+    assert "CPU wait share" in table.headings
+    spread = distribution_table(results)
+    row = spread.row_labels.index(("system", ""))
+    cells = {heading: cell.text for (_, heading), cell in zip(spread.columns, spread.rows[row])}
+    assert cells["runs"] == "5" and cells["ATE median [m]"] == "1.29"  # of 0.06, 0.09, 2.5 and 11.6
+    assert cells["ATE min-max [m]"] == "0.0600-11.6"
+    assert cells["failed"].startswith("4 / 5") and "new map" in cells["failed"] and "tracking lost" in cells["failed"]
+    assert "worse than dead reckoning" in cells["failed"] and "error" in cells["failed"]
+    assert cells["starved"] == "1 / 5"
+    assert "more than 2 s" in FAILURE_RULE
