@@ -180,12 +180,15 @@ def test_real_systems_study_file_loads():
         load_study(ROOT / "studies" / "real-systems.toml", ["odometry", "keyframe", "submap"])
     config = load_study(ROOT / "studies" / "real-systems.toml", [*method_names(), "orbslam3"])
     assert config.name == "real-systems"
-    assert [r.name for r in config.routes] == ["paper-300m", "paper-1km"]
-    assert config.noise == ("small", "medium", "large", "xlarge") and config.seeds == (0,)
+    assert [r.name for r in config.routes] == ["demo", "paper-300m"]
+    assert config.noise == ("large",) and config.seeds == (0,) and config.repeats == 5
     assert [m.label for m in config.methods] == ["odometry", "keyframe", "submap", "orbslam3"]
     assert [(c.name, c.settings.width, c.settings.height, c.settings.hfov_deg, c.settings.max_depth)
             for c in config.cameras] == [("qvga", 320, 240, 90.0, 8.0), ("vga", 640, 480, 90.0, 8.0)]
-    assert len(plan_runs(config)) == 2 * 2 * 4 * 4 * 1
+    assert len(plan_runs(config)) == 2 * 2 * 1 * 4 * 5
+    longer = load_study(ROOT / "studies" / "real-systems-1km.toml", [*method_names(), "orbslam3"])
+    assert [r.name for r in longer.routes] == ["paper-1km"] and longer.repeats == 3
+    assert [c.name for c in longer.cameras] == ["vga"] and len(plan_runs(longer)) == 4 * 3
 
 
 @pytest.mark.parametrize(

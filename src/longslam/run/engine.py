@@ -29,6 +29,7 @@ from longslam.run.folder import write_result
 from longslam.progress import bar
 from longslam.run.observer import RunObserver
 from longslam.run.process_tree import STARVED_SHARE, TreeMonitor
+from longslam.run.provenance import provenance
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes, peak_rss_bytes
 from longslam.settings import to_mapping
@@ -135,6 +136,7 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
     method_time = float(steps.sum() + finish_time)
     duration = float(last_t - first_t) + (float(last_t - first_t) / max(count - 1, 1))
     measurements = {
+        **provenance(),
         "method": method_name,
         "params": dict(params or {}),
         "config": to_mapping(config) if spec.config_type is not None else dict(config),

@@ -1,0 +1,238 @@
+"""Write docs/real-systems.md from the real-systems studies' databases: every number on the page
+comes from them, and the page names the commit, date, machine and commands that made them.
+
+    longslam study studies/real-systems.toml --out out/real-systems --jobs 2
+    longslam study studies/real-systems-1km.toml --out out/real-systems-1km --jobs 2
+    python scripts/publish_real_systems.py out/real-systems out/real-systems-1km --out docs/real-systems.md
+
+For each ORB-SLAM3 run it reads the run's events (events.csv: tracking lost, new maps, loops) and
+places each loss in the building with `longslam diagnose`'s regions; the colour image at the start
+of each sequence's first loss is copied beside the page (what the camera saw there).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import platform
+import shutil
+import subprocess
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from longslam.errors import InputError
+from longslam.run.diagnose import diagnose_run
+from longslam.run.process_tree import STARVED_SHARE
+from longslam.study.database import DB_NAME, ResultsDB
+from longslam.study.report.distribution import FAILURE_RULE, LONGEST_LOSS_S, failure_reason
+from longslam.study.report.render import E_ROT_NOTE
+from longslam.study.report.tables import format_number
+
+ROOT = Path(__file__).resolve().parents[1]
+METHODS = ("odometry", "keyframe", "submap", "orbslam3")
+# Published runs must have had their CPU: a run waiting longer than this share is not published.
+UNSTARVED_SHARE = 0.05
+
+
+def _git(*args: str) -> str:
+    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
+
+
+def _machine() -> str:
+    memory_kb = next(int(line.split()[1]) for line in Path("/proc/meminfo").read_text().splitlines()
+                     if line.startswith("MemTotal:"))
+    model = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                  if line.startswith("model name")), platform.processor() or "unknown CPU")
+    return f"{os.cpu_count()} cores ({model}), {memory_kb / 2**20:.0f} GiB, Linux {platform.release()}"
+
+
+def _num(value: Any, digits: int = 3) -> str:
+    return "–" if value is None else format_number(float(value), digits)
+
+
+def _spread(values: list[float]) -> str:
+    """median [q1-q3] (min-max) of the values, or the value alone."""
+    if not values:
+        return "–"
+    v = np.asarray(values, dtype=float)
+    if len(v) == 1:
+        return _num(v[0])
+    q1, median, q3 = np.percentile(v, [25, 50, 75])
+    return f"{_num(median)} [{_num(q1)}-{_num(q3)}] ({_num(v.min())}-{_num(v.max())})"
+
+
+def _measured(run: dict, key: str) -> Any:
+    return (run.get("measurements") or {}).get(key)
+
+
+def _method_stat(run: dict, key: str, default: Any = None) -> Any:
+    return ((run.get("measurements") or {}).get("method_stats") or {}).get(key, default)
+
+
+def _cpu_ms_per_frame(run: dict) -> float | None:
+    cpu, frames = _measured(run, "tree_cpu_time_s") or _measured(run, "process_cpu_time_s"), run.get("frames")
+    return 1000.0 * cpu / frames if cpu and frames else None
+
+
+def _cell_key(run: dict) -> tuple[str, str]:
+    return run["route"], run["camera_name"]
+
+
+def _commits(runs: list[dict]) -> set[str]:
+    return {(_measured(r, "longslam_commit") or "") for r in runs}
+
+
+def summary_table(runs: list[dict], dead: dict) -> list[str]:
+    lines = ["| route | camera | method | runs | ATE [m], median [quartiles] (range) | mean +- std | failed "
+             "| E_rot [deg/m] | RPE rot [deg] | peak [MB] | CPU [ms/frame] | CPU wait share, max |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    cells: dict[tuple, list[dict]] = defaultdict(list)
+    for run in runs:
+        cells[(*_cell_key(run), run["method"])].append(run)
+    for (route, camera, method), mine in sorted(cells.items(), key=lambda kv: (kv[0][0], kv[0][1], METHODS.index(kv[0][2]) if kv[0][2] in METHODS else 9)):
+        ok = [r for r in mine if r["status"] == "ok"]
+        ates = [r["ate"] for r in ok if r.get("ate") is not None]
+        reasons = [failure_reason(r, dead.get((route, camera, r["seed"]))) for r in mine]
+        failed = [x for x in reasons if x]
+        why = f" ({', '.join(sorted(set(failed)))})" if failed else ""
+        mean = f"{_num(np.mean(ates))} +- {_num(np.std(ates))}" if ates else "–"
+        waits = [r["cpu_wait_share"] for r in mine if r.get("cpu_wait_share") is not None]
+        lines.append(
+            f"| {route} | {camera} | {method} | {len(mine)} | {_spread(ates)} | {mean} | {len(failed)} / {len(mine)}{why} "
+            f"| {_spread([r['e_rot'] for r in ok if r.get('e_rot') is not None])} "
+            f"| {_spread([r['rpe_rot'] for r in ok if r.get('rpe_rot') is not None])} "
+            f"| {_num(np.median([r['peak_rss_bytes'] / 1e6 for r in ok]) if ok else None)} "
+            f"| {_num(np.median([c for c in map(_cpu_ms_per_frame, ok) if c]) if ok else None)} "
+            f"| {_num(max(waits) if waits else None, 2)} |")
+    return lines
+
+
+def orbslam3_runs(study: Path, runs: list[dict], images: Path, page: Path) -> tuple[list[str], list[str]]:
+    """A row per ORB-SLAM3 run (its losses placed in the building) and, per sequence, the first
+    loss's colour image."""
+    lines = ["| route | camera | repeat | ATE [m] | untracked frames | longest loss [s] | maps | loops "
+             "| tracking lost (frames, seconds, where) |", "|---|---|---|---|---|---|---|---|---|"]
+    pictures: list[str] = []
+    shown: set[tuple] = set()
+    for run in runs:
+        if run["method_name"] != "orbslam3" or run["status"] != "ok":
+            continue
+        run_dir = study / run["run_dir"]
+        sequence = Path(_measured(run, "sequence"))
+        try:
+            diagnosis = diagnose_run(run_dir, sequence)
+        except InputError as err:
+            losses_text = f"(not diagnosed: {err})"
+            losses = []
+        else:
+            losses = [(e, region) for e, region in diagnosis.events if e.kind == "tracking_lost"]
+            losses_text = "; ".join(f"{e.first_frame}-{e.last_frame}, {e.first_t:.1f}-{e.last_t:.1f} s, "
+                                    f"{region or '?'}" for e, region in losses) or "none"
+        lines.append(
+            f"| {run['route']} | {run['camera_name']} | {run.get('repeat') or 0} | {_num(run.get('ate'))} "
+            f"| {_method_stat(run, 'frames_untracked', '–')} | {_num(_method_stat(run, 'tracking_lost_longest_s'), 2)} "
+            f"| {_method_stat(run, 'maps', '–')} | {_method_stat(run, 'loops_accepted', '–')} | {losses_text} |")
+        key = _cell_key(run)
+        if losses and key not in shown:
+            shown.add(key)
+            event, region = max(losses, key=lambda item: item[0].last_frame - item[0].first_frame)
+            rgb = _rgb_of_frame(sequence, event.first_frame)
+            if rgb is not None:
+                name = f"{run['route']}-{run['camera_name']}-frame-{event.first_frame}.png"
+                images.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(rgb, images / name)
+                pictures += [f"![{run['route']} {run['camera_name']}, frame {event.first_frame}]"
+                             f"({os.path.relpath(images / name, page.parent)})", "",
+                             f"*{run['route']}, {run['camera_name']}, repeat {run.get('repeat') or 0}: frame "
+                             f"{event.first_frame} ({event.first_t:.1f} s, {region or 'unknown place'}), the first of "
+                             f"{event.last_frame - event.first_frame + 1} untracked frames: what the camera saw when "
+                             "tracking was lost.*", ""]
+    return lines, pictures
+
+
+def _rgb_of_frame(sequence: Path, frame: int) -> Path | None:
+    rows = [line.split() for line in (sequence / "rgb.txt").read_text().splitlines() if line and not line.startswith("#")]
+    return sequence / rows[frame][1] if 0 <= frame < len(rows) else None
+
+
+def _study_time(runs: list[dict]) -> str:
+    starts = [dt.datetime.fromisoformat(r["started_at"]) for r in runs if r.get("started_at")]
+    ends = [dt.datetime.fromisoformat(r["ended_at"]) for r in runs if r.get("ended_at")]
+    if not starts or not ends:
+        return "unknown"
+    return f"{(max(ends) - min(starts)).total_seconds() / 60:.0f} min"
+
+
+def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
+    images = out.parent / "images" / "real-systems"
+    if images.exists():
+        shutil.rmtree(images)
+    parts: list[str] = []
+    all_runs: list[dict] = []
+    for study in studies:
+        with ResultsDB(study / DB_NAME) as db:
+            config, runs = db.study() or {}, db.runs()
+        all_runs += runs
+        dead = {(r["route"], r["camera_name"], r["seed"]): r["ate"] for r in runs
+                if r["method_name"] == "odometry" and r["status"] == "ok" and not r.get("repeat")}
+        rows, pictures = orbslam3_runs(study, runs, images, out)
+        parts += [f"## Study `{config.get('name')}`: {', '.join(r['name'] for r in config.get('routes', []))}, "
+                  f"{config.get('repeats', 1)} runs per cell", "",
+                  f"{len(runs)} runs, {sum(r['status'] != 'ok' for r in runs)} ended in an error; the study took "
+                  f"{_study_time(runs)} on this machine (an orbslam3 run takes both cores, so it ran alone).", "",
+                  *summary_table(runs, dead), "", "### Each ORB-SLAM3 run and where it lost tracking", "", *rows, "",
+                  *pictures]
+    waits = [r["cpu_wait_share"] for r in all_runs if r.get("cpu_wait_share") is not None]
+    starved = [r["key"] for r in all_runs if (r.get("cpu_wait_share") or 0.0) > UNSTARVED_SHARE]
+    made_by = _commits(all_runs)
+    if len(made_by) != 1 or "" in made_by or any(c.endswith("+dirty") for c in made_by):
+        raise SystemExit(f"error: the studies' runs come from commits {sorted(made_by)}; a page is published "
+                         "from runs of one clean commit: run the studies again at one commit")
+    commit = made_by.pop()
+    header = [
+        "# A real system in the harness: ORB-SLAM3 beside keyframe and submap", "",
+        "<!-- written by scripts/publish_real_systems.py from the studies' databases; do not edit by hand -->", "",
+        f"Every run was made at commit `{commit}`; the page was written on {dt.date.today().isoformat()} at "
+        f"`{_git('rev-parse', '--short=7', 'HEAD')}`, on {_machine()}, by:", "",
+        "```bash", *commands, "```", "",
+        f"Every run's CPU wait share (how long its threads were ready to run but waited for a core, over that wait "
+        f"plus their CPU time) is at most {_num(max(waits) if waits else None, 2)}; "
+        + (f"{len(starved)} run(s) waited for more than {UNSTARVED_SHARE:g}: {', '.join(starved)}." if starved
+           else f"no run waited for more than {UNSTARVED_SHARE:g} of its time."),
+        "Nothing else ran on the machine while the studies ran.", "",
+        "ORB-SLAM3 (`orbslam3`, the plugin `plugins/longslam-orbslam3`, GPL-3.0, through `pyorbslam3` 0.1.1) sees the "
+        "images and depth only; the wheel odometry places its first map at the first odometry pose. It is fed at "
+        "the sequence's own rate (10 frames a second) and its tracking, local mapping and loop closing threads "
+        "race, so each cell was run several times: the tables give the median, quartiles and range of the ATE "
+        "(no alignment) beside the paper's mean +- std. `keyframe`, `submap` and `odometry` (dead reckoning) are "
+        "deterministic; their repeats differ only in time.", "",
+        f"**Failure rule.** {FAILURE_RULE}", "",
+        f"**E_rot.** {E_ROT_NOTE}", "",
+        f"Tracking lost means frames in a state other than OK; the longest loss runs from its first untracked frame "
+        f"to the next tracked one (a loss over {LONGEST_LOSS_S:g} s fails the run). Where is the region of the "
+        "building (from the floor plan) the robot was in at the loss's first frame.", "",
+    ]
+    out.write_text("\n".join(header + parts).rstrip() + "\n", encoding="utf-8")
+    print(f"wrote {out} ({len(all_runs)} runs, commit {commit}, max CPU wait share {max(waits) if waits else None})")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("studies", nargs="+", type=Path, help="study folders (each with results.sqlite)")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "real-systems.md")
+    parser.add_argument("--command", action="append", default=[],
+                        help="a command that made the studies, shown on the page (repeatable)")
+    args = parser.parse_args()
+    commands = args.command or [f"longslam study studies/{json.loads(json.dumps(s.name))}.toml --out {s} --jobs 2"
+                                for s in args.studies]
+    commands.append("python scripts/publish_real_systems.py " + " ".join(map(str, args.studies)))
+    publish(args.studies, args.out, commands)
+
+
+if __name__ == "__main__":
+    main()
