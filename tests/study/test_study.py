@@ -518,3 +518,11 @@ def test_a_run_that_needs_every_core_runs_alone_and_each_cell_repeats(env):
         assert not any(_overlap(hog, other) for other in spans if other is not hog)
     # Repeats of a cell are runs of their own, with their own folders.
     assert len({r["run_dir"] for r in rows}) == 6
+    # A run recorded as starved of CPU is run again with --retry-starved, and only that run.
+    starved = "tiny/large/sleepy/seed-0-repeat-1"
+    with sqlite3.connect(out / DB_NAME) as conn:
+        conn.execute("UPDATE runs SET cpu_wait_share = 0.5 WHERE key = ?", (starved,))
+    again = run_study(load_study(path), out, jobs=2, progress=False, retry_starved=True, report=False)
+    assert (again.skipped, again.ran, again.failed) == (5, 1, 0)
+    redone = {r["key"]: r for r in _rows(out)}[starved]
+    assert redone["cpu_wait_share"] < 0.5
