@@ -184,6 +184,8 @@ def cmd_run(args: argparse.Namespace) -> None:
     )
     for text in measurements.get("sequence_notes", []):
         note(f"{args.sequence}: {text}")
+    for text in measurements.get("method_stats", {}).get("notes", []):
+        note(f"{method}: {text}")
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:

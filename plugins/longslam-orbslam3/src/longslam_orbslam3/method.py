@@ -86,6 +86,14 @@ def _check_image_size(width: int, height: int) -> None:
         )
 
 
+def _no_map_note(frames: int, anchors: MapAnchors) -> str:
+    if not anchors.anchors:
+        return (f"ORB-SLAM3 tracked none of the {frames} frames and made no map (too few ORB features, or no "
+                "depth?); every pose is held at the start pose")
+    return (f"ORB-SLAM3 lost tracking before its map had 10 keyframes, reset it and made no map after; "
+            f"{anchors.frames_untracked} of {frames} frames hold the last tracked pose")
+
+
 class OrbSlam3Method:
     name = "orbslam3"
     images_every_frame = ("rgb", "depth")
@@ -219,16 +227,25 @@ class OrbSlam3Method:
             self._pending = None
         waited = self._wait_for_global_ba()
         self._shutdown()
-        trajectory_file, keyframe_file = self._workdir / SAVED_TRAJECTORY, self._workdir / SAVED_KEYFRAMES
-        self._slam.save_trajectory_euroc(str(trajectory_file))
-        self._slam.save_keyframe_trajectory_euroc(str(keyframe_file))
-        saved_stamps, saved_poses = _read_euroc(trajectory_file)
-        keyframes = len(_read_euroc(keyframe_file)[0])
+        console = read_counts(self.context.console_log, self._log_start).counts
+        # Each map began at a tracked frame (a segment of the anchors); a map reset after an early
+        # loss empties its map. With no map holding a keyframe, ORB-SLAM3 1.0's savers index the
+        # keyframes of an empty map: a segfault (or "Invalid argument"), so they are not called.
+        maps = max(len(self._anchors.anchors) - console["map_resets"], 0)
+        saved_stamps, saved_poses, keyframes = np.zeros(0), np.zeros((0, 4, 4)), 0
+        if maps:
+            trajectory_file, keyframe_file = self._workdir / SAVED_TRAJECTORY, self._workdir / SAVED_KEYFRAMES
+            self._slam.save_trajectory_euroc(str(trajectory_file))
+            self._slam.save_keyframe_trajectory_euroc(str(keyframe_file))
+            saved_stamps, saved_poses = _read_euroc(trajectory_file)
+            keyframes = len(_read_euroc(keyframe_file)[0])
         stamps = np.array(self._stamps)
         online = np.array(self._online)
         final, from_saved = final_poses(online, stamps, self._anchors, saved_stamps, saved_poses)
-        console = read_counts(self.context.console_log, self._log_start).counts
         frames = len(stamps)
+        notes = []
+        if not maps:
+            notes.append(_no_map_note(frames, self._anchors))
         method_stats = {
             stats.FRAMES: frames,
             stats.NODES: keyframes,
@@ -237,8 +254,9 @@ class OrbSlam3Method:
             "tracking_states": dict(sorted(self._anchors.states.items())),
             "frames_untracked": self._anchors.frames_untracked,  # online pose held (not OK)
             "frames_in_final": from_saved,  # the rest of the final trajectory is the online pose
-            "maps": len(self._anchors.anchors),
+            "maps": maps,  # maps that hold keyframes at the end
             "maps_created": console["maps_created"],
+            "map_resets": console["map_resets"],
             "map_merges": console["merges"],
             "relocalizations": console["relocalizations"],
             "map_changes": self._map_changes,
@@ -252,6 +270,7 @@ class OrbSlam3Method:
             "vocabulary": self._vocabulary_info,
             "vocabulary_load_s": self._load_time,
             "uses_wheel_odometry": "first pose only",
+            stats.NOTES: notes,
         }
         self._slam = None
         if self._own_workdir:
