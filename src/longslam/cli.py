@@ -184,6 +184,8 @@ def cmd_run(args: argparse.Namespace) -> None:
     )
     for text in measurements.get("sequence_notes", []):
         note(f"{args.sequence}: {text}")
+    for text in measurements.get("method_stats", {}).get("notes", []):
+        note(f"{method}: {text}")
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
@@ -244,7 +246,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
 
 def cmd_diagnose(args: argparse.Namespace) -> None:
-    from longslam.io.atomic import write_text
+    from longslam.io.atomic import write_text_atomic
     from longslam.io.outputs import check_output_file_free
     from longslam.run.diagnose import diagnose_run, diagnosis_text
 
@@ -254,7 +256,7 @@ def cmd_diagnose(args: argparse.Namespace) -> None:
     found = diagnose_run(args.run, args.sequence, stretch_m=args.stretch, with_world=args.plot is not None)
     print(diagnosis_text(found))
     if args.json is not None:
-        write_text(args.json, json.dumps(found.to_json(), indent=1, allow_nan=False) + "\n")
+        write_text_atomic(args.json, json.dumps(found.to_json(), indent=1, allow_nan=False) + "\n")
         print(f"wrote {args.json}")
     if args.plot is not None:
         from longslam.viz.diagnose_plot import plot_diagnosis

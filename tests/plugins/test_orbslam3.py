@@ -24,6 +24,7 @@ from longslam.io.trajectory_files import read_tum
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
 from longslam.slam import catalog
+from longslam.trajectory import Trajectory
 
 plugin = pytest.importorskip("longslam_orbslam3", reason="the orbslam3 plugin is not installed")
 
@@ -259,3 +260,61 @@ def test_a_file_that_is_no_vocabulary_is_refused(tmp_path, text, message):
         resolve_vocabulary(str(bad))
     with pytest.raises(Exception, match="no such file"):
         resolve_vocabulary(str(tmp_path / "missing.txt"))
+
+
+def _black_sequence(path: Path, depth: float, n: int = 20) -> Path:
+    """`n` black 160 x 120 frames with flat depth (0: none), 10 Hz, driving 10 cm a frame."""
+    from longslam.io.sequence import SequenceWriter
+
+    stamps = 0.1 * np.arange(n)
+    poses = camera_poses_from_planar(np.column_stack([3 + 0.1 * np.arange(n), np.full(n, 2.0), np.zeros(n)]), 1.25)
+    with SequenceWriter(path, Intrinsics.from_fov(160, 120, 90.0), 8.0, {"route": "black"}) as writer:
+        for t in stamps:
+            writer.add(t, np.zeros((120, 160, 3), np.uint8), np.full((120, 160), depth, np.float32))
+        writer.set_ground_truth(Trajectory(stamps, poses))
+        writer.set_odometry(Trajectory(stamps, poses))
+    return path
+
+
+def _two_word_vocabulary(path: Path) -> Path:
+    """The smallest vocabulary ORB-SLAM3 loads: k = 2, L = 1, two words (black frames give no features anyway)."""
+    path.write_text("2 1 0 0\n" + "\n".join(f"0 1 {' '.join([str(b)] * 32)} 0" for b in (0, 255)))
+    return path
+
+
+@needs_orbslam3
+@pytest.mark.parametrize("depth", [2.0, 0.0])
+def test_a_run_where_orbslam3_makes_no_map_says_so(tmp_path, depth):
+    """Black frames: ORB-SLAM3 never makes a map, and saving its trajectory then segfaulted (exit 139)."""
+    seq = _black_sequence(tmp_path / "black", depth)
+    out = tmp_path / "run"
+    done = _run(seq, out, _two_word_vocabulary(tmp_path / "voc.txt"), timeout=120, pace=0)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    assert "note: orbslam3: ORB-SLAM3 tracked none of the 20 frames and made no map" in done.stderr
+    method = json.loads((out / "stats.json").read_text())["method_stats"]
+    assert method["maps"] == 0 and method["frames_untracked"] == 20 and method["nodes"] == 0
+    assert "made no map" in method["notes"][0]
+    final, online = read_tum(out / "trajectory.txt"), read_tum(out / "online.txt")
+    start = read_tum(seq / "odometry.txt").poses[0]
+    assert len(final) == 20 and np.allclose(final.poses, start) and np.allclose(online.poses, start)
+
+
+@needs_orbslam3
+def test_a_map_reset_after_an_early_loss_leaves_no_map_and_no_crash(corridor):
+    """Three frames tracked, then black: ORB-SLAM3 loses tracking with one keyframe, resets its
+    only map, and its savers then stopped the run ("Invalid argument", or a segfault)."""
+    root, seq, vocabulary = corridor
+    dark = root / "dark-after-3"
+    shutil.copytree(seq, dark)
+    names = [line.split()[1] for line in (dark / "rgb.txt").read_text().splitlines() if not line.startswith("#")]
+    black = np.zeros((240, 320, 3), np.uint8)
+    for name in names[3:]:
+        (dark / name).unlink()  # hard links into the render cache: replace, don't write through
+        cv2.imwrite(str(dark / name), black)
+    out = root / "dark-after-3-run"
+    done = _run(dark, out, vocabulary, timeout=300, pace=0)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    method = json.loads((out / "stats.json").read_text())["method_stats"]
+    assert method["map_resets"] >= 1 and method["maps"] == 0 and method["frames_in_final"] == 0
+    assert "reset it and made no map after" in done.stderr
+    assert len(read_tum(out / "trajectory.txt")) == len(names)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from conftest import one_line_error
 from longslam.cli import main
 from longslam.errors import InputError
 from longslam.sim.drive import drive_route
@@ -67,3 +68,47 @@ def test_a_study_takes_a_tour_as_a_route(tmp_path):
     assert [r.name for r in config.routes] == ["tour-150m-seed1", "demo-x2"]
     assert config.routes[0] == get_route("tour-150m-seed1")
     assert config.routes[1].waypoints == get_route("demo").waypoints * 2
+
+
+@pytest.mark.parametrize("apart, route", [(0.0, "tour-1km"), (0.01, "tour-100m")])
+def test_a_tour_between_places_at_one_spot_is_refused_at_once(tmp_path, capsys, monkeypatch, apart, route):
+    """Two places at one point made every leg 0 m long: the planner went on forever, its memory growing."""
+    pytest.importorskip("trimesh")
+    import json
+    import signal
+    import time
+
+    from building_mesh import write_building
+
+    monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
+    ply, _ = write_building(tmp_path / "b")
+    places = tmp_path / "same.json"
+    places.write_text(json.dumps({"a": [1.0, 1.0], "b": [1.0 + apart, 1.0]}))
+
+    def too_long(*_):
+        raise TimeoutError("the tour was still being planned after 60 s")
+
+    previous = signal.signal(signal.SIGALRM, too_long)
+    signal.alarm(60)
+    try:
+        t0 = time.monotonic()
+        assert main(["world", "--world", str(ply), "--places", str(places), "--route", route,
+                     "--out", str(tmp_path / "p.png")]) == 2
+        assert time.monotonic() - t0 < 30
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    one_line_error(capsys, str(places), "places 'a' and 'b'", "m apart", "at least 1 m apart")
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_a_place_named_twice_is_left_out_of_legs_but_the_tour_goes_on():
+    from longslam.sim.tours import MIN_LEG_M, tour_waypoints
+    from longslam.world import get_world
+
+    world = get_world("annex")
+    world.places = {**world.places, "sw_again": world.places["sw"]}
+    tour = tour_waypoints(world, 300.0, 2)
+    same = {"sw", "sw_again"}
+    assert not any({a, b} == same for a, b in zip(tour[:-1], tour[1:]))
+    assert len(tour) <= 300.0 / MIN_LEG_M + 1

@@ -6,6 +6,7 @@ import ctypes
 import errno
 import os
 import shutil
+import stat
 import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -73,9 +74,37 @@ def rename_no_replace(src: str | Path, dst: str | Path) -> None:
     os.rename(src, dst)
 
 
+def check_same_kind(tmp: Path, path: Path) -> None:
+    """Refuse to put the output `tmp` in place of an existing `path` of another kind: a file
+    replaces only a file (or a symbolic link), a folder only a folder. A FIFO or a device node is
+    never replaced, whoever checked the path before: as root, os.replace over /dev/null would
+    leave a regular file in its place."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    if stat.S_ISLNK(mode) and not tmp.is_dir():
+        return  # the link itself is replaced, never what it points to
+    if stat.S_ISDIR(mode) == tmp.is_dir() and (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        return
+    from longslam.io.outputs import special_file_kind
+
+    kind = ("a symbolic link" if stat.S_ISLNK(mode) else "a folder" if stat.S_ISDIR(mode)
+            else special_file_kind(path) or "a file")
+    raise InputError(f"{path} is {kind}, not a {'folder' if tmp.is_dir() else 'regular file'} longslam may "
+                     "replace; it was left as it is and this output discarded")
+
+
+def replace_file(tmp: str | Path, path: str | Path) -> None:
+    """os.replace(tmp, path) for a finished output file, refusing what `check_same_kind` refuses."""
+    check_same_kind(Path(tmp), Path(path))
+    os.replace(tmp, path)
+
+
 def _replace(tmp: Path, path: Path) -> None:
     """Put `tmp` in place of `path`; an existing folder is moved aside first and removed after,
     so `path` is never missing its complete contents for longer than two renames."""
+    check_same_kind(tmp, path)
     if not path.is_dir() or path.is_symlink():
         os.replace(tmp, path)
         return

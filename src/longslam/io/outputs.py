@@ -9,6 +9,7 @@ an input, lies inside one, or holds one.
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -76,7 +77,7 @@ def why_not_replaceable(path: Path, kind: str) -> str | None:
         return "it is a symbolic link"
     if kind == ROS1_BAG:
         if not path.is_file():
-            return "it is not a file"
+            return f"it is {special_file_kind(path) or 'a folder'}, not a file"
         try:
             with open(path, "rb") as handle:
                 head = handle.read(len(ROS1_MAGIC))
@@ -84,7 +85,7 @@ def why_not_replaceable(path: Path, kind: str) -> str | None:
             return f"it cannot be read ({err.strerror})"
         return None if head == ROS1_MAGIC else "it is not a ROS 1 bag (no #ROSBAG V2.0 header)"
     if not path.is_dir():
-        return f"it is a file, not a {kind}"
+        return f"it is {special_file_kind(path) or 'a file'}, not a {kind}"
     names = _entries(path)
     if kind == RUN:
         missing = [m for m in RUN_MARKERS if m not in names]
@@ -133,10 +134,32 @@ def replace_guard(kind: str, what: str | None = None):
     return guard
 
 
+def special_file_kind(path: str | Path) -> str | None:
+    """What `path` is if it exists and is neither a regular file nor a folder (through symbolic
+    links): "a named pipe (FIFO)", "a character device", ...; None otherwise. Only stat is called:
+    opening a FIFO blocks, and opening a device may act on it."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:  # missing, or a dangling link: nothing there to lose
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    for test, kind in ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "not a regular file"
+
+
 def check_output_file_free(path: str | Path, overwrite: bool, what: str = "output file") -> None:
-    """An existing file is replaced only with `overwrite`, and a folder never."""
+    """An existing file is replaced only with `overwrite`; a folder, a FIFO or a device never (as
+    root, replacing /dev/null would leave a regular file in its place)."""
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{what} {path} is a folder; expected a file path")
+    kind = special_file_kind(path)
+    if kind is not None:
+        raise InputError(f"{what} {path} is {kind}, not a regular file; longslam writes and --overwrite replaces "
+                         "only regular files; choose another path")
     if (path.exists() or path.is_symlink()) and not overwrite:
         raise InputError(f"{what} {path} exists already; choose another path or pass --overwrite")

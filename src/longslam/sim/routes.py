@@ -17,7 +17,7 @@ from longslam.errors import InputError
 from longslam.textfile import read_text
 from longslam.registry import Registry
 from longslam.sim.tours import REPEAT, TOUR, repeated, tour_length_m, tour_waypoints
-from longslam.world.reference import is_mesh_ref, load_world, same_world, world_key, world_label, world_ref
+from longslam.world.reference import is_mesh_ref, load_world, places_label, same_world, world_key, world_label, world_ref
 
 Waypoint = tuple[float, float] | str
 
@@ -188,7 +188,7 @@ def _tour(ref: str, length_m: float, seed: int) -> tuple[str, ...]:
     """A tour's waypoints, planned once per process (a search of the grid per place)."""
     key = (world_key(ref), length_m, seed)
     if key not in _TOURS:
-        _TOURS[key] = tour_waypoints(load_world(ref), length_m, seed)
+        _TOURS[key] = tour_waypoints(load_world(ref), length_m, seed, places_label(ref))
     return _TOURS[key]
 
 

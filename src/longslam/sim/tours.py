@@ -15,6 +15,7 @@ length is within about 2 % of it (the follower cuts corners).
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
@@ -28,6 +29,10 @@ TOUR = re.compile(r"tour-(?P<length>\d+(?:\.\d+)?)(?P<unit>km|m)(?:-seed(?P<seed
 MAX_REPEAT = 1000
 # 100 km is about 700,000 frames (some 120 GB of 320 x 240 frames on disk): beyond any study here.
 MAX_TOUR_M = 100_000.0
+# A leg shorter than this is no step of a tour (two names for one spot): such legs are never
+# drawn, so every leg adds at least this much and a tour of L metres has at most L / MIN_LEG_M
+# legs. Taking them, two places at one point made a tour that never grew, planned forever.
+MIN_LEG_M = 1.0
 EXAMPLES = ("paper-1km-x3", "tour-3km", "tour-10km")
 
 
@@ -51,8 +56,11 @@ def tour_length_m(match: re.Match) -> float:
     return length
 
 
-def tour_waypoints(world: World, length_m: float, seed: int) -> tuple[str, ...]:
-    """Place names of a random tour of `world`, at least `length_m` long by the planned paths."""
+def tour_waypoints(world: World, length_m: float, seed: int, places: str | None = None) -> tuple[str, ...]:
+    """Place names of a random tour of `world`, at least `length_m` long by the planned paths.
+
+    `places` says where the places come from in messages (default: the world)."""
+    places = places or f"world {world.name!r}"
     nav = NavigationGrid(world.occupancy)
     names = sorted(p for p, xy in world.places.items() if nav.is_traversable(xy))
     if len(names) < 2:
@@ -61,11 +69,20 @@ def tour_waypoints(world: World, length_m: float, seed: int) -> tuple[str, ...]:
     here = names[int(rng.integers(len(names)))]
     legs: dict[str, dict[str, float]] = {}  # one search of the grid per place left from
     tour, total = [here], 0.0
-    while total < length_m:
+    for _ in range(math.ceil(length_m / MIN_LEG_M)):  # each leg at least MIN_LEG_M: bounded
+        if total >= length_m:
+            break
         if here not in legs:
             others = [n for n in names if n != here]
             lengths = nav.path_lengths(world.places[here], [world.places[n] for n in others])
-            legs[here] = {n: float(d) for n, d in zip(others, lengths) if np.isfinite(d)}
+            found = {n: float(d) for n, d in zip(others, lengths) if np.isfinite(d)}
+            legs[here] = {n: d for n, d in found.items() if d >= MIN_LEG_M}
+            if not legs[here] and found:
+                near = min(found, key=found.get)
+                pair = " and ".join(repr(n) for n in sorted((here, near)))
+                raise InputError(f"{places}: places {pair} are {found[near]:.2f} m apart, and no "
+                                 f"other place can be reached from {here!r}; a tour goes between places at least "
+                                 f"{MIN_LEG_M:g} m apart")
         if not legs[here]:
             raise InputError(f"world {world.name!r}: no other place can be reached from place {here!r}")
         reachable = sorted(legs[here])

@@ -15,6 +15,7 @@ LOOPS_REJECTED = "loops_rejected"  # loop closures refused by verification or by
 OPTIMIZATIONS = "optimizations"  # pose-graph optimisations run
 MAP_BYTES = "map_bytes"  # {part of the map: bytes held in RAM (and on disk where said)}
 CAMERA_HEIGHT = "camera_height"  # metres above the floor, as used
+NOTES = "notes"  # sentences on what the run could not do, which `longslam run` shows as note: lines
 
 SHARED = (FRAMES, FRAMES_WITHOUT_DEPTH, ODOMETRY_JUMPS, NODES, SUBMAPS, LOOP_HYPOTHESES, LOOPS_ACCEPTED,
-          LOOPS_REJECTED, OPTIMIZATIONS, MAP_BYTES, CAMERA_HEIGHT)
+          LOOPS_REJECTED, OPTIMIZATIONS, MAP_BYTES, CAMERA_HEIGHT, NOTES)

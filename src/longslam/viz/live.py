@@ -47,7 +47,7 @@ import numpy as np
 from longslam.errors import InputError
 from longslam.frame import Frame
 from longslam.jsonable import json_default
-from longslam.io.atomic import rename_no_replace
+from longslam.io.atomic import rename_no_replace, replace_file
 from longslam.io.partials import partial_path
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.api import pose_graph
@@ -189,6 +189,12 @@ def check_target(target: str, overwrite: bool = False) -> None:
         raise InputError(f"--viz {target}: the folder {parent} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"--viz {target}: the folder {parent} is not writable")
+    from longslam.io.outputs import special_file_kind
+
+    kind = special_file_kind(path)
+    if kind is not None:
+        raise InputError(f"--viz {target} is {kind}, not a regular file; longslam writes and --overwrite "
+                         "replaces only regular files; choose another path")
     if (path.exists() or path.is_symlink()) and not overwrite:
         raise InputError(f"--viz {target} exists already; choose another file or pass --overwrite")
 
@@ -252,7 +258,11 @@ class LiveView:
         if self._tmp is not None:
             if exc_type is None and self.lost is None:
                 if self.overwrite:
-                    os.replace(self._tmp, self.target)
+                    try:
+                        replace_file(self._tmp, self.target)
+                    except InputError:  # a FIFO or a device put there meanwhile: kept
+                        self._tmp.unlink()
+                        raise
                 else:  # a file another process wrote meanwhile is kept
                     try:
                         rename_no_replace(self._tmp, self.target)

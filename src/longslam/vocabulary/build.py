@@ -143,13 +143,14 @@ def rendered_route(route: Route, camera: CameraSettings = CameraSettings(), prog
 
 def check_output(out: str | Path, overwrite: bool = False) -> Path:
     """Refuse, before any work, an --out that cannot be written or would be replaced unasked."""
+    from longslam.io.outputs import check_output_file_free
+
     out = Path(out)
     if out.is_dir():
         raise InputError(f"--out {out} is a folder; expected a file path (e.g. voc.txt)")
     if not out.absolute().parent.is_dir():
         raise InputError(f"--out {out}: the folder {out.absolute().parent} does not exist")
-    if out.exists() and not overwrite:
-        raise InputError(f"--out {out} exists already; choose another path or pass --overwrite")
+    check_output_file_free(out, overwrite, "--out")  # a FIFO or a device is never replaced
     return out
 
 

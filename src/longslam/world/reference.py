@@ -40,9 +40,15 @@ class MeshSpec:
     units: str = "m"
     up: str = "z"
     places: tuple[tuple[str, float, float], ...] = ()
+    # Where the places were read from (absolute), for messages about them; like `path`, not part of
+    # the content, and left out of the reference when there is none (the references made before).
+    places_file: str = ""
 
     def ref(self) -> str:
-        return MESH_PREFIX + json.dumps(asdict(self), sort_keys=True, separators=(",", ":"))
+        data = asdict(self)
+        if not data["places_file"]:
+            del data["places_file"]
+        return MESH_PREFIX + json.dumps(data, sort_keys=True, separators=(",", ":"))
 
     @classmethod
     def from_ref(cls, ref: str) -> "MeshSpec":
@@ -55,6 +61,7 @@ class MeshSpec:
         """Everything that makes the world what it is, without where the file happens to be."""
         data = asdict(self)
         data.pop("path")
+        data.pop("places_file")
         return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
     @property
@@ -118,12 +125,16 @@ def mesh_world_ref(
     if up not in UP_AXES:
         raise InputError(f"{what}: unknown up axis {up!r}; valid values: {', '.join(UP_AXES)}")
     place_list: tuple = ()
+    places_file = ""
     if places is not None:
         if not isinstance(places, (str, Path)):
             raise InputError(f"{what}: places must be the path of a places file (JSON), got {places!r}")
-        found = read_places(_resolve(places, base))
+        places_path = _resolve(places, base)
+        found = read_places(places_path)
         place_list = tuple((name, x, y) for name, (x, y) in sorted(found.items()))
-    spec = MeshSpec(str(file), content_hash(file), None if floor is None else float(floor), units, up, place_list)
+        places_file = str(places_path.absolute())
+    spec = MeshSpec(str(file), content_hash(file), None if floor is None else float(floor), units, up, place_list,
+                    places_file)
     return spec.ref()
 
 
@@ -235,6 +246,14 @@ def world_key(ref: str) -> str:
 def world_label(ref: str) -> str:
     """How to show the world to people: its name, or its mesh file's name."""
     return Path(MeshSpec.from_ref(ref).path).name if is_mesh_ref(ref) else ref
+
+
+def places_label(ref: str) -> str:
+    """Where a world's places come from, for messages: its places file, or the world."""
+    if is_mesh_ref(ref):
+        spec = MeshSpec.from_ref(ref)
+        return f"places file {spec.places_file}" if spec.places_file else f"world {Path(spec.path).name!r}"
+    return f"world {ref!r}"
 
 
 def world_identity(ref: str) -> str:

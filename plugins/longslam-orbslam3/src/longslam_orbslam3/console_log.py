@@ -19,6 +19,9 @@ MARKERS = {
     "global_ba_finished": "Global Bundle Adjustment finished",
     "global_ba_stopped": "Stoping Global Bundle Adjustment",  # sic: ORB-SLAM3's spelling
     "local_map_failures": "Fail to track local map!",
+    # Tracking::ResetActiveMap's last line: the active map was cleared of its keyframes (a loss
+    # before it had 10 of them); printed whatever the verbosity.
+    "map_resets": "Frames set to lost",
 }
 
 

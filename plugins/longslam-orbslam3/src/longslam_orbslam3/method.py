@@ -86,6 +86,14 @@ def _check_image_size(width: int, height: int) -> None:
         )
 
 
+def _no_map_note(frames: int, anchors: MapAnchors) -> str:
+    if not anchors.anchors:
+        return (f"ORB-SLAM3 tracked none of the {frames} frames and made no map (too few ORB features, or no "
+                "depth?); every pose is held at the start pose")
+    return (f"ORB-SLAM3 lost tracking before its map had 10 keyframes, reset it and made no map after; "
+            f"{anchors.frames_untracked} of {frames} frames hold the last tracked pose")
+
+
 class OrbSlam3Method:
     name = "orbslam3"
     images_every_frame = ("rgb", "depth")
@@ -229,18 +237,27 @@ class OrbSlam3Method:
         last_frame, last_t = self._frames[-1], self._stamps[-1]  # what its threads printed after the last frame
         self._console_events += [Event(kind, last_frame, last_frame, last_t, last_t, line)
                                  for kind, line in self._console.new_events()]
-        trajectory_file, keyframe_file = self._workdir / SAVED_TRAJECTORY, self._workdir / SAVED_KEYFRAMES
-        self._slam.save_trajectory_euroc(str(trajectory_file))
-        self._slam.save_keyframe_trajectory_euroc(str(keyframe_file))
-        saved_stamps, saved_poses = _read_euroc(trajectory_file)
-        keyframes = len(_read_euroc(keyframe_file)[0])
+        console = read_counts(self.context.console_log, self._log_start).counts
+        # Each map began at a tracked frame (a segment of the anchors); a map reset after an early
+        # loss empties its map. With no map holding a keyframe, ORB-SLAM3 1.0's savers index the
+        # keyframes of an empty map: a segfault (or "Invalid argument"), so they are not called.
+        maps = max(len(self._anchors.anchors) - console["map_resets"], 0)
+        saved_stamps, saved_poses, keyframes = np.zeros(0), np.zeros((0, 4, 4)), 0
+        if maps:
+            trajectory_file, keyframe_file = self._workdir / SAVED_TRAJECTORY, self._workdir / SAVED_KEYFRAMES
+            self._slam.save_trajectory_euroc(str(trajectory_file))
+            self._slam.save_keyframe_trajectory_euroc(str(keyframe_file))
+            saved_stamps, saved_poses = _read_euroc(trajectory_file)
+            keyframes = len(_read_euroc(keyframe_file)[0])
         stamps = np.array(self._stamps)
         online = np.array(self._online)
         final, from_saved = final_poses(online, stamps, self._anchors, saved_stamps, saved_poses)
-        console = read_counts(self.context.console_log, self._log_start).counts
         frames = len(stamps)
         events = run_events(self._anchors.segment_of_frame, np.array(self._frames), stamps, self._console_events)
         losses = [e for e in events if e.kind == "tracking_lost"]
+        notes = []
+        if not maps:
+            notes.append(_no_map_note(frames, self._anchors))
         method_stats = {
             stats.FRAMES: frames,
             stats.NODES: keyframes,
@@ -253,8 +270,10 @@ class OrbSlam3Method:
             "tracking_lost_intervals": len(losses),
             "tracking_lost_longest_s": max((_loss_seconds(e, stamps) for e in losses), default=0.0),
             "frames_in_final": from_saved,  # the rest of the final trajectory is the online pose
-            "maps": len(self._anchors.anchors),
+            "maps": maps,  # maps that hold keyframes at the end
+            "maps_started": len(self._anchors.anchors),  # a new one after each loss it did not recover from
             "maps_created": console["maps_created"],
+            "map_resets": console["map_resets"],
             "map_merges": console["merges"],
             "relocalizations": console["relocalizations"],
             "map_changes": self._map_changes,
@@ -268,6 +287,7 @@ class OrbSlam3Method:
             "vocabulary": self._vocabulary_info,
             "vocabulary_load_s": self._load_time,
             "uses_wheel_odometry": "first pose only",
+            stats.NOTES: notes,
         }
         self._slam = None
         if self._own_workdir:

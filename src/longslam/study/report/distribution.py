@@ -33,7 +33,7 @@ def failure_reason(run: dict[str, Any], dead_reckoning_ate: float | None) -> str
     if run["status"] != "ok":
         return "error"
     stats = _stats(run)
-    if int(stats.get("maps", 1) or 1) > 1:
+    if int(stats.get("maps_started", stats.get("maps", 1)) or 1) > 1:
         return "new map"
     if float(stats.get("tracking_lost_longest_s", 0.0) or 0.0) > LONGEST_LOSS_S:
         return "tracking lost"

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from longslam.errors import InputError
 from longslam.io.atomic import write_text_atomic
+from longslam.io.outputs import special_file_kind
 from longslam.run.process_tree import STARVED_SHARE
 from longslam.study.database import DB_NAME
 from longslam.study.report.distribution import FAILURE_RULE, distribution_table
@@ -283,6 +284,9 @@ def check_report_files(out: str | Path, overwrite: bool = False) -> None:
         path = Path(out) / name
         if path.is_dir():
             raise InputError(f"{path} is a folder; the report needs that name for a file")
+        kind = special_file_kind(path)
+        if kind is not None:  # checked before the opening is read: reading a FIFO blocks
+            raise InputError(f"{path} is {kind}, not a regular file; the report needs that name for a file")
         if path.exists() and not overwrite:
             try:
                 with open(path, encoding="utf-8", errors="replace") as handle:
