@@ -7,10 +7,13 @@ trajectory holds that pose. `finish` writes `associations.txt` (and the camera s
 the command uses `{settings}`), runs the program in `{output}` as its working directory, with a
 timeout, and reads the trajectory it wrote.
 
-Where the files go: `sequence/` (removed once the program ends, unless `keep_sequence`),
-`program/` (`{output}`), `settings.yaml` and `program_trajectory.txt` in the run folder
+Where the files go: `sequence/` (removed once the program ends, unless `keep_sequence`: a run
+folder that keeps it holds a sequence, which `--overwrite` then refuses to replace), `program/`
+(`{output}`), `settings.yaml` and `program_trajectory.txt` in the run folder
 (`MethodContext.output_dir`), or in a temporary folder removed at the end when there is none.
-The program's stdout and stderr go to the run's `console.log`.
+The program's stdout and stderr go to the run's `console.log` (`program.log` in that temporary
+folder without one). Relative paths in the command are the program's business, read from
+`{output}`; only the program itself is looked up now (on PATH, or against the current folder).
 
 The program's poses are in its own map frame. They are placed in longslam's world by their
 first pose: it goes to the odometry pose of its frame (the first odometry pose when the program
