@@ -119,6 +119,7 @@ SLOW_TESTS = {
     "test_a_part_nothing_anchors_is_damped_not_fatal", "test_a_repeated_waypoint_is_driven_through",
     "test_evo_res_reads_two_saved_results",
     "test_completion_through_the_installed_command", "test_a_run_repeated_from_its_config_gives_the_same_trajectory",
+    "test_the_installed_command_runs_a_program",
 }
 
 

@@ -19,7 +19,7 @@ from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.simulate import check_seed, simulate
-from longslam.slam.catalog import get_spec, method_names
+from longslam.slam.catalog import default_method_names, get_spec
 from longslam.trajectory import Trajectory
 from longslam.viz.plots import plot_errors_over_time, plot_plan
 from longslam.world import load_world
@@ -70,7 +70,7 @@ def run_demo(
     out = check_output_folder(out, "demo folder")
     check_seed(seed, "--seed")
     route, noise = get_route(route_name), get_noise(noise_name)
-    methods = methods or method_names()
+    methods = methods or default_method_names()  # `command` needs a program: named only
     if viz is not None and viz != "viewer":
         from longslam.viz.live import check_target
 

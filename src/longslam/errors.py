@@ -31,3 +31,8 @@ class UnknownNameError(InputError, KeyError):
 
 class TrajectoryError(InputError):
     """A trajectory that is malformed, not rigid, contains NaNs, or cannot be associated."""
+
+
+class MethodError(LongslamError):
+    """A method, or the program it runs, that broke its contract: a program that exited non-zero,
+    crashed, ran out of time or wrote no trajectory. The run failed; the input may be fine."""

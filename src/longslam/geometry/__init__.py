@@ -2,9 +2,11 @@
 
 `from longslam.geometry import X` works for every public helper; the modules say where each lives:
 `se3` (4x4 transforms, TUM conversion), `planar` (x, y, yaw, the camera mount, odometry with its
-jump filter), `fit` (Umeyama's rigid / similarity fit).
+jump filter), `fit` (Umeyama's rigid / similarity fit), `anchor` (a system's own map frame placed
+in the world, sparse poses held per frame).
 """
 
+from longslam.geometry.anchor import anchor, hold_last
 from longslam.geometry.fit import rigid_transform, rigid_transform_2d, umeyama
 from longslam.geometry.planar import (
     R_BASE_CAMERA,
@@ -25,8 +27,8 @@ from longslam.geometry.planar import (
 from longslam.geometry.se3 import invert, poses_from_tum, rigidity_violation, tum_from_poses
 
 __all__ = [
-    "R_BASE_CAMERA", "CameraMount", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",
-    "compose_xyyaw", "fold_quarter", "invert", "log_xyyaw", "planar_from_camera_poses", "planar_poses",
+    "R_BASE_CAMERA", "CameraMount", "anchor", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",
+    "compose_xyyaw", "fold_quarter", "hold_last", "invert", "log_xyyaw", "planar_from_camera_poses", "planar_poses",
     "pose_from_xyyaw", "poses_from_tum", "relative_xyyaw", "rigid_transform", "rigid_transform_2d", "rigidity_violation",
     "tum_from_poses", "umeyama", "wrap_angle", "xyyaw_from_pose",
 ]

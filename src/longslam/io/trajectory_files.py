@@ -1,4 +1,6 @@
-"""Trajectory files: TUM (`t tx ty tz qx qy qz qw`) and KITTI (12 numbers, a 3x4 matrix, a line).
+"""Trajectory files: TUM (`t tx ty tz qx qy qz qw`) and KITTI (12 numbers, a 3x4 matrix, a line);
+and, read only, EuRoC as ORB-SLAM3 writes it (`SaveTrajectoryEuRoC`: TUM's line with the stamp in
+nanoseconds).
 
 KITTI files carry no timestamps: a KITTI trajectory gets the frame index as its timestamp and is
 matched to another trajectory by index.
@@ -17,7 +19,8 @@ from longslam.io.plain_table import plain_table
 from longslam.textfile import read_text
 from longslam.trajectory import Trajectory
 
-TUM, KITTI = "tum", "kitti"
+TUM, KITTI, EUROC = "tum", "kitti", "euroc"
+NANOSECONDS = 1e-9
 
 
 def _read_rows(path: Path, text: str | None = None) -> list[tuple[int, list[str]]]:
@@ -74,6 +77,17 @@ def read_tum(path: str | Path, text: str | None = None) -> Trajectory:
     return Trajectory(data[:, 0].copy(), poses_from_tum(data[:, 1:8]), source=str(path))
 
 
+def read_euroc(path: str | Path, text: str | None = None) -> Trajectory:
+    """ORB-SLAM3's EuRoC trajectory: `t tx ty tz qx qy qz qw` with t in nanoseconds (spaces or
+    commas). Not the EuRoC dataset's own ground-truth CSV, whose quaternion starts with w."""
+    path = Path(path)
+    data = _table(path, text, 8, "t[ns] tx ty tz qx qy qz qw")
+    if len(data) and np.any(np.linalg.norm(data[:, 4:8], axis=1) < 1e-9):
+        bad = int(np.flatnonzero(np.linalg.norm(data[:, 4:8], axis=1) < 1e-9)[0])
+        raise TrajectoryError(f"{path}: pose {bad} has a zero quaternion")
+    return Trajectory(data[:, 0] * NANOSECONDS, poses_from_tum(data[:, 1:8]), source=str(path))
+
+
 def read_kitti(path: str | Path, text: str | None = None) -> Trajectory:
     path = Path(path)
     data = _table(path, text, 12, "a row-major 3x4 pose matrix")
@@ -83,14 +97,16 @@ def read_kitti(path: str | Path, text: str | None = None) -> Trajectory:
 
 
 def read_trajectory(path: str | Path, fmt: str | None = None, text: str | None = None) -> tuple[Trajectory, str]:
-    """Read a TUM or KITTI file (format detected unless given), or `text` already read (from
+    """Read a TUM or KITTI file (format detected unless given; EuRoC only when given), or `text` already read (from
     stdin: `path` then only names it in errors). Returns the trajectory and its format."""
     fmt = fmt or detect_format(path, text)
     if fmt == TUM:
         return read_tum(path, text), fmt
     if fmt == KITTI:
         return read_kitti(path, text), fmt
-    raise InputError(f"unknown trajectory format {fmt!r}; valid formats: {TUM}, {KITTI}")
+    if fmt == EUROC:
+        return read_euroc(path, text), fmt
+    raise InputError(f"unknown trajectory format {fmt!r}; valid formats: {TUM}, {KITTI}, {EUROC}")
 
 
 def format_tum(trajectory: Trajectory) -> str:

@@ -169,10 +169,27 @@ class MethodSpec:
     # Whether the same frames give the same result. A system whose threads race is a distribution:
     # a study repeats its cells (`repeats`) and the report gives the median, spread and failures.
     deterministic: bool = True
+    # Parameters without a usable default (the program the `command` method runs): a run must give
+    # them, so "every method" (the demo's, a study's `methods = "all"`) leaves the method out
+    # unless its parameters are given there.
+    required: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not (isinstance(self.threads, int) and self.threads >= 1):
             raise ValueError(f"method {self.name!r}: threads={self.threads!r}; expected a whole number of cores >= 1")
+
+    def missing(self, params: Mapping[str, Any] | None = None) -> list[str]:
+        """The required parameters that `params` leaves unset or empty."""
+        params = params or {}
+        return [name for name in self.required if params.get(name) in (None, "")]
+
+    def check_required(self, params: Mapping[str, Any] | None = None) -> None:
+        """InputError naming each required parameter `params` leaves unset."""
+        missing = self.missing(params)
+        if missing:
+            raise InputError(f"method {self.name!r} needs the parameter{'s' if len(missing) > 1 else ''} "
+                             f"{', '.join(missing)} (`--param {missing[0]}=...`, or [params.{self.name}] in a study "
+                             f"file; `longslam list --params {self.name}` describes them)")
 
     def cores(self, available: int) -> int:
         """The cores a run takes on a machine (or executor) of `available` cores: all of them, for

@@ -28,6 +28,8 @@ BUILTIN = {
     "keyframe": "longslam.slam.keyframe.method:SPEC",
     "odometry": "longslam.slam.odometry:SPEC",
     "submap": "longslam.slam.submap.method:SPEC",
+    # Any program that reads a TUM RGB-D folder and writes a trajectory (slam/command).
+    "command": "longslam.slam.command.method:SPEC",
 }
 
 
@@ -45,6 +47,27 @@ def _plugins(search_path: tuple[str, ...]) -> dict[str, Any]:
 def method_names() -> list[str]:
     """Every method by name: the built-in ones, then the plugins'."""
     return list(BUILTIN) + sorted(_plugins(tuple(sys.path)))
+
+
+def required_params(name: str) -> tuple[str, ...]:
+    """The parameters method `name` cannot run without (`MethodSpec.required`); () for a method
+    that cannot be loaded here, whose runs then report why."""
+    try:
+        return tuple(get_spec(name).required)
+    except Exception:  # a plugin that fails to import: its runs report it
+        return ()
+
+
+def runnable_alone(name: str, params: dict[str, Any] | None = None) -> bool:
+    """Whether method `name` runs with `params` (None: its defaults): every required parameter given."""
+    params = params or {}
+    return all(params.get(key) not in (None, "") for key in required_params(name))
+
+
+def default_method_names() -> list[str]:
+    """"Every method" where no parameters are given (the demo's default): the methods that run
+    with their defaults, so not `command`, which needs the program to run."""
+    return [name for name in method_names() if runnable_alone(name)]
 
 
 def get_spec(name: str) -> MethodSpec:

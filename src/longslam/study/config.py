@@ -6,7 +6,8 @@
                                     # places = "places.json" }
     routes = ["demo"]               # route names, or waypoint files relative to this file
     noise = ["small", "large"]      # odometry noise levels
-    methods = "all"                 # every registered method, or a list: ["odometry", "keyframe"]
+    methods = "all"                 # every registered method (`command` only with its [params.command]),
+                                    # or a list: ["odometry", "keyframe"]
     seeds = 2                       # a count (seeds 0..n-1) or a list: [0, 1]
     align = "none"                  # alignment for APE/RPE and map quality: none, se3, sim3
     map_tolerance_cells = 2         # map quality: occupied cells count as matched within this
@@ -422,6 +423,11 @@ def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
                                                "methods listed without being listed itself: remove it from methods")
         names = r.string_list(data, "methods", available, "method") if value else []
     params = r.table(data, "params", names)
+    if value == "all":  # not a method that needs parameters the file does not give (`command`'s program)
+        from longslam.slam.catalog import runnable_alone
+
+        names = [name for name in names
+                 if runnable_alone(name, params.get(name) if isinstance(params.get(name), dict) else None)]
     entries = []
     for name in names:
         overrides = params.get(name, {})
@@ -461,12 +467,13 @@ def check_method_params(config: StudyConfig) -> None:
     Only the configs are built, not the methods (nothing is opened or allocated). A third-party
     method without a config type takes its parameters as they are, and checks them at its runs.
     """
-    from longslam.slam.catalog import check_params
+    from longslam.slam.catalog import check_params, get_spec
 
     for entry in config.methods:
         key = f"variants.{entry.label}.params" if entry.label != entry.method else f"params.{entry.method}"
         try:
             check_params(entry.method, entry.params, typed=True)
+            get_spec(entry.method).check_required(entry.params)
         except UnknownNameError as err:
             raise StudyConfigError(f"study file {config.source}: methods: {err}") from None
         except InputError as err:
