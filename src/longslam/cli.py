@@ -424,9 +424,12 @@ def cmd_report(args: argparse.Namespace) -> None:
 
 def cmd_vocabulary_build(args: argparse.Namespace) -> None:
     from longslam.sim.routes import get_route
-    from longslam.vocabulary.build import build_vocabulary_file, check_output, rendered_route
+    from longslam.vocabulary.build import (build_vocabulary_file, check_features, check_output, check_tree_size,
+                                           rendered_route)
 
-    check_output(args.out, args.overwrite)  # before a route is rendered
+    check_tree_size(args.k, args.levels)  # all before a route is rendered
+    check_features(args.features)
+    check_output(args.out, args.overwrite)
     from longslam.io.outputs import check_not_an_input
 
     check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")
