@@ -114,8 +114,11 @@ def read_source(source: str | Path, names: tuple[str, ...], topic: str | None = 
     if str(source) == STDIN:
         if topic is not None:
             raise InputError(f"{topic_option} names a bag topic, but the trajectory comes from stdin (-)")
-        text = sys.stdin.read() if stdin_text is None else stdin_text
-        trajectory, fmt = read_trajectory(Path("<stdin>"), text=text)
+        if stdin_text is None:  # bounded: `evaluate - gt.txt < /dev/zero` read until MemoryError
+            from longslam.io.trajectory_files import read_trajectory_text
+
+            stdin_text = read_trajectory_text(Path("<stdin>"), getattr(sys.stdin, "buffer", sys.stdin), "<stdin>")
+        trajectory, fmt = read_trajectory(Path("<stdin>"), text=stdin_text)
         return trajectory, fmt, "<stdin>"
     from longslam.io.rosbag.trajectory import is_bag
 
