@@ -254,6 +254,8 @@ def cmd_diagnose(args: argparse.Namespace) -> None:
         if out is not None:
             check_output_file_free(out, args.overwrite)
     found = diagnose_run(args.run, args.sequence, stretch_m=args.stretch, with_world=args.plot is not None)
+    for warning in found.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     print(diagnosis_text(found))
     if args.json is not None:
         write_text_atomic(args.json, json.dumps(found.to_json(), indent=1, allow_nan=False) + "\n")

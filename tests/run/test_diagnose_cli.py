@@ -54,3 +54,19 @@ def test_a_folder_that_is_no_run_is_named(tmp_path, capsys):
     seq = write_tiny_sequence(tmp_path / "seq", n=5)[0]
     assert main(["diagnose", str(seq), str(seq)]) == 2
     one_line_error(capsys, str(seq), "trajectory.txt")
+
+
+def test_a_run_diagnosed_against_another_sequence_is_warned_of_as_evaluate_does(tmp_path, capsys):
+    """A sequence of another route gave 71 m and +106 deg, exit 0 and no word; `evaluate` warns."""
+    seq, run = _run(tmp_path)
+    other = write_tiny_sequence(tmp_path / "other", n=30, step=0.2, turn=1.5, seed=1)[0]
+    capsys.readouterr()
+    assert main(["diagnose", str(run), str(seq)]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert main(["diagnose", str(run), str(other), "--json", str(tmp_path / "d.json")]) == 0
+    err = capsys.readouterr().err
+    expected = f"warning: {run} ran on the sequence {seq.resolve()} (its stats.json), not on {other}"
+    assert expected in err
+    assert main(["evaluate", str(run), str(other)]) == 0
+    assert expected in capsys.readouterr().err  # the same words
+    assert json.loads((tmp_path / "d.json").read_text())["warnings"] == [expected[len("warning: "):]]

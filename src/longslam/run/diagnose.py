@@ -4,7 +4,7 @@ folder and its sequence (the maths is `eval/diagnose.py`, the picture `viz/diagn
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +16,7 @@ from longslam.eval.diagnose import (ErrorParts, LoopError, Stretch, error_parts,
 from longslam.geometry import planar_from_camera_poses
 from longslam.io.trajectory_files import read_trajectory
 from longslam.run.folder import TRAJECTORY, read_table
+from longslam.run.score import other_sequence_warning
 from longslam.timestamps import one_to_one_nearest
 from longslam.world import load_world
 from longslam.world.model import World
@@ -35,6 +36,8 @@ class Diagnosis:
     loops: list[LoopError]
     has_frontend_table: bool
     world: World | None
+    # What makes the figures doubtful, as `evaluate` warns of it (a run of another sequence).
+    warnings: list[str] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
         p = self.parts
@@ -48,7 +51,7 @@ class Diagnosis:
         }
 
     def to_json(self) -> dict[str, Any]:
-        return {"run": self.run, "sequence": self.sequence, "summary": self.summary(),
+        return {"run": self.run, "sequence": self.sequence, "warnings": list(self.warnings), "summary": self.summary(),
                 "units": {"distance": "m", "heading": "deg", "along": "m", "across": "m", "scan_shift": "m"},
                 "stretches": [asdict(s) for s in self.stretches],
                 "loops": [{**asdict(lp), "wrong": lp.wrong} for lp in self.loops],
@@ -126,8 +129,9 @@ def diagnose_run(run: str | Path, sequence: str | Path, stretch_m: float = 50.0,
     world = _world_of(sequence) if with_world else None
     regions = regions_of(truth_planar[:, :2], world.plan.free) if world is not None and world.plan is not None else None
     found = stretches(parts, stretch_m, regions, table, matched_loops)
+    other = other_sequence_warning(run, sequence)  # evaluate's check: 71 m and +106 deg went by unremarked
     return Diagnosis(str(run), str(sequence), parts, truth_planar[:, :2], est_planar[:, :2], np.asarray(est_idx),
-                     found, loops, table is not None, world)
+                     found, loops, table is not None, world, [other] if other else [])
 
 
 def diagnosis_text(d: Diagnosis) -> str:
