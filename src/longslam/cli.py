@@ -392,7 +392,11 @@ def cmd_list(args: argparse.Namespace) -> None:
           "of the world's places), e.g. " + ", ".join(TOUR_EXAMPLES))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
     print("methods:     ", ", ".join(method_names()), "(parameters: longslam list --params METHOD)")
-    print("sensors:     ", ", ".join(sensor_names()))
+    from longslam.sim.sensors.catalog import sensor_problem
+
+    problems = {name: sensor_problem(name) for name in sensor_names()}
+    print("sensors:     ", ", ".join(name + (f" (broken: {problems[name]})" if problems[name] else "")
+                                     for name in sensor_names()))
 
 
 def cmd_study(args: argparse.Namespace) -> None:
