@@ -4,7 +4,11 @@ rendered sequences, each simulated once per session into the session's own rende
 
 from __future__ import annotations
 
+import builtins
+import io
 import json
+import os
+import stat
 from collections.abc import Callable
 from pathlib import Path
 
@@ -87,6 +91,28 @@ def rendered(render_cache: Path, tmp_path_factory) -> RenderedSequence:
         return made[key]
 
     return sequence
+
+
+@pytest.fixture()
+def nothing_under_dev(monkeypatch):
+    """Any open, rename or removal of a path under /dev fails the test, before it happens: for tests
+    that a device node (/dev/null, /dev/zero) is refused before it is touched, which as root
+    could otherwise replace /dev/null, or read /dev/zero until memory runs out."""
+
+    def guard(real):
+        def checked(*args, **kwargs):
+            for arg in args[:2]:
+                if isinstance(arg, (str, bytes, os.PathLike)) and os.fsdecode(arg).startswith("/dev/"):
+                    pytest.fail(f"{real.__name__} on {os.fsdecode(arg)}")
+            return real(*args, **kwargs)
+        return checked
+
+    for module, name in ((builtins, "open"), (io, "open"), (os, "open"), (os, "replace"), (os, "rename"),
+                         (os, "unlink"), (os, "remove")):
+        monkeypatch.setattr(module, name, guard(getattr(module, name)))
+    yield
+    monkeypatch.undo()
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
 
 
 def one_line_error(capsys, *needles: str) -> str:

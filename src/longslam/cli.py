@@ -254,6 +254,8 @@ def cmd_diagnose(args: argparse.Namespace) -> None:
         if out is not None:
             check_output_file_free(out, args.overwrite)
     found = diagnose_run(args.run, args.sequence, stretch_m=args.stretch, with_world=args.plot is not None)
+    for warning in found.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     print(diagnosis_text(found))
     if args.json is not None:
         write_text_atomic(args.json, json.dumps(found.to_json(), indent=1, allow_nan=False) + "\n")
@@ -390,7 +392,11 @@ def cmd_list(args: argparse.Namespace) -> None:
           "of the world's places), e.g. " + ", ".join(TOUR_EXAMPLES))
     print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
     print("methods:     ", ", ".join(method_names()), "(parameters: longslam list --params METHOD)")
-    print("sensors:     ", ", ".join(sensor_names()))
+    from longslam.sim.sensors.catalog import sensor_problem
+
+    problems = {name: sensor_problem(name) for name in sensor_names()}
+    print("sensors:     ", ", ".join(name + (f" (broken: {problems[name]})" if problems[name] else "")
+                                     for name in sensor_names()))
 
 
 def cmd_study(args: argparse.Namespace) -> None:
@@ -425,9 +431,12 @@ def cmd_report(args: argparse.Namespace) -> None:
 
 def cmd_vocabulary_build(args: argparse.Namespace) -> None:
     from longslam.sim.routes import get_route
-    from longslam.vocabulary.build import build_vocabulary_file, check_output, rendered_route
+    from longslam.vocabulary.build import (build_vocabulary_file, check_features, check_output, check_tree_size,
+                                           rendered_route)
 
-    check_output(args.out, args.overwrite)  # before a route is rendered
+    check_tree_size(args.k, args.levels)  # all before a route is rendered
+    check_features(args.features)
+    check_output(args.out, args.overwrite)
     from longslam.io.outputs import check_not_an_input
 
     check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")

@@ -3,8 +3,6 @@ replaced, `--overwrite` or not: as root, replacing /dev/null left a regular file
 
 from __future__ import annotations
 
-import builtins
-import io
 import os
 import stat
 from pathlib import Path
@@ -104,26 +102,6 @@ def test_an_atomic_write_never_replaces_a_fifo_that_appeared_meanwhile(tmp_path)
     with pytest.raises(InputError, match="is a folder"):
         write_text_atomic(folder, "new")
     assert (folder / "mine.txt").read_text() == "mine"
-
-
-@pytest.fixture()
-def nothing_under_dev(monkeypatch):
-    """Any open, rename or removal of a path under /dev fails the test, before it happens."""
-
-    def guard(real):
-        def checked(*args, **kwargs):
-            for arg in args[:2]:
-                if isinstance(arg, (str, bytes, os.PathLike)) and os.fsdecode(arg).startswith("/dev/"):
-                    pytest.fail(f"{real.__name__} on {os.fsdecode(arg)}")
-            return real(*args, **kwargs)
-        return checked
-
-    for module, name in ((builtins, "open"), (io, "open"), (os, "open"), (os, "replace"), (os, "rename"),
-                         (os, "unlink"), (os, "remove")):
-        monkeypatch.setattr(module, name, guard(getattr(module, name)))
-    yield
-    monkeypatch.undo()
-    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
 
 
 def test_a_device_node_is_refused_before_anything_is_opened(seq, tmp_path, capsys, nothing_under_dev):

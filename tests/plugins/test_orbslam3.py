@@ -244,14 +244,21 @@ def test_a_run_beside_busy_processes_reports_the_cpu_it_was_denied(corridor):
     assert stats["cpu_wait_s"] > 0 and stats["tree_cpu_time_s"] > 0
 
 
+WORD = " ".join(["7"] * 32)
+
+
 @pytest.mark.parametrize("text, message", [
     ("garbage here\n1 2 3", "not a DBoW2 text vocabulary"),
     ("", "not a DBoW2 text vocabulary"),
-    ("10 6 0 0\n0 1 " + " ".join(["0"] * 32) + " 0.5", "1 node lines"),
     ("1 6 0 0\nx", "out of range"),
+    # Each of these passed the header check, then ORB-SLAM3 segfaulted, stopped with a
+    # RuntimeError after 48 s, or with "vector::reserve".
+    (f"10 6 0 0\n999999 1 {WORD} 0.5", ":2: parent id 999999 must be a node before this one"),
+    ("10 6 0 0\n" + "\n".join(["the quick brown fox jumps over the lazy dog"] * 50), ":2: expected 35 fields"),
+    (f"20 10 0 0\n0 1 {WORD} 0.5", "vector::reserve"),
 ])
 def test_a_file_that_is_no_vocabulary_is_refused(tmp_path, text, message):
-    """pyorbslam3 would hand ORB-SLAM3 any file, which then tracks with garbage."""
+    """pyorbslam3 would hand ORB-SLAM3 any file, which then tracks with garbage or crashes."""
     from longslam_orbslam3.vocabulary import resolve_vocabulary
 
     bad = tmp_path / "voc.txt"
@@ -318,3 +325,30 @@ def test_a_map_reset_after_an_early_loss_leaves_no_map_and_no_crash(corridor):
     assert method["map_resets"] >= 1 and method["maps"] == 0 and method["frames_in_final"] == 0
     assert "reset it and made no map after" in done.stderr
     assert len(read_tum(out / "trajectory.txt")) == len(names)
+
+
+@needs_orbslam3
+def test_orbslam3_loads_the_largest_trees_longslam_accepts(tmp_path):
+    """The bound on k and L (the loader reserves a full tree before reading a node) is ORB-SLAM3's:
+    for a few k, the deepest L that longslam's check accepts loads in ORB-SLAM3 itself."""
+    from longslam.vocabulary.dbow2 import loader_size_problem
+    from longslam_orbslam3.vocabulary import resolve_vocabulary
+
+    files = []
+    for k in (2, 6, 10, 20):
+        levels = max(L for L in range(1, 11) if loader_size_problem(k, L) is None)
+        assert loader_size_problem(k, levels + 1) is not None or levels == 10
+        path = _two_word_vocabulary(tmp_path / f"voc-{k}-{levels}.txt")
+        path.write_text(path.read_text().replace("2 1 0 0", f"{k} {levels} 0 0", 1))
+        resolve_vocabulary(str(path))  # the plugin's check passes it
+        files.append(str(path))
+    settings = tmp_path / "orbslam3.yaml"
+    settings.write_text(settings_yaml(Intrinsics.from_fov(160, 120, 90.0), OrbSlam3Config(), 10.0, 8.0))
+    script = ("import sys, pyorbslam3\n"
+              "for path in sys.argv[2:]:\n"
+              "    pyorbslam3.Slam(path, sys.argv[1], pyorbslam3.Sensor.RGBD, use_viewer=False).shutdown()\n"
+              "    print('longslam-test-loaded', path, flush=True)\n")
+    done = subprocess.run([sys.executable, "-c", script, str(settings), *files], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.count("longslam-test-loaded") == len(files)

@@ -76,3 +76,19 @@ def test_a_runs_events_are_read_with_their_frames(tmp_path, capsys):
     (run / EVENTS).write_text((run / EVENTS).read_text() + "loop,x,1,0,0,\n")
     assert main(["diagnose", str(run), str(seq)]) == 2
     one_line_error(capsys, "events.csv", "line 5")
+
+
+def test_a_run_diagnosed_against_another_sequence_is_warned_of_as_evaluate_does(tmp_path, capsys):
+    """A sequence of another route gave 71 m and +106 deg, exit 0 and no word; `evaluate` warns."""
+    seq, run = _run(tmp_path)
+    other = write_tiny_sequence(tmp_path / "other", n=30, step=0.2, turn=1.5, seed=1)[0]
+    capsys.readouterr()
+    assert main(["diagnose", str(run), str(seq)]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert main(["diagnose", str(run), str(other), "--json", str(tmp_path / "d.json")]) == 0
+    err = capsys.readouterr().err
+    expected = f"warning: {run} ran on the sequence {seq.resolve()} (its stats.json), not on {other}"
+    assert expected in err
+    assert main(["evaluate", str(run), str(other)]) == 0
+    assert expected in capsys.readouterr().err  # the same words
+    assert json.loads((tmp_path / "d.json").read_text())["warnings"] == [expected[len("warning: "):]]

@@ -16,15 +16,24 @@ from longslam.errors import InputError, TrajectoryError
 from longslam.geometry import poses_from_tum, tum_from_poses
 from longslam.io.atomic import write_text_atomic
 from longslam.io.plain_table import plain_table
-from longslam.textfile import read_text
+from longslam.textfile import read_bounded_text
 from longslam.trajectory import Trajectory
 
 TUM, KITTI, EUROC = "tum", "kitti", "euroc"
 NANOSECONDS = 1e-9
+# A TUM line is about 110 bytes and 100 km about 80 MB: beyond these a file (or stdin) is not a
+# trajectory, and reading on would end in a MemoryError (`evaluate /dev/zero SEQ`).
+MAX_TRAJECTORY_BYTES = 256 * 10**6
+MAX_LINE_BYTES = 4096
+
+
+def read_trajectory_text(path: str | Path, stream=None, name: str | None = None) -> str:
+    """The text of a trajectory file (or of `stream`, stdin), bounded: see `read_bounded_text`."""
+    return read_bounded_text(Path(path), "trajectory file", MAX_TRAJECTORY_BYTES, MAX_LINE_BYTES, stream, name)
 
 
 def _read_rows(path: Path, text: str | None = None) -> list[tuple[int, list[str]]]:
-    text = read_text(path, "trajectory file") if text is None else text
+    text = read_trajectory_text(path) if text is None else text
     rows = []
     for number, line in enumerate(text.splitlines(), start=1):
         line = line.strip()
@@ -62,7 +71,7 @@ def detect_format(path: str | Path, text: str | None = None) -> str:
 
 
 def _table(path: Path, text: str | None, width: int, what: str) -> np.ndarray:
-    text = read_text(path, "trajectory file") if text is None else text
+    text = read_trajectory_text(path) if text is None else text
     table = plain_table(text, width)
     return table if table is not None else _numbers(path, _read_rows(path, text), width, what)
 
@@ -99,6 +108,8 @@ def read_kitti(path: str | Path, text: str | None = None) -> Trajectory:
 def read_trajectory(path: str | Path, fmt: str | None = None, text: str | None = None) -> tuple[Trajectory, str]:
     """Read a TUM or KITTI file (format detected unless given; EuRoC only when given), or `text` already read (from
     stdin: `path` then only names it in errors). Returns the trajectory and its format."""
+    if text is None:  # read once: a pipe (`<(...)`) cannot be read again after the format is found
+        text = read_trajectory_text(path)
     fmt = fmt or detect_format(path, text)
     if fmt == TUM:
         return read_tum(path, text), fmt

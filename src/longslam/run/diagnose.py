@@ -16,6 +16,7 @@ from longslam.eval.diagnose import (ErrorParts, LoopError, Stretch, error_parts,
 from longslam.geometry import planar_from_camera_poses
 from longslam.io.trajectory_files import read_trajectory
 from longslam.run.folder import EVENTS, TRAJECTORY, read_events, read_table
+from longslam.run.score import other_sequence_warning
 from longslam.slam.api import Event
 from longslam.timestamps import one_to_one_nearest
 from longslam.world import load_world
@@ -39,6 +40,8 @@ class Diagnosis:
     # The run's events (events.csv: tracking lost, new maps, loops...), each with the region of
     # the building its first frame was in ("" without a world).
     events: list[tuple[Event, str]] = field(default_factory=list)
+    # What makes the figures doubtful, as `evaluate` warns of it (a run of another sequence).
+    warnings: list[str] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
         p = self.parts
@@ -54,7 +57,7 @@ class Diagnosis:
         }
 
     def to_json(self) -> dict[str, Any]:
-        return {"run": self.run, "sequence": self.sequence, "summary": self.summary(),
+        return {"run": self.run, "sequence": self.sequence, "warnings": list(self.warnings), "summary": self.summary(),
                 "units": {"distance": "m", "heading": "deg", "along": "m", "across": "m", "scan_shift": "m"},
                 "stretches": [asdict(s) for s in self.stretches],
                 "loops": [{**asdict(lp), "wrong": lp.wrong} for lp in self.loops],
@@ -136,8 +139,9 @@ def diagnose_run(run: str | Path, sequence: str | Path, stretch_m: float = 50.0,
     events = read_events(run / EVENTS) if (run / EVENTS).is_file() else []
     placed = [(e, str(regions[position_of[e.first_frame]]) if regions is not None and e.first_frame in position_of else "")
               for e in events]
+    other = other_sequence_warning(run, sequence)  # evaluate's check: 71 m and +106 deg went by unremarked
     return Diagnosis(str(run), str(sequence), parts, truth_planar[:, :2], est_planar[:, :2], np.asarray(est_idx),
-                     found, loops, table is not None, world, placed)
+                     found, loops, table is not None, world, placed, [other] if other else [])
 
 
 def diagnosis_text(d: Diagnosis) -> str:

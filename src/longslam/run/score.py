@@ -104,6 +104,18 @@ def _run_sequence_of(estimate: Path) -> str | None:
     return value if isinstance(value, str) else None
 
 
+def other_sequence_warning(run: str | Path, sequence: str | Path) -> str | None:
+    """The warning for a run folder scored against another sequence than the one its stats.json
+    names (`sequence`: a sequence folder, or a file in one), or None (the same one, or no run)."""
+    own = _run_sequence_of(Path(run))
+    if own is None:
+        return None
+    given = Path(sequence) if Path(sequence).is_dir() else Path(sequence).parent
+    if Path(own).resolve() == given.resolve():
+        return None
+    return f"{run} ran on the sequence {own} (its stats.json), not on {given}"
+
+
 STDIN = "-"  # a trajectory file name that means: TUM (or KITTI) text on standard input
 
 
@@ -114,8 +126,11 @@ def read_source(source: str | Path, names: tuple[str, ...], topic: str | None = 
     if str(source) == STDIN:
         if topic is not None:
             raise InputError(f"{topic_option} names a bag topic, but the trajectory comes from stdin (-)")
-        text = sys.stdin.read() if stdin_text is None else stdin_text
-        trajectory, fmt = read_trajectory(Path("<stdin>"), text=text)
+        if stdin_text is None:  # bounded: `evaluate - gt.txt < /dev/zero` read until MemoryError
+            from longslam.io.trajectory_files import read_trajectory_text
+
+            stdin_text = read_trajectory_text(Path("<stdin>"), getattr(sys.stdin, "buffer", sys.stdin), "<stdin>")
+        trajectory, fmt = read_trajectory(Path("<stdin>"), text=stdin_text)
         return trajectory, fmt, "<stdin>"
     from longslam.io.rosbag.trajectory import is_bag
 
@@ -169,9 +184,8 @@ def score_files_full(estimate: str | Path, truth: str | Path, align: str | bool 
         if shares["matched_share_groundtruth_span"] < COVERAGE_WARNING:
             warnings.append(f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
                             f"of {ref_file}; the scores cover that part of the route only")
-        own = _run_sequence_of(Path(estimate)) if str(estimate) != STDIN else None
-        if own is not None and str(truth) != STDIN:
-            given = Path(truth) if Path(truth).is_dir() else Path(ref_file).parent
-            if Path(own).resolve() != given.resolve():
-                warnings.append(f"{estimate} ran on the sequence {own} (its stats.json), not on {given}")
+        if STDIN not in (str(estimate), str(truth)):
+            other = other_sequence_warning(estimate, truth if Path(truth).is_dir() else ref_file)
+            if other is not None:
+                warnings.append(other)
     return evaluation

@@ -19,7 +19,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.simulate import rendered_sequence
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
-from longslam.vocabulary.dbow2 import write_vocabulary
+from longslam.vocabulary.dbow2 import loader_size_problem, write_vocabulary
 from longslam.vocabulary.tree import Vocabulary, build_tree
 
 # ORB-SLAM3's extractor settings (Examples/RGB-D/TUM1.yaml and ORBextractor.cc): 8 levels a
@@ -33,6 +33,16 @@ MIN_FAST = 7
 EDGE_THRESHOLD = 19
 PATCH_SIZE = 31
 CELL = 35  # ORB-SLAM3's FAST cell, in pixels of each pyramid level
+# As the orbslam3 method's `features` (ORBextractor.nFeatures): OpenCV's ORB allocates for the
+# number asked, and 100,000,000 ended in std::bad_alloc.
+MAX_FEATURES = 20000
+
+
+def check_features(features: int) -> None:
+    """ORB features per frame: a whole number from 1 to MAX_FEATURES."""
+    if isinstance(features, bool) or not isinstance(features, (int, np.integer)) or not 1 <= features <= MAX_FEATURES:
+        raise InputError(f"--features must be a whole number from 1 to {MAX_FEATURES} ORB features per frame "
+                         f"(as ORB-SLAM3's nFeatures), got {features!r}")
 
 
 class OrbExtractor:
@@ -45,8 +55,7 @@ class OrbExtractor:
     """
 
     def __init__(self, features: int = 1000):
-        if isinstance(features, bool) or not isinstance(features, (int, np.integer)) or features < 1:
-            raise InputError(f"ORB features per frame must be a whole number >= 1, got {features!r}")
+        check_features(features)
         self.features = int(features)
 
         def orb(threshold: int) -> cv2.ORB:
@@ -103,10 +112,15 @@ def sequence_descriptors(
 
 
 def check_tree_size(k: int, levels: int) -> None:
-    """k and L as the DBoW2 text loader accepts them (k <= 20, 1 <= L <= 10), k >= 2 to branch."""
+    """k and L as the DBoW2 text loader accepts them (k <= 20, 1 <= L <= 10), k >= 2 to branch,
+    and a full tree of them small enough for the loader to reserve room for (k^L words: 10^7 at
+    k = 10, 20^5 at k = 20; see `loader_size_problem`)."""
     for name, value, low, high in (("--k", k, 2, 20), ("--levels", levels, 1, 10)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
             raise InputError(f"{name} must be a whole number in {low}..{high} (ORB-SLAM3's loader's bounds), got {value!r}")
+    problem = loader_size_problem(int(k), int(levels))
+    if problem is not None:
+        raise InputError(f"--k {k} --levels {levels}: {problem}; choose a smaller --k or --levels")
 
 
 def vocabulary_from_descriptors(
@@ -161,6 +175,7 @@ def build_vocabulary_file(
 ) -> BuildSummary:
     """Build a vocabulary from a sequence folder's frames and write it to `out` atomically."""
     check_tree_size(k, levels)
+    check_features(features)
     out = check_output(out, overwrite)
     from longslam.io.outputs import check_not_an_input
 

@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import io
 import math
 from pathlib import Path
 
@@ -31,8 +32,41 @@ from longslam.vocabulary.tree import Vocabulary
 DESCRIPTOR_BYTES = 32  # FORB::L
 # The loader's own bounds on the header (loadFromTextFile).
 HEADER_LIMITS = {"k": (0, 20), "L": (1, 10), "scoringType": (0, 5), "weightingType": (0, 3)}
+# Before it reads a node, the loader reserves room for a full tree: `(int)((k^(L+1) - 1) / (k - 1))`
+# nodes of about 152 bytes (FORB's cv::Mat descriptor, a children vector, ids, a weight) and
+# k^(L+1) word pointers. Past 2^31 - 1 nodes the int overflows and the reserve throws
+# "vector::reserve" (k = 20, L = 10); below, a reservation larger than the machine can grant is
+# std::bad_alloc (k = 20, L = 7 on 23 GB; k = 10, L = 8 reserved 25 GB there and loaded). longslam
+# keeps to reservations of 4 GB, ORB-SLAM3's own ORBvoc.txt (k = 10, L = 6) being 0.25 GB.
+LOADER_NODE_BYTES = 152
+LOADER_MAX_NODES = 2**31 - 1
+LOADER_MAX_RESERVED_BYTES = 4 * 10**9
+MAX_LINE_BYTES = 1024  # a node line is about 150 characters; ORBvoc.txt's longest is 145
+CHUNK_BYTES = 1 << 23  # node lines checked a block at a time: about 55,000 of them
 
 _BYTE_TEXT = [str(i) for i in range(256)]
+
+
+def loader_reservation(k: int, levels: int) -> tuple[int, int]:
+    """(nodes, bytes) that DBoW2's text loader reserves for a header with `k` and `levels`."""
+    if k < 2:
+        return 1, LOADER_NODE_BYTES
+    words = k ** (levels + 1)
+    nodes = (words - 1) // (k - 1)
+    return nodes, nodes * LOADER_NODE_BYTES + words * 8
+
+
+def loader_size_problem(k: int, levels: int) -> str | None:
+    """Why ORB-SLAM3's loader could not load a vocabulary with this k and L, or None."""
+    nodes, reserved = loader_reservation(k, levels)
+    if nodes > LOADER_MAX_NODES:
+        return (f"k = {k}, L = {levels} makes ORB-SLAM3's loader reserve {nodes:.3g} nodes, more than its int "
+                f"holds ({LOADER_MAX_NODES}): it stops with 'vector::reserve'")
+    if reserved > LOADER_MAX_RESERVED_BYTES:
+        return (f"k = {k}, L = {levels} makes ORB-SLAM3's loader reserve {reserved / 1e9:.3g} GB before it reads a "
+                f"node (a full tree of k^(L+1) words); longslam keeps to {LOADER_MAX_RESERVED_BYTES / 1e9:g} GB "
+                "(ORBvoc.txt's k = 10, L = 6: 0.25 GB)")
+    return None
 
 
 def _weight_text(weight: float) -> str:
@@ -69,6 +103,172 @@ def write_vocabulary(vocabulary: Vocabulary, path: str | Path, overwrite: bool =
         with open(tmp, "w", encoding="ascii", newline="") as f:
             f.write(text)
     return path
+
+
+def _prefix(raw: bytes) -> str:
+    """A short, printable picture of a line that is not what was expected."""
+    return repr(raw[:40]) + (" ..." if len(raw) > 40 else "")
+
+
+def _node_chunks(handle, where: str):
+    """The node lines of an open vocabulary (after its header) in blocks of whole lines, as bytes;
+    a line longer than MAX_LINE_BYTES is refused before more of it is read."""
+    carry = b""
+    lines_before = 1  # the header
+    while True:
+        block = handle.read(CHUNK_BYTES)
+        if not block:
+            if carry:
+                yield lines_before, carry
+            return
+        block = carry + block
+        cut = block.rfind(b"\n") + 1
+        carry = block[cut:]
+        complete = block.count(b"\n", 0, cut)
+        if len(carry) > MAX_LINE_BYTES:
+            raise InputError(f"{where}:{lines_before + complete + 1}: a line longer than {MAX_LINE_BYTES} bytes "
+                             f"({_prefix(carry)}); a node line is about 150")
+        if cut:
+            yield lines_before, block[:cut]
+            lines_before += complete
+
+
+def _first_bad_line(lines: list[bytes], width: int) -> tuple[int, str]:
+    """The index of the first line that is not `width` numbers, and what is wrong with it."""
+    for i, line in enumerate(lines):
+        parts = line.split()
+        if not parts:
+            return i, "an empty line, which ORB-SLAM3 would read as a broken node"
+        if len(parts) != width:
+            return i, f"expected {width} fields (parent, isLeaf, {DESCRIPTOR_BYTES} bytes, weight), got {len(parts)}: {_prefix(line)}"
+        try:
+            for part in parts:
+                float(part)
+        except ValueError:
+            return i, f"expected {width} numbers: {_prefix(line)}"
+    return 0, f"cannot be read as {width} numbers a line: {_prefix(lines[0])}"
+
+
+def check_vocabulary_file(path: str | Path, what: str = "vocabulary", final_newline: bool = True) -> int:
+    """Check, a block of lines at a time (a 1 GB file is never held), that ORB-SLAM3's text loader
+    can load the file and build a sound tree from it; return the number of nodes, the root included.
+
+    Its loader checks the header's ranges only: parent ids it has not seen yet crash it, a
+    garbage line becomes a node of uninitialised fields, and a header whose full tree it cannot
+    reserve room for stops it. Here: the header (its ranges and its reservation, see
+    `loader_size_problem`), then every node line: 35 numbers, a parent before it that is not a
+    word, isLeaf 0 or 1 and matching whether the node has children, 32 bytes 0..255, a finite
+    weight; at most k children a node, L levels and the nodes a tree of k and L holds.
+    `final_newline` accepts the final newline ORB-SLAM3's own saveToTextFile leaves (ORBvoc.txt
+    has it). InputError names `what`, the file and the line, showing at most a short prefix of it.
+    """
+    from longslam.io.outputs import special_file_kind
+
+    path = Path(path)
+    kind = special_file_kind(path)
+    if kind is not None:  # opening a FIFO would wait for a writer
+        raise InputError(f"{what}: {path} is {kind}; expected a vocabulary file")
+    try:
+        handle = open(path, "rb")
+    except OSError as err:
+        raise InputError(f"{what}: cannot read {path} ({err.strerror})") from None
+    expected = "a DBoW2 text vocabulary (first line 'k L scoring weighting', e.g. '10 6 0 0' as ORBvoc.txt)"
+    width = 2 + DESCRIPTOR_BYTES + 1
+    with handle:
+        raw = handle.readline(MAX_LINE_BYTES + 1)
+        header = raw.split()
+        if (len(raw) > MAX_LINE_BYTES or len(header) != 4
+                or not all(h.lstrip(b"-").isdigit() and len(h) < 10 for h in header)):
+            raise InputError(f"{what}: {path} is not {expected}; its first line is {_prefix(raw.rstrip())}")
+        values = [int(h) for h in header]
+        for (name, (low, high)), value in zip(HEADER_LIMITS.items(), values):
+            low = max(low, 2) if name == "k" else low  # the loader takes k = 0 and 1; a tree needs 2
+            if not low <= value <= high:
+                raise InputError(f"{what}: {path}:1: {name} = {value} is out of range ({low}..{high}) for {expected}")
+        k, levels = values[0], values[1]
+        problem = loader_size_problem(k, levels)
+        if problem is not None:
+            raise InputError(f"{what}: {path}:1: {problem}")
+        most = loader_reservation(k, levels)[0]  # nodes with the root
+        parents = [np.full(1, -1, np.int32)]  # per node id, the root first
+        leaf = np.zeros(most, np.uint8)  # at most 26 MB within LOADER_MAX_RESERVED_BYTES
+        nodes, ends_with_newline = 1, False
+        for before, block in _node_chunks(handle, f"{what}: {path}"):
+            ends_with_newline = block.endswith(b"\n")
+            lines = block.split(b"\n")
+            if ends_with_newline:
+                lines.pop()
+
+            def refuse(i: int, why: str) -> None:
+                raise InputError(f"{what}: {path}:{before + i + 1}: {why}")
+
+            if nodes + len(lines) > most:
+                refuse(most - nodes, f"more nodes than a tree of k = {k}, L = {levels} holds ({most - 1} below the root)")
+            longest = max(range(len(lines)), key=lambda i: len(lines[i]))
+            if len(lines[longest]) > MAX_LINE_BYTES:
+                refuse(longest, f"a line longer than {MAX_LINE_BYTES} bytes ({_prefix(lines[longest])}); "
+                                "a node line is about 150")
+            if b"\0" in block:
+                i = next(i for i, line in enumerate(lines) if b"\0" in line)
+                refuse(i, f"a NUL byte: {_prefix(lines[i])}")
+            try:
+                table = np.loadtxt(io.BytesIO(block), dtype=np.float64, ndmin=2, comments=None)
+            except ValueError:
+                refuse(*_first_bad_line(lines, width))
+            if table.shape != (len(lines), width):  # loadtxt skips empty lines
+                refuse(*_first_bad_line(lines, width))
+            ids = np.arange(nodes, nodes + len(lines))
+            whole = table[:, :2 + DESCRIPTOR_BYTES]
+            bad = np.flatnonzero(np.any(whole != np.floor(whole), axis=1))
+            if bad.size:
+                refuse(int(bad[0]), f"parent id, isLeaf and the {DESCRIPTOR_BYTES} bytes must be whole numbers: "
+                                    f"{_prefix(lines[int(bad[0])])}")
+            parent, flags = table[:, 0], table[:, 1]
+            bad = np.flatnonzero((parent < 0) | (parent >= ids))
+            if bad.size:
+                i = int(bad[0])
+                refuse(i, f"parent id {parent[i]:.0f} must be a node before this one (0..{ids[i] - 1})")
+            bad = np.flatnonzero((flags != 0) & (flags != 1))
+            if bad.size:
+                refuse(int(bad[0]), f"isLeaf must be 0 or 1, got {flags[int(bad[0])]:.0f}")
+            bad = np.flatnonzero(np.any((whole[:, 2:] < 0) | (whole[:, 2:] > 255), axis=1))
+            if bad.size:
+                refuse(int(bad[0]), f"descriptor bytes must be 0..255: {_prefix(lines[int(bad[0])])}")
+            bad = np.flatnonzero(~np.isfinite(table[:, -1]))
+            if bad.size:
+                refuse(int(bad[0]), f"weight {table[int(bad[0]), -1]} is not finite")
+            parents.append(parent.astype(np.int32))
+            leaf[ids] = flags
+            bad = np.flatnonzero(leaf[parents[-1]] == 1)  # a parent in this block included
+            if bad.size:
+                i = int(bad[0])
+                refuse(i, f"parent {parent[i]:.0f} is marked as a leaf (isLeaf 1) but has children")
+            nodes += len(lines)
+    if nodes == 1:
+        raise InputError(f"{what}: {path} has a header but no nodes")
+    if ends_with_newline and not final_newline:
+        raise InputError(f"{what}: {path} ends with a newline, which ORB-SLAM3's text loader reads as one more, "
+                         "broken, node; remove the final newline")
+    parent = np.concatenate(parents)
+    leaf = leaf[:nodes]
+    children = np.bincount(parent[1:], minlength=nodes)
+    wide = np.flatnonzero(children > k)
+    if wide.size:
+        node = int(wide[0])
+        raise InputError(f"{what}: {path}:{node + 1}: node {node} has {children[node]} children, more than k = {k} "
+                         "of the header")
+    depth = np.zeros(nodes, np.int64)
+    for _ in range(levels + 1):  # min(true depth, iterations): a node deeper than L ends at L + 1
+        depth[1:] = depth[parent[1:]] + 1
+    deep = np.flatnonzero(depth > levels)
+    if deep.size:
+        raise InputError(f"{what}: {path}:{int(deep[0]) + 1}: the node is deeper than L = {levels} of the header")
+    wrong = np.flatnonzero(leaf[1:] == (children[1:] > 0))
+    if wrong.size:
+        node = int(wrong[0]) + 1
+        raise InputError(f"{what}: {path}:{node + 1}: isLeaf is {leaf[node]} but the node has "
+                         f"{'' if children[node] else 'no '}children")
+    return nodes
 
 
 def _int(field: str, where: str, name: str) -> int:

@@ -142,7 +142,11 @@ class OrbSlam3Method:
         settings = self._workdir / SETTINGS_FILE
         settings.write_text(settings_yaml(self.context.intrinsics, self.config, fps, self.context.max_depth))
         t0 = time.perf_counter()
-        self._slam = self._pos.Slam(self._vocabulary, str(settings), self._pos.Sensor.RGBD, use_viewer=False)
+        try:
+            self._slam = self._pos.Slam(self._vocabulary, str(settings), self._pos.Sensor.RGBD, use_viewer=False)
+        except (MemoryError, ValueError, RuntimeError) as err:  # what its loader throws gets through the bindings
+            raise InputError(f"method 'orbslam3': ORB-SLAM3 did not start with vocabulary {self._vocabulary} "
+                             f"({type(err).__name__}: {str(err)[:200]})") from None
         self._load_time = time.perf_counter() - t0
         # Threads alive once the system runs (its mapping and loop closing among them): a later one
         # is a global bundle adjustment (see _wait_for_global_ba).

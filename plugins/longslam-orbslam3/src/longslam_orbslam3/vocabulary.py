@@ -13,31 +13,22 @@ from pathlib import Path
 from typing import Any
 
 from longslam.errors import InputError
+from longslam.vocabulary.dbow2 import check_vocabulary_file as check_text_vocabulary
 
 
 def check_vocabulary_file(path: Path, what: str) -> None:
-    """A DBoW2 text vocabulary begins `k L scoring weighting` and has a line per node. pyorbslam3
-    0.1.1 hands ORB-SLAM3 any file, which then "loads" garbage and tracks with it: check first."""
-    try:
-        with open(path, "rb") as f:
-            header = f.readline().decode("ascii", errors="replace").split()
-            nodes = sum(1 for _ in f)
-    except OSError as err:
-        raise InputError(f"{what}: cannot read {path} ({err.strerror})") from None
-    expected = "a DBoW2 text vocabulary (first line 'k L scoring weighting', e.g. '10 6 0 0' as ORBvoc.txt)"
-    if len(header) != 4 or not all(h.lstrip("-").isdigit() for h in header):
-        raise InputError(f"{what}: {path} is not {expected}; its first line is {' '.join(header)[:60]!r}")
-    k, levels, scoring, weighting = (int(h) for h in header)
-    if not (2 <= k <= 20 and 1 <= levels <= 10 and 0 <= scoring <= 5 and 0 <= weighting <= 3):
-        raise InputError(f"{what}: {path}: header {k} {levels} {scoring} {weighting} is out of range for {expected}")
-    if nodes < k:
-        raise InputError(f"{what}: {path} has {nodes} node lines; a vocabulary with k = {k} has at least {k}")
+    """pyorbslam3 0.1.1 hands ORB-SLAM3 any file, which then "loads" garbage and tracks with it,
+    or crashes (a parent id it has not read yet, a header whose tree it cannot reserve): the whole
+    file is checked first, a line at a time (see longslam's `check_vocabulary_file`)."""
+    check_text_vocabulary(path, what, final_newline=True)  # ORBvoc.txt ends with a newline
 
 
 def _user_file(given: str, what: str, source: str) -> tuple[str, dict[str, Any]]:
     path = Path(given).expanduser()
     if not path.is_file():
-        problem = "a folder" if path.is_dir() else "no such file"
+        from longslam.io.outputs import special_file_kind
+
+        problem = "a folder" if path.is_dir() else special_file_kind(path) or "no such file"
         raise InputError(f"{what}: {problem} (expected a DBoW2 text vocabulary such as ORBvoc.txt)")
     check_vocabulary_file(path, what)
     return str(path.resolve()), {"source": source, "path": str(path.resolve())}

@@ -12,6 +12,7 @@ arguments. The entry point's name is the model's name in `--sensor`, a study's `
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from functools import lru_cache
 from importlib.metadata import entry_points
@@ -37,16 +38,47 @@ def sensor_names() -> list[str]:
     return list(BUILTIN) + sorted(_plugins(tuple(sys.path)))
 
 
+def failure(err: BaseException) -> str:
+    """What a plugin's code raised, in one short line."""
+    text = " ".join(str(err).split())[:200]
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def sensor_problem(name: str) -> str | None:
+    """Why a plugin's sensor cannot load, found without running its code (its module is looked
+    for, not imported), or None; so `longslam list` does not list a missing module as a sensor."""
+    plugins = _plugins(tuple(sys.path))
+    if name not in plugins:
+        return None
+    module = plugins[name].module
+    try:
+        found = importlib.util.find_spec(module)
+    except (ImportError, ValueError):  # a parent package missing, or an empty name
+        found = None
+    return None if found is not None else f"its module {module} is not installed"
+
+
 def get_sensor(name: str) -> SensorModel:
     if name in BUILTIN:
         return BUILTIN[name]
     plugins = _plugins(tuple(sys.path))
     if name not in plugins:
         raise UnknownNameError("sensor", name, sensor_names())
-    loaded = plugins[name].load()
-    model = loaded if isinstance(loaded, SensorModel) else loaded()
+    entry = plugins[name].value
+    # A plugin's code runs here: whatever it raises (SystemExit too) is its failure, named.
+    try:
+        loaded = plugins[name].load()
+    except (Exception, SystemExit) as err:
+        raise InputError(f"sensor {name!r}: entry point {entry} cannot be loaded ({failure(err)})") from None
+    if not isinstance(loaded, SensorModel) and not callable(loaded):
+        raise InputError(f"sensor {name!r}: entry point {entry} is a {type(loaded).__name__}; "
+                         "expected a longslam.sim.sensors.SensorModel (or a class making one)")
+    try:
+        model = loaded if isinstance(loaded, SensorModel) else loaded()
+    except (Exception, SystemExit) as err:
+        raise InputError(f"sensor {name!r}: making the model from entry point {entry} raised {failure(err)}") from None
     if not isinstance(model, SensorModel):
-        raise InputError(f"sensor {name!r}: entry point {plugins[name].value} gave a {type(model).__name__}; "
+        raise InputError(f"sensor {name!r}: entry point {entry} gave a {type(model).__name__}; "
                          "expected a longslam.sim.sensors.SensorModel (or a class making one)")
     if model.name != name:
         # The name in meta.json and the study is the entry point's, so the frame draws are keyed by it.

@@ -36,10 +36,31 @@ def camera_motions(truth: Trajectory) -> list[FrameMotion]:
     return [FrameMotion(float(t), a, v) for t, a, v in zip(stamps, angular, linear)]
 
 
+def _sense(sensor: SensorModel, frame: Frame, motion: FrameMotion, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The model's images of `frame`, checked. A model's code is a plugin's: what it raises
+    (SystemExit and MemoryError too: a simulate that exited 0 having written nothing) or returns
+    instead of two images is an InputError naming the sensor and the frame."""
+    where = f"sensor {sensor.name!r}, frame {frame.index}"
+    clean_rgb, clean_depth = frame.rgb, frame.depth  # read before: an error reading them is not the model's
+    try:
+        made = sensor.sense(clean_rgb, clean_depth, frame.intrinsics, motion, frame_rng(sensor.name, seed, frame.index))
+    except (Exception, SystemExit) as err:
+        from longslam.sim.sensors.catalog import failure
+
+        raise InputError(f"{where}: sense() raised {failure(err)}") from None
+    if not isinstance(made, (tuple, list)) or len(made) != 2:
+        got = f"{len(made)} values" if isinstance(made, (tuple, list)) else f"a {type(made).__name__}"
+        raise InputError(f"{where}: sense() returned {got}; expected (rgb, depth)")
+    return _checked(sensor, frame, *made)
+
+
 def _checked(sensor: SensorModel, frame: Frame, rgb, depth) -> tuple[np.ndarray, np.ndarray]:
     """The model's output, refused with its name if it is not images of the frame's shape."""
     shape = (frame.intrinsics.height, frame.intrinsics.width)
-    rgb, depth = np.asarray(rgb), np.asarray(depth)
+    try:
+        rgb, depth = np.asarray(rgb), np.asarray(depth)
+    except Exception:  # a ragged list, say
+        rgb, depth = np.asarray(None), np.asarray(None)
     where = f"sensor {sensor.name!r}, frame {frame.index}"
     if rgb.dtype != np.uint8 or rgb.shape != shape + (3,):
         raise InputError(f"{where}: sense() returned rgb {rgb.dtype} {rgb.shape}; expected uint8 {shape + (3,)}")
@@ -58,9 +79,7 @@ def sensed_frame(clean: Frame, sensor: SensorModel, seed: int, motion: FrameMoti
 
     def both() -> tuple[np.ndarray, np.ndarray]:
         if not made:
-            rng = frame_rng(sensor.name, seed, clean.index)
-            rgb, depth = sensor.sense(clean.rgb, clean.depth, clean.intrinsics, motion, rng)
-            made.append(_checked(sensor, clean, rgb, depth))
+            made.append(_sense(sensor, clean, motion, seed))
         return made[0]
 
     return Frame(clean.index, clean.timestamp, lambda: both()[0], lambda: both()[1], clean.odometry, clean.intrinsics)
