@@ -77,3 +77,16 @@ def test_thread_time_from_before_start_is_not_counted():
     monitor = TreeMonitor().start()
     usage = monitor.stop()
     assert usage.cpu_time_s < 0.3
+
+
+def test_children_alive_before_the_run_are_not_the_runs():
+    earlier = subprocess.Popen([sys.executable, "-c", HOLD.format(n=100 * 2**20, s=2.0)])
+    try:
+        time.sleep(0.3)
+        monitor = TreeMonitor(interval_s=0.05).start()
+        time.sleep(0.3)
+        usage = monitor.stop()
+    finally:
+        earlier.kill()
+        earlier.wait()
+    assert usage.child_processes == 0 and usage.peak_rss_bytes < monitor._peak_rss + 50 * 2**20

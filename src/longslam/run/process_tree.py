@@ -99,7 +99,8 @@ class TreeMonitor:
     """Samples this process (or `pid`) and its descendants on a thread of its own.
 
     Usage: `monitor = TreeMonitor(); monitor.start(); ...; usage = monitor.stop()`. Thread time
-    from before `start` is not counted; the sampling thread itself is left out."""
+    from before `start` is not counted, nor child processes already alive then (a test runner's,
+    a multiprocessing helper's); the sampling thread itself is left out."""
 
     def __init__(self, pid: int | None = None, interval_s: float = SAMPLE_INTERVAL_S):
         self.pid = pid if pid is not None else os.getpid()
@@ -113,9 +114,10 @@ class TreeMonitor:
         self._thread: threading.Thread | None = None
         self._own_tid: int | None = None
         self._lock = threading.Lock()
+        self._before: set[int] = set()  # children alive before `start` are not the run's
 
     def _sample(self) -> None:
-        pids = [self.pid, *descendants(self.pid)]
+        pids = [self.pid, *(pid for pid in descendants(self.pid) if pid not in self._before)]
         rss = 0
         latest = {}
         for pid in pids:
@@ -137,6 +139,7 @@ class TreeMonitor:
             self._sample()
 
     def start(self) -> "TreeMonitor":
+        self._before = set(descendants(self.pid))
         self._baseline = {(self.pid, tid): v for tid, v in _thread_schedstat(self.pid).items()}
         self._sample()
         self._thread = threading.Thread(target=self._loop, name="longslam-tree-monitor", daemon=True)
