@@ -42,7 +42,9 @@ def test_the_runs_table_links_only_files_that_are_there(study):
     cells = [c.strip() for c in odometry.strip("|").split("|")]
     header = [c.strip() for c in table.split("\n| route |")[1].splitlines()[0].strip("|").split("|")]
     values = dict(zip(["route"] + header, cells))
-    assert values["status"] == "ok" and 50 < float(values["peak memory [MB]"]) < 2000 and float(values["ATE [m]"]) > 0
+    # "ok, starved" when its process waited for a core (two runs at once on a loaded 2-core machine).
+    assert values["status"] in ("ok", "ok, starved") and 50 < float(values["peak memory [MB]"]) < 2000
+    assert float(values["ATE [m]"]) > 0 and 0.0 <= float(values["CPU wait share"]) <= 1.0
     assert values["APE RMSE [m]"] != "–" and values["time [s]"] != "–"
 
 
