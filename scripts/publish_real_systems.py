@@ -35,6 +35,7 @@ from longslam.study.report.tables import format_number
 
 ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("odometry", "keyframe", "submap", "orbslam3")
+LOSSES: list = []  # (run, event, region) of every ORB-SLAM3 tracking loss, filled as the runs are read
 # Published runs must have had their CPU: a run waiting longer than this share is not published.
 UNSTARVED_SHARE = 0.05
 
@@ -116,11 +117,16 @@ def orbslam3_runs(study: Path, runs: list[dict], images: Path, page: Path) -> tu
     """A row per ORB-SLAM3 run (its losses placed in the building) and, per sequence, the first
     loss's colour image."""
     lines = ["| route | camera | repeat | ATE [m] | untracked frames | longest loss [s] | maps | loops "
-             "| tracking lost (frames, seconds, where) |", "|---|---|---|---|---|---|---|---|---|"]
+             "| CPU [ms/frame] | CPU wait share | tracking lost (frames, seconds, where) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     pictures: list[str] = []
     shown: set[tuple] = set()
     for run in runs:
-        if run["method_name"] != "orbslam3" or run["status"] != "ok":
+        if run["method_name"] != "orbslam3":
+            continue
+        if run["status"] != "ok":
+            lines.append(f"| {run['route']} | {run['camera_name']} | {run.get('repeat') or 0} | failed: "
+                         f"{(run.get('error') or '').split(';')[0]} | | | | | | | |")
             continue
         run_dir = study / run["run_dir"]
         sequence = Path(_measured(run, "sequence"))
@@ -136,7 +142,9 @@ def orbslam3_runs(study: Path, runs: list[dict], images: Path, page: Path) -> tu
         lines.append(
             f"| {run['route']} | {run['camera_name']} | {run.get('repeat') or 0} | {_num(run.get('ate'))} "
             f"| {_method_stat(run, 'frames_untracked', '–')} | {_num(_method_stat(run, 'tracking_lost_longest_s'), 2)} "
-            f"| {_method_stat(run, 'maps', '–')} | {_method_stat(run, 'loops_accepted', '–')} | {losses_text} |")
+            f"| {_method_stat(run, 'maps_started', _method_stat(run, 'maps', '–'))} | {_method_stat(run, 'loops_accepted', '–')} "
+            f"| {_num(_cpu_ms_per_frame(run))} | {_num(run.get('cpu_wait_share'), 2)} | {losses_text} |")
+        LOSSES.extend((run, e, region) for e, region in losses)
         key = _cell_key(run)
         if losses and key not in shown:
             shown.add(key)
@@ -158,6 +166,57 @@ def orbslam3_runs(study: Path, runs: list[dict], images: Path, page: Path) -> tu
 def _rgb_of_frame(sequence: Path, frame: int) -> Path | None:
     rows = [line.split() for line in (sequence / "rgb.txt").read_text().splitlines() if line and not line.startswith("#")]
     return sequence / rows[frame][1] if 0 <= frame < len(rows) else None
+
+
+def why_it_fails(runs: list[dict]) -> list[str]:
+    """What the runs' events say about ORB-SLAM3's failures, counted from the events."""
+    orb = [r for r in runs if r["method_name"] == "orbslam3"]
+    crashed = [r for r in orb if r["status"] != "ok"]
+    long_losses = [(run, e, region) for run, e, region in LOSSES if e.last_frame - e.first_frame + 1 >= 20]
+    lengths = sorted(e.last_frame - e.first_frame + 1 for _, e, _ in long_losses)
+    new_maps = sum(1 for r in orb if (_method_stat(r, "maps_started", 1) or 1) > 1)
+    places = sorted({region or "?" for _, _, region in long_losses})
+    waits = [r["cpu_wait_share"] for r in orb if r.get("cpu_wait_share") is not None]
+    alone = all(not _overlaps(r, runs) for r in orb)
+    out = [
+        "## Why ORB-SLAM3 fails",
+        "",
+        f"Of {len(orb)} ORB-SLAM3 runs, {new_maps} started a second map, and every such run lost tracking for "
+        f"a stretch first: the long losses (20 frames or more) lasted {', '.join(map(str, lengths)) or 'no'} frames, "
+        f"in {', '.join(places) or 'no place'}. {len(crashed)} run(s) died ("
+        + (", ".join(sorted({(r.get('error') or '').split(';')[0] for r in crashed})) or "none") + ").",
+        "",
+        "The length is ORB-SLAM3's own rule. When tracking the local map fails (its console prints `Fail to track "
+        "local map!`, once a frame), an RGB-D system without an IMU enters RECENTLY_LOST and tries to relocalise "
+        "on every frame; if it has not succeeded once the frame's stamp is more than 3.0 s past the loss "
+        "(`Tracking.cc`: `mCurrentFrame.mTimeStamp-mTimeStampLost>3.0f && !bOK`), it is LOST, and the next frame "
+        "starts a new map (or resets the map if it holds under 10 keyframes). At 10 frames a second that is "
+        "31-32 frames, the stretch the losses above have. The new map begins at the identity; the plugin places "
+        "it at the last tracked pose, 3 s behind the robot, so its whole trajectory is off by what the robot did "
+        "in those 3 s (a turn taken then rotates the rest of the route), and the final trajectory is ORB-SLAM3's "
+        "largest map. Whether tracking the local map fails at all differs from run to run on the same images: "
+        "the local mapping thread races tracking, and a frame that arrives before the new keyframe's points are "
+        "in the local map finds too few matches. The image below each table is the first frame of the longest "
+        "loss: what the camera saw when tracking failed.",
+        "",
+        "**CPU.** Each ORB-SLAM3 run ran " + ("alone" if alone else "beside other runs (see the tables)") +
+        f" on the 2 cores; its threads' CPU wait share was {_num(min(waits), 2) if waits else '–'} to "
+        f"{_num(max(waits), 2) if waits else '–'} (median {_num(float(np.median(waits)), 2) if waits else '–'}). "
+        "Alone, that wait is ORB-SLAM3's own threads (tracking, local mapping, loop closing and a global bundle "
+        "adjustment after a loop) wanting more than 2 cores at once: on this machine it does not get all the CPU "
+        f"it asks for even alone, and the runs over {UNSTARVED_SHARE:g} are marked in the tables.",
+        "",
+    ]
+    return out
+
+
+def _overlaps(run: dict, runs: list[dict]) -> bool:
+    if not run.get("started_at") or not run.get("ended_at"):
+        return False
+    start, end = dt.datetime.fromisoformat(run["started_at"]), dt.datetime.fromisoformat(run["ended_at"])
+    return any(other is not run and other.get("started_at") and other.get("ended_at")
+               and dt.datetime.fromisoformat(other["started_at"]) < end and start < dt.datetime.fromisoformat(other["ended_at"])
+               for other in runs)
 
 
 def _study_time(runs: list[dict]) -> str:
@@ -204,7 +263,12 @@ def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
         f"plus their CPU time) is at most {_num(max(waits) if waits else None, 2)}; "
         + (f"{len(starved)} run(s) waited for more than {UNSTARVED_SHARE:g}: {', '.join(starved)}." if starved
            else f"no run waited for more than {UNSTARVED_SHARE:g} of its time."),
-        "Nothing else ran on the machine while the studies ran.", "",
+        "Nothing else ran on the machine while the studies ran, apart from a load sampler (the load average "
+        "once a minute) and short reads of the databases.", "",
+        f"`keyframe`, `submap` and `odometry` ran two at a time (one core each): their CPU wait share (median "
+        f"{_num(float(np.median([r['cpu_wait_share'] for r in all_runs if r['method_name'] != 'orbslam3' and r.get('cpu_wait_share') is not None] or [0.0])), 2)}) "
+        "comes from each run's second thread (it decodes the next frames' images while the method works) and "
+        "the other run; they are deterministic, so the wait changes their time, not their trajectories.", "",
         "ORB-SLAM3 (`orbslam3`, the plugin `plugins/longslam-orbslam3`, GPL-3.0, through `pyorbslam3` 0.1.1) sees the "
         "images and depth only; the wheel odometry places its first map at the first odometry pose. It is fed at "
         "the sequence's own rate (10 frames a second) and its tracking, local mapping and loop closing threads "
@@ -217,7 +281,7 @@ def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
         f"to the next tracked one (a loss over {LONGEST_LOSS_S:g} s fails the run). Where is the region of the "
         "building (from the floor plan) the robot was in at the loss's first frame.", "",
     ]
-    out.write_text("\n".join(header + parts).rstrip() + "\n", encoding="utf-8")
+    out.write_text("\n".join(header + why_it_fails(all_runs) + parts).rstrip() + "\n", encoding="utf-8")
     print(f"wrote {out} ({len(all_runs)} runs, commit {commit}, max CPU wait share {max(waits) if waits else None})")
 
 

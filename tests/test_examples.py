@@ -1,0 +1,42 @@
+"""The examples in examples/ run as a user runs them, and give what they say."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+pytestmark = pytest.mark.slow
+
+
+def _load(name: str):
+    spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_evaluate_own_trajectory(tmp_path, render_cache, monkeypatch):
+    monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
+    scores = _load("evaluate_own_trajectory").main(tmp_path)
+    assert 0.05 < scores["ate"] < 1.0 and scores["e_trans"] > 0
+
+
+def test_own_method(tmp_path, render_cache, monkeypatch):
+    monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
+    from longslam.slam import catalog
+
+    monkeypatch.setattr(catalog, "BUILTIN", dict(catalog.BUILTIN))
+    scores = _load("own_method").main(tmp_path)
+    assert scores["ate"] < 1.0
+
+
+def test_small_study(tmp_path, render_cache, monkeypatch):
+    monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
+    ate = _load("small_study").main(tmp_path)
+    assert set(ate) == {(m, n) for m in ("keyframe", "odometry") for n in ("small", "large")}
+    assert (tmp_path / "ate.png").read_bytes()[:4] == b"\x89PNG"
