@@ -54,6 +54,9 @@ def test_a_run_beside_two_busy_processes_on_its_core_is_marked_starved(one_core)
             hog.wait()
     # Three busy processes on one core: this one runs about a third of the time.
     assert usage.cpu_wait_share >= 0.4, usage
+    # The wait is this thread's (pytest's main thread is named after its program).
+    name, (cpu, wait) = next(iter(usage.by_thread.items()))
+    assert wait >= 0.5 and cpu >= 0.2, usage.by_thread
     assert usage.starved
     assert usage.cpu_wait_s >= 0.5
 

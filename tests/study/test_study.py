@@ -73,6 +73,8 @@ class Crashy(Gridded):
 class Dies(Gridded):
     def step(self, frame):
         if frame.index == 5:
+            # What a native system says as it dies goes to the run's console.log.
+            os.write(1, b"native: assertion failed, about to die\\n")
             os.kill(os.getpid(), signal.SIGKILL)
         return super().step(frame)
 
@@ -175,6 +177,8 @@ def test_a_study_writes_one_row_per_run_and_records_crashes(study):
         assert "RuntimeError" in crashed["traceback"] and crashed["ate"] is None
         died = rows[f"tiny/large/dies/seed-{seed}"]
         assert died["status"] == "error" and "SIGKILL" in died["error"]
+        console = out / "logs" / f"tiny/large/dies/seed-{seed}.console.log"
+        assert str(console) in died["error"] and "assertion failed, about to die" in console.read_text()
     assert not list((out / "runs").rglob(".*partial*"))
 
 

@@ -162,6 +162,8 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
         "cpu_wait_share": usage.cpu_wait_share,
         "starved": usage.cpu_wait_share > STARVED_SHARE,
         "tree_cpu_time_s": usage.cpu_time_s,
+        # Whose threads waited: [CPU s, wait s] by thread name, the 8 that waited longest.
+        "cpu_wait_by_thread": {name: [round(c, 3), round(w, 3)] for name, (c, w) in list(usage.by_thread.items())[:8]},
         "child_processes": usage.child_processes,
         # The process's own peak, or with child processes (a program run as a method) the largest
         # sum of the tree's resident memory seen in one sample.

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 SAMPLE_INTERVAL_S = 0.2
@@ -43,6 +43,11 @@ def _thread_schedstat(pid: int) -> dict[int, tuple[int, int]]:
             parts = text.split()
             found[int(tid)] = (int(parts[0]), int(parts[1]))
     return found
+
+
+def _thread_name(pid: int, tid: int) -> str:
+    text = _read(f"/proc/{pid}/task/{tid}/comm")
+    return text.strip() if text else "?"
 
 
 def _rss_bytes(pid: int) -> int:
@@ -83,6 +88,9 @@ class TreeUsage:
     peak_rss_bytes: int  # the largest sum of resident memory over the tree in one sample
     child_processes: int  # descendant processes seen
     samples: int
+    # CPU and wait seconds by thread name (a thread's `comm`: "python", a native system's own
+    # names), largest wait first: whose threads waited, the run's own or the harness's.
+    by_thread: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def cpu_wait_share(self) -> float:
@@ -115,6 +123,7 @@ class TreeMonitor:
         self._own_tid: int | None = None
         self._lock = threading.Lock()
         self._before: set[int] = set()  # children alive before `start` are not the run's
+        self._names: dict[tuple[int, int], str] = {}
 
     def _sample(self) -> None:
         pids = [self.pid, *(pid for pid in descendants(self.pid) if pid not in self._before)]
@@ -124,6 +133,8 @@ class TreeMonitor:
             for tid, values in _thread_schedstat(pid).items():
                 if tid != self._own_tid:
                     latest[(pid, tid)] = values
+                    if (pid, tid) not in self._names:
+                        self._names[(pid, tid)] = _thread_name(pid, tid)
             rss += _rss_bytes(pid)
         with self._lock:
             self._latest.update(latest)
@@ -153,13 +164,18 @@ class TreeMonitor:
         self._sample()
         with self._lock:
             cpu_ns = wait_ns = 0
+            named: dict[str, list[int]] = {}
             for key, (cpu, wait) in self._latest.items():
                 if key[1] == self._own_tid:
                     continue
                 base_cpu, base_wait = self._baseline.get(key, (0, 0))
                 cpu_ns += max(0, cpu - base_cpu)
                 wait_ns += max(0, wait - base_wait)
-            return TreeUsage(cpu_ns * 1e-9, wait_ns * 1e-9, self._peak_rss, len(self._children), self._samples)
+                totals = named.setdefault(self._names.get(key, "?"), [0, 0])
+                totals[0] += max(0, cpu - base_cpu)
+                totals[1] += max(0, wait - base_wait)
+            by_thread = {name: (c * 1e-9, w * 1e-9) for name, (c, w) in sorted(named.items(), key=lambda kv: -kv[1][1])}
+            return TreeUsage(cpu_ns * 1e-9, wait_ns * 1e-9, self._peak_rss, len(self._children), self._samples, by_thread)
 
 
 def schedstat_available() -> bool:

@@ -110,6 +110,21 @@ def _death_message(exitcode: int | None) -> str:
     return f"the run's process exited with code {exitcode} without a result"
 
 
+def _keep_console(partial: Path, log_path: Path) -> Path | None:
+    """A dead run's console.log, moved beside its log as NAME.console.log; None if it had none."""
+    from longslam.run.console import CONSOLE_LOG
+
+    console = partial / CONSOLE_LOG
+    if not console.is_file() or console.stat().st_size == 0:
+        return None
+    kept = log_path.with_name(log_path.stem + ".console.log")
+    try:
+        shutil.move(str(console), kept)
+    except OSError:
+        return None
+    return kept
+
+
 class LocalExecutor:
     """Runs on up to `jobs` cores at once (a run takes its method's cores), each in a new process
     (spawned, so nothing is inherited)."""
@@ -148,11 +163,15 @@ class LocalExecutor:
                     record = RunRecord.from_dict(json.load(handle))
                 os.unlink(result_path)
             except (OSError, ValueError):
-                record = RunRecord.failed(f"{_death_message(process.exitcode)}; see {task.log_path}")
-                # The unfinished run folder of the dead process (see longslam.io.atomic).
+                # The unfinished run folder of the dead process (see longslam.io.atomic): its
+                # console.log (what native code printed, often the only word of why it died:
+                # an abort's message, an assertion) is kept beside the run's log first.
                 from longslam.io.partials import partial_path
 
                 partial = partial_path(task.run_dir, process.pid)
+                kept = _keep_console(partial, task.log_path)
+                where = f"{task.log_path}" + (f" and {kept}" if kept else "")
+                record = RunRecord.failed(f"{_death_message(process.exitcode)}; see {where}")
                 if partial.exists():
                     shutil.rmtree(partial, ignore_errors=True)
             record.log = record.log or str(task.log_path)
