@@ -19,7 +19,7 @@ import os
 import platform
 import shutil
 import subprocess
-from collections import defaultdict
+from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any
 
@@ -85,7 +85,8 @@ def _cell_key(run: dict) -> tuple[str, str]:
 
 
 def _commits(runs: list[dict]) -> set[str]:
-    return {(_measured(r, "longslam_commit") or "") for r in runs}
+    """The commits the finished runs name (a run whose process died records none)."""
+    return {(_measured(r, "longslam_commit") or "") for r in runs if r["status"] == "ok"}
 
 
 def summary_table(runs: list[dict], dead: dict) -> list[str]:
@@ -261,8 +262,9 @@ def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
         "```bash", *commands, "```", "",
         f"Every run's CPU wait share (how long its threads were ready to run but waited for a core, over that wait "
         f"plus their CPU time) is at most {_num(max(waits) if waits else None, 2)}; "
-        + (f"{len(starved)} run(s) waited for more than {UNSTARVED_SHARE:g}: {', '.join(starved)}." if starved
-           else f"no run waited for more than {UNSTARVED_SHARE:g} of its time."),
+        + (f"{len(starved)} of {len(waits)} runs waited for more than {UNSTARVED_SHARE:g} of their time ("
+           + ", ".join(f"{m}: {n}" for m, n in sorted(Counter(k.split('/')[-2] for k in starved).items())) + ")."
+           if starved else f"no run waited for more than {UNSTARVED_SHARE:g} of its time."),
         "Nothing else ran on the machine while the studies ran, apart from a load sampler (the load average "
         "once a minute) and short reads of the databases.", "",
         f"`keyframe`, `submap` and `odometry` ran two at a time (one core each): their CPU wait share (median "
