@@ -27,9 +27,8 @@ import numpy as np
 
 from longslam.errors import InputError
 from longslam.run.diagnose import diagnose_run
-from longslam.run.process_tree import STARVED_SHARE
 from longslam.study.database import DB_NAME, ResultsDB
-from longslam.study.report.distribution import FAILURE_RULE, LONGEST_LOSS_S, failure_reason
+from longslam.study.report.distribution import FAILURE_RULE, LONGEST_LOSS_S, dead_reckoning_ates, failures_text
 from longslam.study.report.render import E_ROT_NOTE
 from longslam.study.report.tables import format_number
 
@@ -99,13 +98,10 @@ def summary_table(runs: list[dict], dead: dict) -> list[str]:
     for (route, camera, method), mine in sorted(cells.items(), key=lambda kv: (kv[0][0], kv[0][1], METHODS.index(kv[0][2]) if kv[0][2] in METHODS else 9)):
         ok = [r for r in mine if r["status"] == "ok"]
         ates = [r["ate"] for r in ok if r.get("ate") is not None]
-        reasons = [failure_reason(r, dead.get((route, camera, r["seed"]))) for r in mine]
-        failed = [x for x in reasons if x]
-        why = f" ({', '.join(sorted(set(failed)))})" if failed else ""
         mean = f"{_num(np.mean(ates))} +- {_num(np.std(ates))}" if ates else "–"
         waits = [r["cpu_wait_share"] for r in mine if r.get("cpu_wait_share") is not None]
         lines.append(
-            f"| {route} | {camera} | {method} | {len(mine)} | {_spread(ates)} | {mean} | {len(failed)} / {len(mine)}{why} "
+            f"| {route} | {camera} | {method} | {len(mine)} | {_spread(ates)} | {mean} | {failures_text(mine, dead)} "
             f"| {_spread([r['e_rot'] for r in ok if r.get('e_rot') is not None])} "
             f"| {_spread([r['rpe_rot'] for r in ok if r.get('rpe_rot') is not None])} "
             f"| {_num(np.median([r['peak_rss_bytes'] / 1e6 for r in ok]) if ok else None)} "
@@ -238,8 +234,7 @@ def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
         with ResultsDB(study / DB_NAME) as db:
             config, runs = db.study() or {}, db.runs()
         all_runs += runs
-        dead = {(r["route"], r["camera_name"], r["seed"]): r["ate"] for r in runs
-                if r["method_name"] == "odometry" and r["status"] == "ok" and not r.get("repeat")}
+        dead = dead_reckoning_ates(runs)
         rows, pictures = orbslam3_runs(study, runs, images, out)
         parts += [f"## Study `{config.get('name')}`: {', '.join(r['name'] for r in config.get('routes', []))}, "
                   f"{config.get('repeats', 1)} runs per cell", "",

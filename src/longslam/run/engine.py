@@ -28,7 +28,7 @@ from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
 from longslam.progress import bar
 from longslam.run.observer import RunObserver
-from longslam.run.process_tree import STARVED_SHARE, TreeMonitor
+from longslam.run.process_tree import TreeMonitor
 from longslam.run.provenance import provenance
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes, peak_rss_bytes
@@ -160,7 +160,7 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
         # but waited for a core (run/process_tree.py), and that wait's share of wait plus CPU time.
         "cpu_wait_s": usage.cpu_wait_s,
         "cpu_wait_share": usage.cpu_wait_share,
-        "starved": usage.cpu_wait_share > STARVED_SHARE,
+        "starved": usage.starved,
         "tree_cpu_time_s": usage.cpu_time_s,
         # Whose threads waited: [CPU s, wait s] by thread name, the 8 that waited longest.
         "cpu_wait_by_thread": {name: [round(c, 3), round(w, 3)] for name, (c, w) in list(usage.by_thread.items())[:8]},

@@ -22,6 +22,11 @@ PAGE_BYTES = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
 STARVED_SHARE = 0.10
 
 
+def starved(cpu_wait_share: float | None) -> bool:
+    """Whether a run with this CPU wait share (None: not measured) was starved of CPU."""
+    return (cpu_wait_share or 0.0) > STARVED_SHARE
+
+
 def _read(path: str) -> str | None:
     try:
         with open(path) as handle:
@@ -100,7 +105,7 @@ class TreeUsage:
 
     @property
     def starved(self) -> bool:
-        return self.cpu_wait_share > STARVED_SHARE
+        return starved(self.cpu_wait_share)
 
 
 class TreeMonitor:
@@ -143,9 +148,7 @@ class TreeMonitor:
             self._samples += 1
 
     def _loop(self) -> None:
-        self._own_tid = threading.get_native_id()
-        with self._lock:  # the sampler's own time is no one's
-            self._baseline.pop((self.pid, self._own_tid), None)
+        self._own_tid = threading.get_native_id()  # the sampler's own time is no one's
         while not self._stop.wait(self.interval_s):
             self._sample()
 
@@ -166,8 +169,6 @@ class TreeMonitor:
             cpu_ns = wait_ns = 0
             named: dict[str, list[int]] = {}
             for key, (cpu, wait) in self._latest.items():
-                if key[1] == self._own_tid:
-                    continue
                 base_cpu, base_wait = self._baseline.get(key, (0, 0))
                 cpu_ns += max(0, cpu - base_cpu)
                 wait_ns += max(0, wait - base_wait)

@@ -143,16 +143,14 @@ def _run_locked(
                 if executor == "local" and (route.name, camera_name) in needed:
                     render_once(route, camera, config.follower, progress=progress)
         clean_partials(out / "runs")
-        if executor == "local":  # once-per-machine work of the methods (a vocabulary), before the runs
-            from longslam.slam.catalog import get_spec
+        from longslam.slam.catalog import get_spec
 
+        if executor == "local":  # once-per-machine work of the methods (a vocabulary), before the runs
             for entry in {(spec.method_name, json.dumps(spec.params, sort_keys=True)) for spec in todo}:
                 get_spec(entry[0]).prepare_for(json.loads(entry[1]))
 
         failed = ran = 0
         if todo:
-            from longslam.slam.catalog import get_spec
-
             pending = deque(todo)
             # Runs start in plan order while their cores are free: a run that needs every core
             # (ORB-SLAM3) waits for the runs before it to end, and nothing starts beside it.

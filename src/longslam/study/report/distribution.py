@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from longslam.run.process_tree import STARVED_SHARE
+from longslam.run.process_tree import STARVED_SHARE, starved
 from longslam.study.report.results import StudyResults, on_camera
 from longslam.study.report.tables import Cell, Table, format_number
 
@@ -46,9 +46,17 @@ def _sequence(run: dict[str, Any]) -> tuple:
     return run["route"], run.get("camera_name"), run.get("sensor"), run["noise"], run["seed"]
 
 
-def _dead_reckoning(results: StudyResults) -> dict[tuple, float]:
-    return {_sequence(r): r["ate"] for r in results.ok
-            if r.get("method_name") == "odometry" and r.get("ate") is not None and not r.get("repeat")}
+def dead_reckoning_ates(runs: list[dict[str, Any]]) -> dict[tuple, float]:
+    """Dead reckoning's ATE on each sequence of `runs` (its first repeat's), by sequence."""
+    return {_sequence(r): r["ate"] for r in runs if r["status"] == "ok"
+            and r.get("method_name") == "odometry" and r.get("ate") is not None and not r.get("repeat")}
+
+
+def failures_text(runs: list[dict[str, Any]], dead: dict[tuple, float]) -> str:
+    """'k / n (reasons)': how many of a cell's runs failed under FAILURE_RULE, and why."""
+    failed = [reason for reason in (failure_reason(r, dead.get(_sequence(r))) for r in runs) if reason]
+    why = f" ({', '.join(sorted(set(failed)))})" if failed else ""
+    return f"{len(failed)} / {len(runs)}{why}"
 
 
 def _nondeterministic(results: StudyResults) -> set[str]:
@@ -73,7 +81,7 @@ def distribution_table(results: StudyResults) -> Table | None:
     labels = _nondeterministic(results) if repeats == 1 else set(results.methods)
     if not labels:
         return None
-    dead = _dead_reckoning(results)
+    dead = dead_reckoning_ates(results.runs)
     headings = ("runs", "ATE median [m]", "ATE quartiles [m]", "ATE min-max [m]", "ATE mean +- std [m]", "failed",
                 "starved")
     columns = [(f"{route} {noise}", heading) for route, noise in results.columns for heading in headings]
@@ -102,10 +110,7 @@ def _cells(runs: list[dict[str, Any]], dead: dict[tuple, float]) -> list[Cell]:
     if not runs:
         return [Cell("–") for _ in range(7)]
     ates = np.array([r["ate"] for r in runs if r["status"] == "ok" and r.get("ate") is not None], dtype=float)
-    reasons = [failure_reason(r, dead.get(_sequence(r))) for r in runs]
-    failed = [reason for reason in reasons if reason]
-    starved = sum(1 for r in runs if (r.get("cpu_wait_share") or 0.0) > STARVED_SHARE)
-    why = f" ({', '.join(sorted(set(failed)))})" if failed else ""
+    starved_runs = sum(1 for r in runs if starved(r.get("cpu_wait_share")))
     if len(ates):
         q1, median, q3 = np.percentile(ates, [25, 50, 75])
         spread = [Cell(format_number(median), float(median)), Cell(f"{format_number(q1)}-{format_number(q3)}"),
@@ -113,4 +118,4 @@ def _cells(runs: list[dict[str, Any]], dead: dict[tuple, float]) -> list[Cell]:
                   Cell(f"{format_number(ates.mean())} +- {format_number(ates.std())}")]
     else:
         spread = [Cell("–") for _ in range(4)]
-    return [Cell(str(len(runs))), *spread, Cell(f"{len(failed)} / {len(runs)}{why}"), Cell(f"{starved} / {len(runs)}")]
+    return [Cell(str(len(runs))), *spread, Cell(failures_text(runs, dead)), Cell(f"{starved_runs} / {len(runs)}")]

@@ -12,7 +12,7 @@ from pathlib import Path
 from longslam.errors import InputError
 from longslam.io.atomic import write_text_atomic
 from longslam.io.outputs import special_file_kind
-from longslam.run.process_tree import STARVED_SHARE
+from longslam.run.process_tree import STARVED_SHARE, starved
 from longslam.study.database import DB_NAME
 from longslam.study.report.distribution import FAILURE_RULE, distribution_table
 from longslam.study.paper import CITATION
@@ -191,9 +191,9 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
     notes = [E_ROT_NOTE]
     if distribution is not None:
         notes.append(FAILURE_RULE)
-    starved = [r["key"] for r in results.ok if (r.get("cpu_wait_share") or 0.0) > STARVED_SHARE]
-    if starved:
-        notes.append(f"{len(starved)} run(s) waited for a CPU for more than {STARVED_SHARE:.0%} of their time (marked "
+    starved_runs = [r["key"] for r in results.ok if starved(r.get("cpu_wait_share"))]
+    if starved_runs:
+        notes.append(f"{len(starved_runs)} run(s) waited for a CPU for more than {STARVED_SHARE:.0%} of their time (marked "
                      "'starved' in All runs): their times, and for a real-time system their results, are not the "
                      "system's own; `longslam study FILE --out DIR --retry-starved` runs them again.")
     if _paper_columns(results.columns):

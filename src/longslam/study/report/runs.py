@@ -10,7 +10,7 @@ from typing import Any
 
 from longslam.run.console import CONSOLE_LOG
 from longslam.run.folder import CONFIG, STATS, TRAJECTORY
-from longslam.run.process_tree import STARVED_SHARE
+from longslam.run.process_tree import STARVED_SHARE, starved
 from longslam.study.report.results import StudyResults, runs_anchor
 from longslam.study.report.tables import format_number
 
@@ -152,7 +152,7 @@ def every_run_table(results: StudyResults) -> RunsTable:
         ok = run["status"] == "ok"
         error = (run.get("error") or "").splitlines()[0] if not ok and run.get("error") else ""
         status = "ok" if ok else f"{run['status']}: {error[:ERROR_SHOWN]}" + ("…" if len(error) > ERROR_SHOWN else "")
-        if ok and (run.get("cpu_wait_share") or 0.0) > STARVED_SHARE:
+        if ok and starved(run.get("cpu_wait_share")):
             status = "ok, starved"
         table.rows.append(RunRow(
             key=run["key"], status=status, ok=ok,

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from longslam.run.process_tree import STARVED_SHARE
+from longslam.run.process_tree import starved
 from longslam.run.speed import format_real_time_factor
 from longslam.study.paper import (
     ACCURACY_METRICS, CITATION, PAPER_METHODS, PAPER_NOISE, PAPER_ROUTES, paper_accuracy, paper_memory_gb, paper_route,
@@ -269,7 +269,7 @@ def _starved(runs: list[dict]) -> str:
     measured = [r for r in runs if r.get("cpu_wait_share") is not None]
     if not measured:
         return "–"
-    return f"{sum(1 for r in measured if r['cpu_wait_share'] > STARVED_SHARE)} / {len(measured)}"
+    return f"{sum(1 for r in measured if starved(r['cpu_wait_share']))} / {len(measured)}"
 
 
 def _max(runs: list[dict], column: str) -> str:
