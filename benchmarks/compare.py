@@ -42,9 +42,9 @@ TREE_SRC = ROOT / "src"
 sys.path.insert(0, str(TREE_SRC))
 
 from common import run_process, sequence  # noqa: E402
-from longslam.errors import InputError  # noqa: E402
+from longslam.core.errors import InputError  # noqa: E402
 from longslam.run.score import score_files  # noqa: E402
-from longslam.settings import parse_key_values  # noqa: E402
+from longslam.core.settings import parse_key_values  # noqa: E402
 from longslam.sim.noise import get_noise  # noqa: E402
 from longslam.sim.routes import get_route  # noqa: E402
 
@@ -56,7 +56,7 @@ RENAMED_PARAMS = {
 }
 
 # Checks a method's parameters in a side's own code, as its `longslam run` would (no frames read).
-PROBE = ("import sys; from longslam.settings import parse_key_values; "
+PROBE = ("import sys; from longslam.core.settings import parse_key_values; "
          "from longslam.slam.catalog import check_params; check_params(sys.argv[1], parse_key_values(sys.argv[2:]))")
 
 
@@ -193,7 +193,7 @@ def measure(src: Path, seq: Path, method: str, pairs: list[str], out: Path) -> d
     """One `longslam run` of the code under `src`: wall_s, peak_mb, ate_m (and the run's own
     stats.json peak), or failed (its exit status)."""
     out.parent.mkdir(parents=True, exist_ok=True)
-    command = [sys.executable, "-m", "longslam.cli", "run", str(seq), "--method", method, "--out", str(out), "--overwrite"]
+    command = [sys.executable, "-m", "longslam", "run", str(seq), "--method", method, "--out", str(out), "--overwrite"]
     for pair in pairs:
         command += ["--param", pair]
     wall, peak_mib, status = run_process(command, out.with_name(out.name + ".log"), env=side_env(src))

@@ -17,10 +17,10 @@ import sys
 import time
 from pathlib import Path
 
-from longslam.gridmap import GridMap
+from longslam.core.gridmap import GridMap
 from longslam.run import folder
 from longslam.run.engine import run_sequence
-from longslam.settings import parse_key_values
+from longslam.core.settings import parse_key_values
 from longslam.slam.frontend import FrontEnd
 from longslam.slam.keyframe import memory, memory_db, method
 

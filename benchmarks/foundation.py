@@ -20,12 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from longslam.eval.evaluation import evaluate
-from longslam.simulate import rendered_sequence
+from longslam.sim.simulate import rendered_sequence
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
-from longslam.simulate import noisy_odometry
+from longslam.sim.simulate import noisy_odometry
 from longslam.world import get_world
 
 PAPER = Path(__file__).resolve().parents[2] / "shared" / "reference" / "paper_accuracy.csv"

@@ -26,15 +26,15 @@ import numpy as np
 
 from common import sequence
 from longslam.run.score import score
-from longslam.settings import from_mapping, parse_key_values
-from longslam.frame import Frame
+from longslam.core.settings import from_mapping, parse_key_values
+from longslam.core.frame import Frame
 from longslam.io.sequence import SequenceReader
 from longslam.eval.diagnose import loop_errors
 from longslam.geometry import planar_from_camera_poses
 from longslam.slam.api import MethodContext
 from longslam.slam.catalog import create_method
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 def run(path: Path, config: FrontEndConfig, no_odometry: bool) -> dict:

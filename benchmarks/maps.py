@@ -20,7 +20,7 @@ import numpy as np
 
 from longslam.eval.map_quality import map_scores, observed_walls
 from longslam.geometry.planar import planar_from_camera_poses
-from longslam.gridmap import GridMap
+from longslam.core.gridmap import GridMap
 from longslam.io.trajectory_files import read_tum
 from longslam.world import load_world
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.demo import run_demo
+from longslam.cli.demo import run_demo
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.routes import get_route

@@ -24,7 +24,7 @@ NONDETERMINISTIC = {"orbslam3"}
 
 
 def _evaluate(run: Path, seq: Path, align: str) -> dict:
-    out = subprocess.run([sys.executable, "-m", "longslam.cli", "evaluate", str(run), str(seq), "--json", "--align", align],
+    out = subprocess.run([sys.executable, "-m", "longslam", "evaluate", str(run), str(seq), "--json", "--align", align],
                          capture_output=True, text=True, check=True).stdout
     return json.loads(out)
 
@@ -32,7 +32,7 @@ def _evaluate(run: Path, seq: Path, align: str) -> dict:
 def one_run(seq: Path, method: str, repeat: int, work: Path, params: list[str]) -> dict:
     run = work / seq.name / f"{method}-{repeat}"
     if not (run / "stats.json").is_file():
-        command = [sys.executable, "-m", "longslam.cli", "run", "--method", method, str(seq), "--out", str(run), "--overwrite"]
+        command = [sys.executable, "-m", "longslam", "run", "--method", method, str(seq), "--out", str(run), "--overwrite"]
         for p in params:
             command += ["--param", p]
         done = subprocess.run(command, capture_output=True, text=True)

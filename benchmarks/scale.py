@@ -46,7 +46,7 @@ def simulate(route: str, noise: str, seed: int, work: Path) -> tuple[Path, float
     out = work / f"{route}-{noise}-{seed}"
     if out.exists():
         return out, 0.0
-    command = [sys.executable, "-m", "longslam.cli", "--no-progress", "simulate", "--route", route, "--noise", noise,
+    command = [sys.executable, "-m", "longslam", "--no-progress", "simulate", "--route", route, "--noise", noise,
                "--seed", str(seed), "--out", str(out)]
     wall, _, status = run_process(command, work / f"simulate-{route}.log")
     if status:
@@ -56,7 +56,7 @@ def simulate(route: str, noise: str, seed: int, work: Path) -> tuple[Path, float
 
 def measure(method: str, seq: Path, work: Path, dead_reckoning_ate: float, truth_xyyaw: np.ndarray) -> dict:
     run = work / "runs" / f"{seq.name}-{method}"
-    command = [sys.executable, "-m", "longslam.cli", "--no-progress", "run", str(seq), "--method", method,
+    command = [sys.executable, "-m", "longslam", "--no-progress", "run", str(seq), "--method", method,
                "--out", str(run), "--overwrite"]
     wall, peak_mib, status = run_process(command, work / f"{seq.name}-{method}.log")
     if status:

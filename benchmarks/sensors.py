@@ -25,7 +25,7 @@ import numpy as np
 def timed_simulate(route: str, noise: str, seed: int, sensor: str, out: Path) -> tuple[float, float]:
     """Wall seconds and peak resident MiB of `longslam simulate` as a user runs it."""
     installed = Path(sys.executable).with_name("longslam")  # the console script a user runs
-    longslam = [str(installed)] if installed.is_file() else [sys.executable, "-m", "longslam.cli"]
+    longslam = [str(installed)] if installed.is_file() else [sys.executable, "-m", "longslam"]
     command = ["/usr/bin/time", "-v", *longslam, "simulate", "--route", route,
                "--noise", noise, "--seed", str(seed), "--sensor", sensor, "--out", str(out), "--overwrite"]
     done = subprocess.run(command, capture_output=True, text=True, check=True)

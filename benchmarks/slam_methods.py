@@ -19,7 +19,7 @@ import numpy as np
 from common import run_and_score, sequence
 from longslam.io.sequence import SequenceReader
 from longslam.run.score import score
-from longslam.settings import parse_key_values
+from longslam.core.settings import parse_key_values
 
 COUNTERS = ("nodes", "submaps", "loops_accepted", "loops_rejected", "appearance_accepted",
             "appearance_rejected_verification", "appearance_rejected_graph",

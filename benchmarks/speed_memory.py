@@ -60,7 +60,7 @@ def main() -> None:
     print(f"{'variant':15s} {'wall s':>7s} {'x real':>7s} {'peak MiB':>8s} {'at 500 m':>9s} {'at end':>7s} {'growth':>7s}  target")
     for variant in args.variants:
         method, _, frontend = variant.partition("-")
-        command = [sys.executable, "-m", "longslam.cli", "run", str(seq), "--method", method,
+        command = [sys.executable, "-m", "longslam", "run", str(seq), "--method", method,
                    "--out", str(work / "runs" / f"{seq.name}-{variant}"), "--overwrite"]
         if frontend:
             command += ["--param", f"frontend.mode={frontend}"]

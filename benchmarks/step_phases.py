@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from longslam.run.engine import run_sequence
-from longslam.settings import parse_key_values
+from longslam.core.settings import parse_key_values
 
 # (module, owner in the module or "" for a module-level function, attribute, label)
 FRONTEND = [

@@ -13,7 +13,7 @@ method with --with-keyframe):
    read from disk, so rendering is excluded; target >= 5).
 
 Each run is a separate process (`run_sequence_isolated`), so peak memory is the run's own.
-Sequences are made with `longslam.simulate.simulate` (rendering cached under LONGSLAM_CACHE).
+Sequences are made with `longslam.sim.simulate.simulate` (rendering cached under LONGSLAM_CACHE).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import numpy as np
 from common import run_and_score, sequence
 from longslam.io.sequence import SequenceReader
 from longslam.run.score import score
-from longslam.settings import parse_key_values
+from longslam.core.settings import parse_key_values
 from longslam.slam.catalog import method_names
 
 

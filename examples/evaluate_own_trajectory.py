@@ -22,8 +22,8 @@ from longslam.run.score import score
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
-from longslam.simulate import simulate
-from longslam.trajectory import Trajectory
+from longslam.sim.simulate import simulate
+from longslam.core.trajectory import Trajectory
 
 
 def main(work: Path) -> dict:

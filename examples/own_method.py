@@ -20,7 +20,7 @@ import numpy as np
 
 from longslam.run.engine import run_frames
 from longslam.slam.api import MethodContext, MethodSpec, Result
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def main(work: Path) -> dict:
     from longslam.sim.camera import CameraSettings
     from longslam.sim.noise import get_noise
     from longslam.sim.routes import Route
-    from longslam.simulate import simulate
+    from longslam.sim.simulate import simulate
     from longslam.slam import catalog
 
     route = Route("corner", "university", ((20.0, 31.25), (28.0, 31.25)))

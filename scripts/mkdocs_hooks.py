@@ -33,7 +33,7 @@ def _help(parser: argparse.ArgumentParser) -> str:
 
 
 def cli_reference() -> str:
-    from longslam.cli import build_parser
+    from longslam.cli.main import build_parser
 
     parser = build_parser()
     parts = ["## `longslam`", "", "```text", _help(parser), "```", ""]
@@ -45,7 +45,7 @@ def cli_reference() -> str:
 
 
 def parameter_reference() -> str:
-    from longslam.cli import _list_params
+    from longslam.cli.main import _list_params
     from longslam.slam.catalog import method_names
 
     parts = []

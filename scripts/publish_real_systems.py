@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.run.diagnose import diagnose_run
 from longslam.study.database import DB_NAME, ResultsDB
 from longslam.study.report.distribution import FAILURE_RULE, LONGEST_LOSS_S, dead_reckoning_ates, failures_text

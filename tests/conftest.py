@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 from longslam.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceWriter
-from longslam.simulate import simulate
+from longslam.sim.simulate import simulate
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 TINY_INTRINSICS = Intrinsics.from_fov(16, 12, 90.0)
 

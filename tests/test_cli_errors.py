@@ -9,7 +9,7 @@ import re
 import pytest
 
 from conftest import one_line_error
-from longslam.cli import main
+from longslam.cli.main import main
 
 
 
@@ -30,7 +30,7 @@ def tiny(tiny_sequence):
 
 
 def test_bad_out_for_simulate_is_refused_before_rendering(tmp_path, monkeypatch, capsys):
-    from longslam import simulate as recording
+    from longslam.sim import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before --out was checked"))
     (tmp_path / "afile").write_text("x")
@@ -51,7 +51,7 @@ def test_bad_out_for_demo_and_study(tmp_path, capsys):
 
 
 def test_a_negative_seed_is_refused_before_rendering(tmp_path, monkeypatch, capsys):
-    from longslam import simulate as recording
+    from longslam.sim import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before the seed was checked"))
     assert main(["simulate", "--route", "demo", "--seed", "-1", "--out", str(tmp_path / "s")]) == 2
@@ -81,7 +81,7 @@ def test_a_folder_as_mesh_says_so(tmp_path, capsys):
 
 
 def test_debug_shows_the_traceback(tmp_path):
-    from longslam.errors import InputError
+    from longslam.core.errors import InputError
 
     with pytest.raises(InputError):
         main(["--debug", "world", "--out", str(tmp_path / "x.txt")])
@@ -98,7 +98,7 @@ def _shell(command: str, cwd) -> subprocess.CompletedProcess:
 def test_evaluate_into_a_closed_pipe_is_quiet(tiny, tmp_path):
     # `true` exits at once, so every write of the scores meets a closed pipe (like `| head -1`
     # after its first line, without the race).
-    result = _shell(f'"$LONGSLAM_PY" -m longslam.cli evaluate {tiny / "groundtruth.txt"} {tiny} | true', tmp_path)
+    result = _shell(f'"$LONGSLAM_PY" -m longslam evaluate {tiny / "groundtruth.txt"} {tiny} | true', tmp_path)
     assert "error" not in result.stderr, result.stderr
     for noise in ("Traceback", "BrokenPipe", "Exception ignored"):
         assert noise not in result.stderr, result.stderr
@@ -113,7 +113,7 @@ def test_a_file_size_limit_names_the_file(tiny, tmp_path, command):
         (tmp_path / "route.txt").write_text("20 31.25\n24 31.25\n")
         args = f"simulate --route {tmp_path / 'route.txt'} --out {tmp_path / 'out'} --width 32 --height 24"
         limit = 2
-    result = _shell(f'ulimit -f {limit}; LONGSLAM_CACHE={tmp_path / "cache"} "$LONGSLAM_PY" -m longslam.cli {args}', tmp_path)
+    result = _shell(f'ulimit -f {limit}; LONGSLAM_CACHE={tmp_path / "cache"} "$LONGSLAM_PY" -m longslam {args}', tmp_path)
     assert result.returncode == 2, result.stderr
     lines = [line for line in result.stderr.splitlines() if line.strip() and "%" not in line]
     assert "Traceback" not in result.stderr, result.stderr

@@ -17,11 +17,12 @@ import argcomplete
 import pytest
 
 from conftest import one_line_error, write_tiny_sequence
-from longslam import cli_output, progress
-from longslam.cli import build_parser, main
-from longslam.cli_parser import subcommand_parsers
-from longslam.errors import InputError
-from longslam.settings_doc import describe
+from longslam.cli import output as cli_output
+from longslam.core import progress
+from longslam.cli.main import build_parser, main
+from longslam.cli.parser import subcommand_parsers
+from longslam.core.errors import InputError
+from longslam.cli.settings_doc import describe
 from longslam.slam.catalog import BUILTIN, get_spec
 
 
@@ -338,7 +339,7 @@ def test_listed_choices_are_what_the_config_accepts(method):
 
 # --- the real-time factor ----------------------------------------------------------------------------
 def test_the_real_time_factor_of_a_method_that_does_nothing_reads_as_such():
-    from longslam.demo import format_table
+    from longslam.cli.demo import format_table
     from longslam.run.speed import describe_real_time_factor, format_real_time_factor
     from longslam.study.report.results import StudyResults
     from longslam.study.report.tables import runs_table

@@ -8,7 +8,7 @@ import pytest
 SCRIPT = """
 import sys
 import numpy as np
-from longslam.memory_release import map_large_blocks
+from longslam.core.memory_release import map_large_blocks
 
 def rss_kib():
     for line in open("/proc/self/status"):

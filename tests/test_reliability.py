@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from conftest import one_line_error, write_tiny_sequence
-from longslam.cli import main
+from longslam.cli.main import main
 
 
 
@@ -63,7 +63,7 @@ def test_run_overwrite_replaces_only_a_run_folder(seq, tmp_path, capsys):
 
 
 def test_simulate_overwrite_replaces_only_a_sequence(tmp_path, capsys, monkeypatch):
-    from longslam import simulate as recording
+    from longslam.sim import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before --out was checked"))
     seq = write_tiny_sequence(tmp_path / "seq", n=5)[0]
@@ -107,7 +107,7 @@ def test_export_and_import_overwrite_never_delete_their_input(seq, tmp_path, cap
 
 def test_the_final_rename_keeps_a_folder_that_became_the_users(seq, tmp_path, monkeypatch):
     """A run checks --out again when it renames its output: a folder someone put there meanwhile stays."""
-    from longslam.errors import InputError
+    from longslam.core.errors import InputError
     from longslam.run import engine
     from longslam.run.engine import run_sequence
 
@@ -256,7 +256,7 @@ def test_the_largest_seed_is_drawn_and_recorded(tmp_path):
 
 @pytest.mark.parametrize("command", ["simulate", "demo"])
 def test_a_seed_out_of_range_on_the_command_line(tmp_path, capsys, monkeypatch, command):
-    from longslam import simulate as recording
+    from longslam.sim import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before the seed was checked"))
     args = ["--route", "demo"] if command == "simulate" else []
@@ -283,7 +283,7 @@ def test_size_like_parameters_are_refused_before_the_run(seq, tmp_path, capsys, 
 
 
 def test_a_huge_camera_is_a_clear_error_not_a_memory_error(tmp_path, capsys, monkeypatch):
-    from longslam import simulate as recording
+    from longslam.sim import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered a huge camera"))
     assert main(["simulate", "--route", "demo", "--width", "100000", "--height", "100000", "--out", str(tmp_path / "s")]) == 2
@@ -423,7 +423,7 @@ def _longslam(*args: str, env: dict | None = None, cwd: Path | None = None):
     import subprocess
     import sys
 
-    return subprocess.run([sys.executable, "-m", "longslam.cli", *args], capture_output=True, cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "longslam", *args], capture_output=True, cwd=cwd,
                           env={**os.environ, **(env or {})}, timeout=120)
 
 
@@ -573,7 +573,7 @@ def test_a_variant_listed_in_methods_is_named_a_variant(tmp_path, capsys):
 
 @pytest.mark.parametrize("value, needle", [("file", "is a file; expected a folder"), ("", None)])
 def test_longslam_cache_that_is_a_file_or_empty(tmp_path, capsys, monkeypatch, value, needle):
-    from longslam.simulate import cache_root
+    from longslam.sim.simulate import cache_root
 
     monkeypatch.chdir(tmp_path)
     if value == "file":

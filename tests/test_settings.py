@@ -4,8 +4,8 @@ import tomllib
 
 import pytest
 
-from longslam.errors import InputError
-from longslam.settings import from_mapping, parse_key_values, to_mapping, to_toml
+from longslam.core.errors import InputError
+from longslam.core.settings import from_mapping, parse_key_values, to_mapping, to_toml
 from longslam.sim.camera import CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.slam.frontend import FrontEndConfig

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from longslam.cli import build_parser, main
+from longslam.cli.main import build_parser, main
 from longslam.eval import metrics as lm
 from longslam.eval.evaluation import evaluate
 from longslam.eval.relations import APE_RELATIONS, RPE_RELATIONS
 from longslam.geometry import tum_from_poses
 from longslam.io.trajectory_files import write_tum
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 pytest.importorskip("evo.core.metrics")
 from evo.core import metrics as evo_metrics  # noqa: E402

@@ -17,12 +17,12 @@ from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
 from conftest import one_line_error
-from longslam.cli import main
+from longslam.cli.main import main
 from longslam.eval.evaluate_output import format_text
 from longslam.eval.units import units_of
 from longslam.io.trajectory_files import format_tum, write_tum
 from longslam.run.score import score_files_full
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 def _trajectory(rng: np.random.Generator, n: int = 200, noise: float = 0.0, t0: float = 0.0) -> Trajectory:

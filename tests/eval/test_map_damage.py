@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.doubled_walls import doubled_walls
 from longslam.eval.map_align import align_map
 from longslam.eval.map_quality import map_scores, occupied_points
-from longslam.gridmap import OCCUPIED, UNKNOWN, GridMap
+from longslam.core.gridmap import OCCUPIED, UNKNOWN, GridMap
 
 RES = 0.05
 

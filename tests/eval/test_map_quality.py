@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from longslam.eval.map_quality import map_quality, observed_walls
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 
 RES = 0.05
 

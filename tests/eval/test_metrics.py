@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from longslam.errors import InputError, TrajectoryError, UnknownNameError
+from longslam.core.errors import InputError, TrajectoryError, UnknownNameError
 from longslam.eval import metrics as lm
 from longslam.eval.evaluation import evaluate
 from longslam.eval.align import align_trajectory, umeyama
 from longslam.eval.sync import associate, associate_by_index
-from longslam.timestamps import one_to_one_nearest
+from longslam.core.timestamps import one_to_one_nearest
 from longslam.geometry import planar_poses, tum_from_poses
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 evo_metrics = pytest.importorskip("evo.core.metrics")
 from evo.core import filters as evo_filters  # noqa: E402

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from conftest import one_line_error, write_tiny_sequence
-from longslam.cli import main
+from longslam.cli.main import main
 
 
 @pytest.fixture()

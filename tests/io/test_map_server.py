@@ -11,7 +11,7 @@ import yaml
 from PIL import Image
 
 from conftest import write_tiny_sequence
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.io.map_server import write_map_server
 from longslam.run.engine import run_sequence
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from conftest import one_line_error, write_tiny_sequence
-from longslam.cli import main
+from longslam.cli.main import main
 
 
 @pytest.fixture()
@@ -59,7 +59,7 @@ def test_file_outputs_of_every_command_refuse_a_fifo(seq, tmp_path, capsys):
 
 @pytest.mark.parametrize("command", ["run", "simulate"])
 def test_folder_outputs_name_a_fifo_for_what_it_is(seq, tmp_path, capsys, monkeypatch, command):
-    from longslam import simulate as recording
+    from longslam.sim import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before --out was checked"))
     fifo = _fifo(tmp_path / "out")
@@ -84,7 +84,7 @@ def test_report_refuses_a_fifo_for_its_files(tmp_path, capsys):
 
 def test_an_atomic_write_never_replaces_a_fifo_that_appeared_meanwhile(tmp_path):
     """The last line of defence: whatever checked the path before, the final rename keeps a FIFO."""
-    from longslam.errors import InputError
+    from longslam.core.errors import InputError
     from longslam.io.atomic import atomic_path, write_text_atomic
 
     fifo = tmp_path / "x.txt"
@@ -110,7 +110,7 @@ def test_a_device_node_is_refused_before_anything_is_opened(seq, tmp_path, capsy
 
     assert main(["vocabulary", "build", "--sequence", str(seq), "--out", "/dev/null", "--overwrite"]) == 2
     one_line_error(capsys, "/dev/null", "is a character device, not a regular file")
-    from longslam.errors import InputError
+    from longslam.core.errors import InputError
 
     with pytest.raises(InputError, match="character device"):
         check_output_file_free("/dev/null", True, "--json")

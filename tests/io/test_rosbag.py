@@ -15,8 +15,8 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 from conftest import write_bag_sequence, write_tiny_sequence  # noqa: E402
-from longslam.cli import main  # noqa: E402
-from longslam.errors import InputError  # noqa: E402
+from longslam.cli.main import main  # noqa: E402
+from longslam.core.errors import InputError  # noqa: E402
 from longslam.geometry import base_to_camera, planar_poses  # noqa: E402
 from longslam.io.rosbag.conventions import ODOM_TOPIC  # noqa: E402
 from longslam.io.rosbag.export import export_sequence  # noqa: E402

@@ -19,8 +19,8 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from conftest import write_bag_sequence  # noqa: E402
-from longslam.cli import main  # noqa: E402
-from longslam.errors import InputError  # noqa: E402
+from longslam.cli.main import main  # noqa: E402
+from longslam.core.errors import InputError  # noqa: E402
 from longslam.geometry import base_to_camera, invert  # noqa: E402
 from longslam.io.rosbag.conventions import TOPIC_PRESETS  # noqa: E402
 from longslam.io.rosbag.export import export_sequence  # noqa: E402

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 import longslam
-from longslam.errors import InputError
-from longslam.frame import Frame, Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame, Intrinsics
 from longslam.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
-from longslam.timestamps import associate_lists
-from longslam.trajectory import Trajectory
+from longslam.core.timestamps import associate_lists
+from longslam.core.trajectory import Trajectory
 
 W, H, N = 32, 24, 20
 INTR = Intrinsics.from_fov(W, H, 90.0)

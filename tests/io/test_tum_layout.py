@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from longslam.cli import main
+from longslam.cli.main import main
 from longslam.eval.evaluation import evaluate
 from longslam.geometry import planar_poses
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 T0 = 1305031102.175304  # the first colour stamp of the real freiburg1_xyz
 

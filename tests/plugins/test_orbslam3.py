@@ -18,13 +18,13 @@ import cv2
 import numpy as np
 import pytest
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 from longslam.geometry import camera_poses_from_planar
 from longslam.io.trajectory_files import read_tum
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
 from longslam.slam import catalog
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 plugin = pytest.importorskip("longslam_orbslam3", reason="the orbslam3 plugin is not installed")
 
@@ -127,7 +127,7 @@ def _pyorbslam3_loads() -> bool:
 
 
 needs_orbslam3 = pytest.mark.skipif(not _pyorbslam3_loads(), reason="pyorbslam3 (or its system libraries) is not installed")
-LONGSLAM = [sys.executable, "-m", "longslam.cli"]
+LONGSLAM = [sys.executable, "-m", "longslam"]
 
 
 @pytest.fixture(scope="module")

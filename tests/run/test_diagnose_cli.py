@@ -7,7 +7,7 @@ import json
 import numpy as np
 
 from conftest import one_line_error, write_tiny_sequence
-from longslam.cli import main
+from longslam.cli.main import main
 from longslam.run.folder import write_table
 from longslam.slam.api import Table
 

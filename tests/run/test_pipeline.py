@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from longslam.cli import main
-from longslam.errors import InputError, UnknownNameError
-from longslam.frame import Frame, Intrinsics
+from longslam.cli.main import main
+from longslam.core.errors import InputError, UnknownNameError
+from longslam.core.frame import Frame, Intrinsics
 from longslam.io.trajectory_files import read_tum, write_kitti, write_tum
 from longslam.run.engine import run_sequence
 from longslam.run.isolate import run_sequence_isolated
@@ -45,7 +45,7 @@ def test_odometry_method_returns_the_odometry(sequence, tmp_path):
 def test_the_run_folder_keeps_the_config_it_ran_with(sequence, tmp_path):
     import tomllib
 
-    from longslam.settings import from_mapping
+    from longslam.core.settings import from_mapping
     from longslam.slam.submap.config import SubmapConfig
 
     path, _, _ = sequence

@@ -5,8 +5,8 @@ import threading
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
-from longslam.frame import Frame, Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame, Intrinsics
 from longslam.run.read_ahead import read_ahead
 
 K = Intrinsics(4, 4, 4.0, 4.0, 2.0, 2.0)

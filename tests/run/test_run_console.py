@@ -14,7 +14,7 @@ import pytest
 from longslam.run import engine
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.slam.api import MethodSpec, Result
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 class Native:
@@ -139,7 +139,7 @@ def test_process_cpu_time_counts_the_method_threads(tiny_sequence, tmp_path):
 
 def test_the_demo_and_a_study_prepare_each_method_before_its_runs(tmp_path, monkeypatch):
     """MethodSpec.prepare: once-per-machine work outside every run's process and figures."""
-    from longslam import demo
+    from longslam.cli.main import demo
     from longslam.slam import catalog
 
     prepared = []

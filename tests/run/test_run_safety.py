@@ -8,8 +8,8 @@ import textwrap
 import pytest
 
 from longslam.run import engine
-from longslam.cli import main
-from longslam.errors import InputError
+from longslam.cli.main import main
+from longslam.core.errors import InputError
 from longslam.io.atomic import name_final_folder
 from longslam.run.engine import run_sequence
 
@@ -42,7 +42,7 @@ def test_a_run_never_replaces_a_folder_another_run_finished_meanwhile(sequence, 
 
 def test_two_runs_into_one_folder_at_once_one_wins(sequence, tmp_path):
     out = tmp_path / "run"
-    command = [sys.executable, "-m", "longslam.cli", "run", "--method", "odometry", str(sequence), "--out", str(out)]
+    command = [sys.executable, "-m", "longslam", "run", "--method", "odometry", str(sequence), "--out", str(out)]
     procs = [subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
     results = [(p.wait(), p.stderr.read()) for p in procs]
     codes = sorted(code for code, _ in results)

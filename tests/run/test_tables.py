@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.run.folder import STATS, read_table, write_result, write_table
 from longslam.slam.api import Result, Table
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 def _result(tables: dict[str, Table]) -> Result:

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from longslam.errors import InputError, UnknownNameError
+from longslam.core.errors import InputError, UnknownNameError
 from longslam.geometry import wrap_angle
-from longslam.gridmap import OCCUPIED
+from longslam.core.gridmap import OCCUPIED
 from longslam.sim.follower import follow_paths
 from longslam.sim.navigation import NavigationGrid
 from longslam.sim.noise import NOISE_LEVELS, BiasNoise, get_noise

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import camera_poses_from_planar
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.world import get_world

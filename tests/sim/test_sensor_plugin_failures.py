@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from conftest import one_line_error
-from longslam.cli import main
+from longslam.cli.main import main
 
 PLUGIN = '''
 import numpy as np
@@ -91,7 +91,7 @@ def test_a_failing_sense_is_one_line_naming_sensor_and_frame_and_leaves_no_folde
 ])
 def test_a_sensor_that_cannot_be_made_is_refused_before_rendering(plugins, tmp_path, capsys, monkeypatch,
                                                                     sensor, needles):
-    from longslam import simulate as recording
+    from longslam.sim import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered for a broken sensor"))
     assert _simulate(plugins, sensor, tmp_path / "seq") == 2

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from longslam.cli import main
-from longslam.errors import InputError, UnknownNameError
+from longslam.cli.main import main
+from longslam.core.errors import InputError, UnknownNameError
 from longslam.io.sequence import SequenceReader
 from longslam.sim.sensors import (
     ColourNoise, FrameMotion, KinectV1, RealSenseD435, SensorModel, frame_rng, get_sensor, sensor_names,
@@ -245,7 +245,7 @@ def test_sensed_frames_stay_lazy(tmp_path):
 
 def test_camera_motion_of_a_turn_in_place():
     from longslam.geometry import camera_poses_from_planar
-    from longslam.trajectory import Trajectory
+    from longslam.core.trajectory import Trajectory
 
     stamps = 0.1 * np.arange(5)
     xyyaw = np.column_stack([np.zeros(5), np.zeros(5), math.radians(9.0) * np.arange(5)])  # 90 deg/s

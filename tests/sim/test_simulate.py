@@ -6,13 +6,13 @@ import os
 import numpy as np
 import pytest
 
-from longslam.cli import main
+from longslam.cli.main import main
 from longslam.io.sequence import SequenceReader
-from longslam import simulate as cache_module
+from longslam.sim import simulate as cache_module
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route
-from longslam.simulate import simulate
+from longslam.sim.simulate import simulate
 
 SMALL = CameraSettings(width=64, height=48)
 ROUTE = Route("short", "university", ((20.0, 31.25), (26.0, 31.25), "junction_a"))

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from conftest import one_line_error
-from longslam.cli import main
-from longslam.errors import InputError
+from longslam.cli.main import main
+from longslam.core.errors import InputError
 from longslam.sim.drive import drive_route
 from longslam.sim.navigation import NavigationGrid
 from longslam.sim.routes import get_route, is_route_name

@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 from conftest import one_line_error, write_tiny_sequence
-from longslam.cli import main
-from longslam.errors import InputError, MethodError
+from longslam.cli.main import main
+from longslam.core.errors import InputError, MethodError
 from longslam.geometry import anchor, base_to_camera, hold_last, invert, pose_from_xyyaw
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
@@ -310,7 +310,7 @@ def test_the_installed_command_runs_a_program(tiny, program, tmp_path):
     sequence, truth, _ = tiny
     out = tmp_path / "run"
     command = _command(program, *_truth_option(sequence), "--write")
-    line = (f"{shlex.quote(sys.executable)} -m longslam.cli run --method command {shlex.quote(str(sequence))} "
+    line = (f"{shlex.quote(sys.executable)} -m longslam run --method command {shlex.quote(str(sequence))} "
             f"--out {shlex.quote(str(out))} --param command={shlex.quote(command)} "
             "--param trajectory=CameraTrajectory.txt")
     done = subprocess.run(line, shell=True, capture_output=True, text=True, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})

@@ -7,7 +7,7 @@ import open3d as o3d
 import pytest
 from scipy import ndimage
 
-from longslam.gridmap import OCCUPIED
+from longslam.core.gridmap import OCCUPIED
 from longslam.run.engine import run_sequence
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route

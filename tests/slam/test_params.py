@@ -5,9 +5,9 @@ import typing
 
 import pytest
 
-from longslam.cli import _params
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.cli.main import _params
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 from longslam.slam.api import MethodContext
 from longslam.slam.keyframe import KeyframeConfig
 from longslam.slam.catalog import create_method

@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 from longslam.slam.features import Features, extract
 from longslam.slam.place_recognition import (SUPPORT_PIXELS, Vocabulary, depth_held_transform, refine_3d,
                                              refine_3d_checked, verify)

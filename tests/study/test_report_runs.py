@@ -157,7 +157,7 @@ def test_precision_is_the_means(values):
 
 
 def test_the_interactive_trajectories_have_every_seed_and_a_menu_for_one():
-    from longslam.gridmap import FREE, GridMap
+    from longslam.core.gridmap import FREE, GridMap
     from longslam.study.report.interactive import curves_figure, trajectories_figure
 
     grid = GridMap(np.full((40, 60), FREE, dtype=np.int8), 0.1, (0.0, 0.0))

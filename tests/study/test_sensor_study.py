@@ -12,9 +12,9 @@ import textwrap
 import numpy as np
 import pytest
 
-from longslam.cli import main
+from longslam.cli.main import main
 from longslam.io.sequence import SequenceReader
-from longslam.simulate import frames_with_odometry, simulate
+from longslam.sim.simulate import frames_with_odometry, simulate
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import Route

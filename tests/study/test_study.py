@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from longslam.cli import main
+from longslam.cli.main import main
 from longslam.slam import catalog
 from longslam.study.config import load_study
 from longslam.study.database import DB_NAME
@@ -37,7 +37,7 @@ import numpy as np
 from longslam.geometry import base_to_camera, planar_from_camera_poses
 from longslam.slam.api import MethodSpec, Result
 from longslam.slam.keyframe.occupancy import assemble, local_grid
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 class Gridded:
@@ -229,7 +229,7 @@ def test_the_papers_numbers_stand_beside_ours_on_the_papers_routes():
 def test_a_killed_study_resumes_and_runs_everything_exactly_once(env):
     file = _study(env, "resume", ["odometry"], ["none", "large"], [0, 1])
     out = env / "resume-out"
-    command = [sys.executable, "-m", "longslam.cli", "study", str(file), "--out", str(out), "--jobs", "1", "--no-report"]
+    command = [sys.executable, "-m", "longslam", "study", str(file), "--out", str(out), "--jobs", "1", "--no-report"]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 90
     landed = 0

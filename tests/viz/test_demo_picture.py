@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgb
 
-from longslam.gridmap import FREE, OCCUPIED, GridMap
-from longslam.trajectory import Trajectory
+from longslam.core.gridmap import FREE, OCCUPIED, GridMap
+from longslam.core.trajectory import Trajectory
 from longslam.viz import plots
 from longslam.viz.plots import draw_plan, method_styles, place_labels, plot_errors_over_time, plot_maps, plot_plan
 
@@ -72,7 +72,7 @@ def test_the_plan_marks_start_and_ends_and_puts_the_ate_in_the_legend():
 
 
 def test_error_over_time_is_drawn_per_method_and_its_mean_is_the_ate(tmp_path):
-    from longslam.demo import ERRORS_FIGURE, error_over_time
+    from longslam.cli.demo import ERRORS_FIGURE, error_over_time
     from longslam.eval.metrics import ate
 
     stamps = np.arange(50) * 0.1

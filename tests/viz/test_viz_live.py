@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from conftest import write_tiny_sequence
-from longslam.cli import main
-from longslam.errors import InputError
+from longslam.cli.main import main
+from longslam.core.errors import InputError
 from longslam.io.trajectory_files import read_tum
 from longslam.run.engine import run_sequence
 
@@ -54,10 +54,10 @@ def test_a_run_recorded_to_rrd(turning, tmp_path):
 
 
 def test_loop_constraints_are_drawn_between_graph_nodes(tmp_path):
-    from longslam.frame import Frame
+    from longslam.core.frame import Frame
     from longslam.slam.api import MethodContext, Result
     from longslam.slam.graph import PoseGraph
-    from longslam.trajectory import Trajectory
+    from longslam.core.trajectory import Trajectory
     from longslam.viz.live import LiveView
     from conftest import TINY_INTRINSICS
 

@@ -19,11 +19,11 @@ import numpy as np
 import pytest
 
 from conftest import TINY_INTRINSICS, write_tiny_sequence
-from longslam.errors import InputError
-from longslam.frame import Frame
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame
 from longslam.run.engine import run_sequence
 from longslam.slam.api import MethodContext, Result
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 rerun = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
@@ -50,7 +50,7 @@ def run_cli(sequence: Path, out: Path, port: int, env: dict, wait_s: float = 2.0
             timeout: float = 60.0) -> tuple[subprocess.CompletedProcess, float]:
     """`longslam run --viz` in a process of its own, its viewer port set to `port`, under a timeout."""
     code = (f"import sys, longslam.viz.live as live; live.VIEWER_PORT = {port}; live.VIEWER_WAIT_S = {wait_s}\n"
-            "from longslam.cli import main\n"
+            "from longslam.cli.main import main\n"
             f"sys.exit(main(['run', '--method', 'odometry', {str(sequence)!r}, '--out', {str(out)!r}, '--viz']))")
     start = time.monotonic()
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=timeout)

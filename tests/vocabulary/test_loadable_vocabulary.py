@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from conftest import one_line_error
-from longslam.cli import main
-from longslam.errors import InputError
+from longslam.cli.main import main
+from longslam.core.errors import InputError
 from longslam.vocabulary import build_tree, format_text
 from longslam.vocabulary.dbow2 import check_vocabulary_file, loader_size_problem
 
@@ -130,7 +130,7 @@ def test_the_loaders_reservation_bounds_k_and_l():
     (["--features", "0"], "got 0"),
 ])
 def test_build_refuses_what_orbslam3_cannot_load_before_rendering(tmp_path, capsys, monkeypatch, options, needle):
-    from longslam import simulate as recording
+    from longslam.sim import simulate as recording
 
     monkeypatch.setattr(recording, "rendered_sequence", lambda *a, **k: pytest.fail("rendered before the options were checked"))
     out = tmp_path / "voc.txt"

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from longslam.cli import main
-from longslam.errors import InputError
-from longslam.simulate import rendered_sequence
+from longslam.cli.main import main
+from longslam.core.errors import InputError
+from longslam.sim.simulate import rendered_sequence
 from longslam.sim.routes import Route
 import longslam.vocabulary.kmeans as kmeans_module
 from longslam.vocabulary import Vocabulary, build_tree, format_text, read_vocabulary, write_vocabulary

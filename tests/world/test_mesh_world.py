@@ -12,9 +12,9 @@ import pytest
 import trimesh
 
 from building_mesh import WING_END, write_building
-from longslam.cli import main
-from longslam.errors import InputError
-from longslam.simulate import cache_key
+from longslam.cli.main import main
+from longslam.core.errors import InputError
+from longslam.sim.simulate import cache_key
 from longslam.sim.camera import CameraSettings
 from longslam.sim.drive import drive_route
 from longslam.sim.follower import FollowerSettings

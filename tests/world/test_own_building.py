@@ -12,8 +12,8 @@ import pytest
 import trimesh
 
 from building_mesh import CRATE, WING_END, WING_MID, write_building
-from longslam.cli import main
-from longslam.gridmap import FREE, OCCUPIED
+from longslam.cli.main import main
+from longslam.core.gridmap import FREE, OCCUPIED
 from longslam.io.sequence import SequenceReader
 from longslam.study.config import load_study
 from longslam.study.driver import run_study

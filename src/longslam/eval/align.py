@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.errors import InputError, UnknownNameError
+from longslam.core.errors import InputError, UnknownNameError
 from longslam.eval.sync import require_same_length
 from longslam.geometry import invert
 from longslam.geometry.fit import umeyama  # noqa: F401  (re-exported: evaluation's alignment)
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 ALIGN_MODES = ("none", "se3", "sim3", "scale", "origin")
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.pairs import consecutive_pairs
 from longslam.eval.relations import rotation_angle_rad
 

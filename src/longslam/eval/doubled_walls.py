@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from longslam.errors import InputError
-from longslam.gridmap import OCCUPIED, GridMap
+from longslam.core.errors import InputError
+from longslam.core.gridmap import OCCUPIED, GridMap
 
 
 def wall_normals(truth: GridMap, cells: np.ndarray, smooth_cells: float = 2.0) -> np.ndarray:

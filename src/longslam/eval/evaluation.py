@@ -18,14 +18,14 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.align import alignment, alignment_mode, transform_trajectory
 from longslam.eval.metrics import (
     MIN_STEP, _local_steps, ate, delta_unit_letter, relative_errors, rpe_errors, rpe_pairs, statistics,
 )
 from longslam.eval.relations import ape_relation_errors, check_relation, rpe_relation_errors
 from longslam.eval.sync import associate, require_same_length
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 DEFAULT_T_MAX_DIFF = 0.01  # seconds, evo's --t_max_diff default
 

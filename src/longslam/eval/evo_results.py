@@ -23,7 +23,7 @@ from longslam.eval.metrics import DELTA_UNIT_LABELS  # evo's Unit values for fra
 from longslam.eval.relations import EVO_NAMES, RELATION_UNITS
 from longslam.io.atomic import atomic_path
 from longslam.io.trajectory_files import format_tum
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 
@@ -90,7 +90,7 @@ def save_ape_result(evaluation: Evaluation, out: str | Path, ref_name: str, est_
 def save_rpe_result(evaluation: Evaluation, out: str | Path, ref_name: str, est_name: str,
                     overwrite: bool = False) -> Path:
     """Write the RPE of `evaluation` as `evo_rpe --save_results` would (pairs' poses only)."""
-    from longslam.errors import TrajectoryError
+    from longslam.core.errors import TrajectoryError
 
     if evaluation.rpe_errors is None:
         raise TrajectoryError("no RPE to save: no pair of poses is delta apart (a path shorter than delta)")

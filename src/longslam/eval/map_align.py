@@ -21,9 +21,9 @@ from scipy import fft as sp_fft
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry.fit import rigid_transform_2d
-from longslam.gridmap import OCCUPIED, GridMap
+from longslam.core.gridmap import OCCUPIED, GridMap
 
 
 @dataclass(frozen=True)

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from longslam.errors import InputError
-from longslam.gridmap import OCCUPIED, GridMap
+from longslam.core.errors import InputError
+from longslam.core.gridmap import OCCUPIED, GridMap
 
 
 def occupied_points(grid: GridMap) -> np.ndarray:

@@ -17,13 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.errors import InputError, TrajectoryError, UnknownNameError
+from longslam.core.errors import InputError, TrajectoryError, UnknownNameError
 from longslam.eval.align import align_trajectory
 from longslam.eval.angle_pairs import pairs_by_angle
 from longslam.eval.pairs import consecutive_pairs
 from longslam.eval.sync import require_same_length
 from longslam.geometry import invert
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 MIN_STEP = 0.01  # metres: ground-truth steps shorter than this are turning in place
 # An estimated step shorter than this has no direction: positions written with 9 decimals cannot

@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.errors import InputError, UnknownNameError
+from longslam.core.errors import InputError, UnknownNameError
 from longslam.geometry import invert
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 APE_RELATIONS = ("trans_part", "rot_part", "full", "angle_deg", "angle_rad", "point_distance")
 RPE_RELATIONS = APE_RELATIONS + ("point_distance_error_ratio",)

@@ -10,9 +10,9 @@ KITTI files, which carry no timestamps.
 from __future__ import annotations
 
 
-from longslam.errors import InputError, TrajectoryError
-from longslam.timestamps import one_to_one_nearest
-from longslam.trajectory import Trajectory
+from longslam.core.errors import InputError, TrajectoryError
+from longslam.core.timestamps import one_to_one_nearest
+from longslam.core.trajectory import Trajectory
 
 # Fewer matches than this fraction of the shorter trajectory means the stamps are in different
 # clocks or units (or the offset is wrong), not that a few frames were dropped.

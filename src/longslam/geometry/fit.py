@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.errors import TrajectoryError
+from longslam.core.errors import TrajectoryError
 
 # Second singular value of the cross-covariance below this fraction of the first: the points lie
 # on a line (or a point) and the rotation about that line is not determined by the data.

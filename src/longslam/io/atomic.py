@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.io.partials import partial_path
 
 _AT_FDCWD, _RENAME_NOREPLACE = -100, 1

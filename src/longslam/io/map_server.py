@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.gridmap import GridMap
+from longslam.core.errors import InputError
+from longslam.core.gridmap import GridMap
 from longslam.io.atomic import atomic_path, naming_the_file
 
 PGM_OCCUPIED, PGM_FREE, PGM_UNKNOWN = 0, 254, 205

@@ -13,7 +13,7 @@ import stat
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 # What each kind of folder holds when longslam made it. A folder with anything else in it is not
 # replaced: the extra entry may be the user's (a run kept inside a sequence, notes, a dataset).

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError, TrajectoryError
+from longslam.core.errors import InputError, TrajectoryError
 from longslam.geometry import poses_from_tum, tum_from_poses
 from longslam.io.atomic import write_text_atomic
 from longslam.io.plain_table import plain_table
-from longslam.textfile import read_bounded_text
-from longslam.trajectory import Trajectory
+from longslam.core.textfile import read_bounded_text
+from longslam.core.trajectory import Trajectory
 
 TUM, KITTI, EUROC = "tum", "kitti", "euroc"
 NANOSECONDS = 1e-9

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.diagnose import (ErrorParts, LoopError, Stretch, error_parts, loop_errors, regions_of,
                                     stretches, worst_stretches)
 from longslam.geometry import planar_from_camera_poses
@@ -18,7 +18,7 @@ from longslam.io.trajectory_files import read_trajectory
 from longslam.run.folder import EVENTS, TRAJECTORY, read_events, read_table
 from longslam.run.score import other_sequence_warning
 from longslam.slam.api import Event
-from longslam.timestamps import one_to_one_nearest
+from longslam.core.timestamps import one_to_one_nearest
 from longslam.world import load_world
 from longslam.world.model import World
 

@@ -16,23 +16,23 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Frame
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame
 from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.partials import clean_stale_partials
 from longslam.io.outputs import RUN, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
-from longslam.memory_release import map_large_blocks
+from longslam.core.memory_release import map_large_blocks
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
-from longslam.progress import bar
+from longslam.core.progress import bar
 from longslam.run.observer import RunObserver
 from longslam.run.process_tree import TreeMonitor
 from longslam.run.provenance import provenance
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes, peak_rss_bytes
-from longslam.settings import to_mapping
+from longslam.core.settings import to_mapping
 from longslam.slam.api import Closable, MethodContext, Result, images_every_frame
 from longslam.slam.catalog import get_spec
 

@@ -29,10 +29,10 @@ from longslam.io.atomic import write_text
 from longslam.io.map_server import write_map_server
 from longslam.io.ply import vertex_rows, write_ply
 from longslam.io.trajectory_files import write_tum
-from longslam.jsonable import json_default
+from longslam.core.jsonable import json_default
 from longslam.run.resources import peak_rss_bytes
-from longslam.settings import to_toml
-from longslam.errors import InputError
+from longslam.core.settings import to_toml
+from longslam.core.errors import InputError
 from longslam.slam.api import Event, Result, Table
 
 TRAJECTORY = "trajectory.txt"

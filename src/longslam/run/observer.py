@@ -13,7 +13,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from longslam.frame import Frame
+from longslam.core.frame import Frame
 from longslam.slam.api import MethodContext, Result
 
 

@@ -13,7 +13,7 @@ from collections import deque
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 
-from longslam.frame import Frame
+from longslam.core.frame import Frame
 
 DEFAULT_AHEAD = 4  # frames decoded ahead: enough to hide a slow decode, little memory (4 x 0.5 MB)
 

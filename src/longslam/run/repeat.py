@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from longslam.errors import InputError
-from longslam.textfile import read_text
+from longslam.core.errors import InputError
+from longslam.core.textfile import read_text
 
 TABLES = ("run", "params")
 

@@ -11,13 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.evaluation import Evaluation, evaluate_full
 from longslam.eval.metrics import MIN_STEP
 from longslam.eval.sync import associate, associate_by_index
 from longslam.io.trajectory_files import KITTI, read_trajectory
 from longslam.run.folder import TRAJECTORY
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 BAG = "bag"  # the format read_source names for a bag topic
 

@@ -8,7 +8,7 @@ from longslam.geometry import camera_poses_from_planar
 from longslam.sim.follower import DrivenPath, FollowerSettings, follow_paths
 from longslam.sim.navigation import NavigationGrid
 from longslam.sim.routes import Route
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 from longslam.world.model import World
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import wrap_angle
 
 

@@ -6,8 +6,8 @@ import numpy as np
 from scipy import ndimage
 from skimage.graph import MCP_Geometric
 
-from longslam.errors import InputError
-from longslam.gridmap import FREE, GridMap
+from longslam.core.errors import InputError
+from longslam.core.gridmap import FREE, GridMap
 
 
 class NavigationGrid:

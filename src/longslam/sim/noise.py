@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.geometry import wrap_angle
-from longslam.registry import Registry
+from longslam.core.registry import Registry
 
 # Below this forward step (metres) a frame counts as turning in place: no linear bias is added.
 TRANSLATING_STEP = 1e-4

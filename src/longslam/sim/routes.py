@@ -13,9 +13,9 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from longslam.errors import InputError
-from longslam.textfile import read_text
-from longslam.registry import Registry
+from longslam.core.errors import InputError
+from longslam.core.textfile import read_text
+from longslam.core.registry import Registry
 from longslam.sim.tours import REPEAT, TOUR, repeated, tour_length_m, tour_waypoints
 from longslam.world.reference import is_mesh_ref, load_world, places_label, same_world, world_key, world_label, world_ref
 

@@ -20,7 +20,7 @@ import re
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.sim.navigation import NavigationGrid
 from longslam.world.model import World
 

@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Frame, Intrinsics
-from longslam.gridmap import GridMap
-from longslam.settings import from_mapping
-from longslam.trajectory import Trajectory
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame, Intrinsics
+from longslam.core.gridmap import GridMap
+from longslam.core.settings import from_mapping
+from longslam.core.trajectory import Trajectory
 
 if TYPE_CHECKING:  # a type only: importing the graph would load GTSAM into every run
     from longslam.slam.graph import PoseGraph

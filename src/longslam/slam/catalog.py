@@ -20,7 +20,7 @@ from functools import lru_cache
 from importlib.metadata import entry_points
 from typing import Any
 
-from longslam.errors import UnknownNameError
+from longslam.core.errors import UnknownNameError
 from longslam.slam.api import Method, MethodContext, MethodSpec
 
 ENTRY_POINT_GROUP = "longslam.methods"

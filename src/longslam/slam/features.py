@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 
 DESCRIPTOR_BYTES = 32  # ORB: 256-bit descriptors
 

@@ -6,10 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.frame import Frame
+from longslam.core.frame import Frame
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ import cv2
 import numpy as np
 import scipy.sparse as sp
 
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 from longslam.geometry import invert, rigid_transform, xyyaw_from_pose
 from longslam.slam.features import DESCRIPTOR_BYTES, Features
 

@@ -19,7 +19,7 @@ from multiprocessing.connection import wait as wait_for
 from pathlib import Path
 from typing import Any, Protocol
 
-from longslam.errors import LongslamError
+from longslam.core.errors import LongslamError
 from longslam.study.record import RunRecord
 
 EXECUTORS = ("local", "ray")
@@ -84,7 +84,7 @@ def _local_child(task: Task, result_path: str, parent_pid: int) -> None:
     def load_truth():
         import numpy as np
 
-        from longslam.gridmap import GridMap
+        from longslam.core.gridmap import GridMap
 
         return GridMap.load(task.grid_path), np.load(task.observed_path)
 
@@ -221,7 +221,7 @@ RAY_CONNECT_TIMEOUT_S = 20.0
 def check_executor_options(kind: str, address: str | None) -> None:
     """Refuse executor options that cannot work, before anything is created."""
     if kind not in EXECUTORS:
-        from longslam.errors import UnknownNameError
+        from longslam.core.errors import UnknownNameError
 
         raise UnknownNameError("executor", kind, EXECUTORS)
     if address is not None and kind != "ray":
@@ -317,7 +317,7 @@ class RayExecutor:
         if key not in self._truth_refs:
             import numpy as np
 
-            from longslam.gridmap import GridMap
+            from longslam.core.gridmap import GridMap
 
             self._truth_refs[key] = [self._ray.put(GridMap.load(task.grid_path)), self._ray.put(np.load(task.observed_path))]
         return self._truth_refs[key]
@@ -378,6 +378,6 @@ def make_executor(kind: str, address: str | None = None, jobs: int | None = None
         return LocalExecutor(jobs)
     if kind == "ray":
         return RayExecutor(address, jobs)
-    from longslam.errors import UnknownNameError
+    from longslam.core.errors import UnknownNameError
 
     raise UnknownNameError("executor", kind, EXECUTORS)

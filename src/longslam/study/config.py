@@ -46,14 +46,14 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from longslam.errors import InputError, UnknownNameError
+from longslam.core.errors import InputError, UnknownNameError
 from longslam.eval.align import ALIGN_MODES
-from longslam.settings import from_mapping
+from longslam.core.settings import from_mapping
 from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.noise import NOISE_LEVELS
 from longslam.sim.routes import ROUTES, Route, get_route, is_route_name, load_route_file
-from longslam.textfile import read_text
+from longslam.core.textfile import read_text
 from longslam.world.reference import same_world, world_label, world_ref
 
 TOP_KEYS = (
@@ -168,7 +168,7 @@ def _valid(values) -> str:
 
 
 def _unknown_key(name: str, valid) -> str:
-    from longslam.suggest import did_you_mean
+    from longslam.core.suggest import did_you_mean
 
     return f"unknown key{did_you_mean(name, [str(v) for v in valid], quote=False)}; valid keys: {_valid(valid)}"
 
@@ -388,7 +388,7 @@ def _repeats(r: _Reader, value: Any) -> int:
 
 
 def _seeds(r: _Reader, value: Any) -> list[int]:
-    from longslam.simulate import MAX_SEED, seed_problem
+    from longslam.sim.simulate import MAX_SEED, seed_problem
 
     if _is_int(value):
         if value < 1:

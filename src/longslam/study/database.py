@@ -20,7 +20,7 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.run.folder import RUN_FILES
 from longslam.study.record import HEADLINE, JSON_PARTS, RunRecord
 from longslam.sim.sensors.catalog import IDEAL

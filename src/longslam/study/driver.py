@@ -21,7 +21,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from longslam.progress import bar as progress_bar
+from longslam.core.progress import bar as progress_bar
 from longslam.study.config import StudyConfig, check_method_params
 from longslam.run.process_tree import STARVED_SHARE
 from longslam.study.database import DB_NAME, ResultsDB, utc_now

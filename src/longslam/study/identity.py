@@ -10,7 +10,7 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.study.database import DB_NAME, connect_read_only
 
 

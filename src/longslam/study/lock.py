@@ -9,7 +9,7 @@ import os
 from collections.abc import Iterator
 from pathlib import Path
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 LOCK_NAME = ".study.lock"
 

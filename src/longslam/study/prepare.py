@@ -1,6 +1,6 @@
 """What a study needs before its runs: each route rendered once, and the ground truth kept in DIR.
 
-The rendered frames live in the rendering cache (`longslam.simulate`); the study folder keeps
+The rendered frames live in the rendering cache (`longslam.sim.simulate`); the study folder keeps
 what the evaluation and the report need without the cache: per route its ground-truth camera
 trajectory, waypoints and the mask of walls the camera could see, and per world its ground-truth
 occupancy grid.
@@ -29,15 +29,15 @@ from pathlib import Path
 import numpy as np
 
 from longslam.eval.map_quality import observed_walls
-from longslam.gridmap import GridMap
+from longslam.core.gridmap import GridMap
 from longslam.io.atomic import atomic_path, write_text_atomic
 from longslam.io.trajectory_files import read_tum, write_tum
-from longslam.simulate import cache_key, cache_root, rendered_sequence
+from longslam.sim.simulate import cache_key, cache_root, rendered_sequence
 from longslam.sim.camera import CameraSettings
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.routes import Route
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 @contextlib.contextmanager
@@ -166,8 +166,8 @@ def clean_partials(folder: Path) -> int:
 def check_routes(config) -> None:
     """Drive every route of a study on its world (a second or two each), so that a route through
     a wall or to an unknown place is refused before anything is written."""
-    from longslam.errors import InputError
-    from longslam.simulate import check_camera_in_world
+    from longslam.core.errors import InputError
+    from longslam.sim.simulate import check_camera_in_world
     from longslam.world import load_world
 
     for route in config.routes:

@@ -14,10 +14,10 @@ from longslam.eval.align import alignment
 from longslam.eval.map_quality import map_scores
 from longslam.eval.metrics import ape_errors, ate
 from longslam.eval.sync import associate
-from longslam.gridmap import GridMap
+from longslam.core.gridmap import GridMap
 from longslam.run.score import score
 from longslam.slam.api import Result
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 CURVE_POINTS = 600  # at most this many points of each curve (error, memory) are kept per run
 TruthLoader = Callable[[], tuple[GridMap, np.ndarray]]

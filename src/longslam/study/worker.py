@@ -17,10 +17,10 @@ from typing import Any
 
 from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.sequence import SequenceReader
-from longslam.jsonable import json_default
+from longslam.core.jsonable import json_default
 from longslam.run.engine import run_frames
 from longslam.run.folder import RECORD, RUN_FILES, write_result
-from longslam.simulate import frames_with_odometry, noisy_odometry
+from longslam.sim.simulate import frames_with_odometry, noisy_odometry
 from longslam.sim.noise import get_noise
 from longslam.sim.sensors import get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames

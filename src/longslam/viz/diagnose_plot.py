@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
-from longslam.gridmap import FREE, OCCUPIED  # noqa: E402
+from longslam.core.gridmap import FREE, OCCUPIED  # noqa: E402
 from longslam.io.atomic import atomic_path  # noqa: E402
 from longslam.run.diagnose import Diagnosis  # noqa: E402
 

@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.evaluation import Evaluation
 from longslam.eval.relations import EVO_NAMES
 from longslam.eval.units import units_of

@@ -44,16 +44,16 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Frame
-from longslam.jsonable import json_default
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame
+from longslam.core.jsonable import json_default
 from longslam.io.atomic import rename_no_replace, replace_file
 from longslam.io.partials import partial_path
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.api import pose_graph
 from longslam.slam.graph import ODOMETRY
-from longslam.timestamps import nearest_indices
-from longslam.trajectory import Trajectory
+from longslam.core.timestamps import nearest_indices
+from longslam.core.trajectory import Trajectory
 
 VIEWER = "viewer"  # --viz without a file: spawn (or join) a viewer on this machine
 COLORS = {"truth": (60, 200, 60), "estimate": (230, 60, 40), "odometry": (120, 120, 120),

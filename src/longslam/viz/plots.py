@@ -12,7 +12,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 import numpy as np
 
-from longslam.gridmap import FREE, OCCUPIED, GridMap
+from longslam.core.gridmap import FREE, OCCUPIED, GridMap
 from longslam.io.atomic import atomic_path
 
 

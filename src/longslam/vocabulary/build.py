@@ -12,11 +12,11 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from longslam.progress import bar as tqdm
+from longslam.core.progress import bar as tqdm
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.io.sequence import SequenceReader
-from longslam.simulate import rendered_sequence
+from longslam.sim.simulate import rendered_sequence
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
 from longslam.vocabulary.dbow2 import loader_size_problem, write_vocabulary

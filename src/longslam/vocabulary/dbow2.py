@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.io.atomic import atomic_path, naming_the_file
-from longslam.textfile import read_text
+from longslam.core.textfile import read_text
 from longslam.vocabulary.tree import Vocabulary
 
 DESCRIPTOR_BYTES = 32  # FORB::L

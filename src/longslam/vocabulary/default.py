@@ -11,7 +11,7 @@ import fcntl
 from pathlib import Path
 from typing import Any
 
-from longslam.simulate import cache_root
+from longslam.sim.simulate import cache_root
 from longslam.sim.routes import get_route
 
 ROUTE = "annex-tour"  # 401 m in world annex

@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 
-from longslam.registry import Registry
+from longslam.core.registry import Registry
 from longslam.world.annex import TEXTURE_SEED as _ANNEX_SEED, annex_plan
 from longslam.world.builder import build_mesh
 from longslam.world.layout import FloorPlan

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.world.world_mesh import WorldMesh
 
 HEADROOM = 1.5  # metres of free space a floor needs above it: the top of the obstacle band

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.world.world_mesh import WorldMesh
 from longslam.world.textures import pack_atlas
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from longslam.gridmap import GridMap
+from longslam.core.gridmap import GridMap
 from longslam.world.layout import FloorPlan
 from longslam.world.world_mesh import WorldMesh
 

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.errors import InputError
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.world.floor import check_metres, find_floor
 from longslam.world.world_mesh import WorldMesh
 from longslam.world.mesh_reader import read_mesh_file

@@ -19,8 +19,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from longslam.errors import InputError
-from longslam.textfile import read_text
+from longslam.core.errors import InputError
+from longslam.core.textfile import read_text
 from longslam.world.catalog import WORLDS, get_world
 from longslam.world.own_building import UNITS, UP_AXES, default_up, load_mesh_world
 from longslam.world.mesh_reader import MESH_SUFFIXES
@@ -94,7 +94,7 @@ def world_ref(value: Any, base: Path | None = None, what: str = "world") -> str:
     path = _resolve(value, base)
     if path.is_file() or Path(value).suffix.lower() in MESH_SUFFIXES or "/" in value:
         return mesh_world_ref(value, base=base, what=what)
-    from longslam.suggest import did_you_mean
+    from longslam.core.suggest import did_you_mean
 
     raise InputError(
         f"{what}: unknown world {value!r}{did_you_mean(value, WORLDS.names())}; valid values: a world name ({', '.join(WORLDS.names())}) "

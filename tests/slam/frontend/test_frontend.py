@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from longslam.settings import from_mapping
+from longslam.core.settings import from_mapping
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.evaluation import evaluate
-from longslam.frame import Frame, Intrinsics
+from longslam.core.frame import Frame, Intrinsics
 from longslam.geometry import base_to_camera, planar_from_camera_poses
 from longslam.geometry import compose_xyyaw as compose
 from longslam.geometry import relative_xyyaw as relative
@@ -17,7 +17,7 @@ from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.slam.frontend.local_map import LocalMap
 from longslam.slam.frontend.registration import register
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 def _wall(a, b, step=0.05):

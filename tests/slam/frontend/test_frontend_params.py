@@ -8,10 +8,10 @@ import typing
 
 import pytest
 
-from longslam.cli import _params
-from longslam.errors import InputError
+from longslam.cli.main import _params
+from longslam.core.errors import InputError
 from longslam.run.folder import CONFIG, write_config
-from longslam.settings import to_mapping
+from longslam.core.settings import to_mapping
 from longslam.slam.catalog import check_params
 from longslam.slam.frontend import FrontEndConfig
 

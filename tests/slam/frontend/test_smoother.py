@@ -167,7 +167,7 @@ def test_a_route_of_up_to_whole_frames_is_solved_whole_and_a_longer_one_in_windo
 def test_a_window_too_small_for_the_bias_blocks_is_refused():
     import pytest
 
-    from longslam.errors import InputError
+    from longslam.core.errors import InputError
 
     with pytest.raises(InputError, match="smoother.window"):
         SmootherConfig(window=5)

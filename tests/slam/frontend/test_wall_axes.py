@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import compose_xyyaw as compose, relative_xyyaw as relative
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import compose_xyyaw, planar_poses, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
 from longslam.slam.graph import PoseGraph
 

@@ -6,7 +6,7 @@ import gtsam
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import compose_xyyaw, log_xyyaw, relative_xyyaw
 from longslam.slam.graph import PoseGraph
 

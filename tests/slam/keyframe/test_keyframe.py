@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.evaluation import evaluate
-from longslam.frame import Frame
+from longslam.core.frame import Frame
 from longslam.geometry import compose_xyyaw, wrap_angle
-from longslam.gridmap import OCCUPIED
+from longslam.core.gridmap import OCCUPIED
 from longslam.io.sequence import SequenceReader
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route

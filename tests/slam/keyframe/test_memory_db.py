@@ -7,7 +7,7 @@ import signal
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import pose_from_xyyaw
 from longslam.slam.keyframe.memory_db import MemoryDatabase
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 from longslam.geometry import base_to_camera
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN
 from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid, assemble, local_grid
 
 CAMERA_HEIGHT = 1.25

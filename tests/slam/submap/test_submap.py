@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.eval.metrics import ate
-from longslam.frame import Frame, Intrinsics
+from longslam.core.frame import Frame, Intrinsics
 from longslam.geometry import camera_poses_from_planar, pose_from_xyyaw, relative_xyyaw, wrap_angle
-from longslam.gridmap import OCCUPIED
+from longslam.core.gridmap import OCCUPIED
 from longslam.io.sequence import SequenceReader
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.routes import Route, get_route

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 from longslam.geometry import CameraMount
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.slam.submap.free_space import SubmapFreeSpace, carve, fuse_free_space, grid_cells
 from longslam.slam.submap.global_map import grid_from_tsdf
 from longslam.slam.submap.tsdf import TSDF
@@ -104,7 +104,7 @@ def test_the_rays_clear_a_thin_walls_back_side_band_in_front_of_it():
 
 
 def test_a_negative_margin_is_an_input_error_naming_the_parameter():
-    from longslam.errors import InputError
+    from longslam.core.errors import InputError
     from longslam.slam.submap.config import SubmapConfig
 
     with pytest.raises(InputError, match="grid_free_space_margin must be >= 0, got -1"):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN
 from longslam.slam.submap.global_map import grid_from_tsdf, mesh_arrays
 from longslam.slam.submap.tsdf import TSDF
 

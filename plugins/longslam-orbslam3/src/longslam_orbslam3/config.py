@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 
 def _check(ok: bool, message: str) -> None:

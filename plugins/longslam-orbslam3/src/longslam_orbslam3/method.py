@@ -19,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Frame
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame
 from longslam.geometry import camera_poses_from_planar, poses_from_tum
 from longslam.slam import stats
 from longslam.slam.api import Event, MethodContext, MethodSpec, Result
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 from longslam_orbslam3.anchoring import TRACKED, MapAnchors, final_poses
 from longslam_orbslam3.config import OrbSlam3Config

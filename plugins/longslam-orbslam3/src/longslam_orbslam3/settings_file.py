@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 
 from longslam_orbslam3.config import OrbSlam3Config, close_depth_factor
 

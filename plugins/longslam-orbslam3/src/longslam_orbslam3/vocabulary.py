@@ -12,7 +12,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.vocabulary.dbow2 import check_vocabulary_file as check_text_vocabulary
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 
 def require_rosbags() -> None:

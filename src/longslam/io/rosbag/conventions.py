@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 import longslam
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import base_to_camera, invert
 from longslam.geometry.planar import xyyaw_from_pose
 from longslam.io.atomic import atomic_path

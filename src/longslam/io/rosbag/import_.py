@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
@@ -30,8 +30,8 @@ from longslam.io.rosbag.conventions import (
 from longslam.io.rosbag.messages import ROS2, field as msg_field, pose_matrix, read_depth, read_rgb, stamp_of, typestore_for
 from longslam.io.rosbag.tf import TfBuffer, interpolate_poses
 from longslam.io.sequence import DEFAULT_MAX_DIFF, DEPTH_SCALE, SequenceWriter
-from longslam.timestamps import associate_lists
-from longslam.trajectory import Trajectory
+from longslam.core.timestamps import associate_lists
+from longslam.core.trajectory import Trajectory
 
 LARGEST_DEPTH = 65535 / DEPTH_SCALE  # metres storable in a 16-bit image at longslam's scale
 MAX_GAP_S = 0.5  # odometry, ground truth and moving TF links: the most time between two messages interpolated

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.io.rosbag.conventions import (
     CAMERA_INFO, DEPTH_ENCODINGS, IMAGE, ODOMETRY, RGB_ENCODINGS, STRING, TF_MESSAGE,
 )

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import invert
 
 

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.io.rosbag import require_rosbags
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 POSE_TYPES = (
     "geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",

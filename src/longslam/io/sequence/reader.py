@@ -11,8 +11,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Frame, Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame, Intrinsics
 from longslam.io.camera_guess import intrinsics_without_camera_json
 from longslam.io.sequence.layout import (
     CAMERA, DEFAULT_MAX_DIFF, DEPTH_LIST, DEPTH_SCALE, GROUND_TRUTH, META, ODOMETRY, RGB_LIST,
@@ -20,9 +20,9 @@ from longslam.io.sequence.layout import (
 from longslam.io.plain_table import plain_table
 from longslam.io.sequence.not_a_sequence import bag_refusal
 from longslam.io.trajectory_files import read_tum
-from longslam.textfile import read_text
-from longslam.timestamps import associate_indices, match_every
-from longslam.trajectory import Trajectory
+from longslam.core.textfile import read_text
+from longslam.core.timestamps import associate_indices, match_every
+from longslam.core.trajectory import Trajectory
 
 
 class PackedNames(Sequence[str]):

@@ -15,8 +15,8 @@ import cv2
 import numpy as np
 
 import longslam
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 from longslam.io.atomic import atomic_path, write_bytes, write_text
 from longslam.io.partials import clean_stale_partials
 from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable, replace_guard
@@ -26,9 +26,9 @@ from longslam.io.sequence.layout import (
 )
 from longslam.io.sequence.reader import SequenceReader
 from longslam.io.trajectory_files import write_tum
-from longslam.jsonable import json_default
-from longslam.timestamps import match_every
-from longslam.trajectory import Trajectory
+from longslam.core.jsonable import json_default
+from longslam.core.timestamps import match_every
+from longslam.core.trajectory import Trajectory
 
 
 def _stamp_text(t: float) -> str:

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 
 
 @dataclass(frozen=True)

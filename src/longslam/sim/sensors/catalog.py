@@ -17,7 +17,7 @@ import sys
 from functools import lru_cache
 from importlib.metadata import entry_points
 
-from longslam.errors import InputError, UnknownNameError
+from longslam.core.errors import InputError, UnknownNameError
 from longslam.sim.sensors.base import SensorModel
 from longslam.sim.sensors.kinect import KinectV1
 from longslam.sim.sensors.realsense import RealSenseD435

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 from longslam.sim.sensors.base import FrameMotion, frame_rng
 
 # Below this length (pixels) a blur is not drawn: it would change nothing at 8 bits.

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 
 
 def incidence_cos(depth: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 from longslam.sim.sensors.base import FrameMotion, SensorModel
 from longslam.sim.sensors.colour import ColourNoise
 

@@ -8,10 +8,10 @@ from collections.abc import Iterable, Iterator
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Frame
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame
 from longslam.sim.sensors.base import FrameMotion, SensorModel, frame_rng
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 def camera_motions(truth: Trajectory) -> list[FrameMotion]:

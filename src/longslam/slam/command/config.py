@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import PurePath
 from typing import Any, ClassVar
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 METHOD = "command"
 PATHS = ("sequence", "output", "associations", "settings")

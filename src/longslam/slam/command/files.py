@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 from longslam.io.atomic import write_text
 from longslam.io.sequence.layout import DEPTH_DIR, DEPTH_SCALE, RGB_DIR
 

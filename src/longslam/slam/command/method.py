@@ -50,8 +50,8 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError, LongslamError, MethodError
-from longslam.frame import Frame
+from longslam.core.errors import InputError, LongslamError, MethodError
+from longslam.core.frame import Frame
 from longslam.geometry import CameraMount, anchor, base_to_camera, camera_poses_from_planar, hold_last
 from longslam.io.atomic import write_text
 from longslam.io.sequence import DEFAULT_MAX_DIFF, DEPTH_SCALE, SequenceWriter
@@ -62,8 +62,8 @@ from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.command.config import METHOD, CommandConfig, command_line, fill, placeholders_of
 from longslam.slam.command.files import associations_text, write_settings
 from longslam.slam.command.program import last_lines, run_program
-from longslam.timestamps import one_to_one_nearest
-from longslam.trajectory import Trajectory
+from longslam.core.timestamps import one_to_one_nearest
+from longslam.core.trajectory import Trajectory
 
 SEQUENCE_DIR, OUTPUT_DIR = "sequence", "program"
 ASSOCIATIONS = "associations.txt"  # inside the sequence folder

@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from longslam.errors import MethodError
+from longslam.core.errors import MethodError
 
 LAST_LINES = 5  # lines of the program's output quoted in a failed run's error
 LINE_CHARS = 200  # longer lines are cut in that quote

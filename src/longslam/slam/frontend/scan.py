@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 from longslam.geometry.cells import average_2d
 
 

@@ -18,7 +18,7 @@ from typing import ClassVar
 import gtsam
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import compose_xyyaw, relative_xyyaw
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.frame_store import FrameRecord, FrameStore

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from longslam.frame import Intrinsics
+from longslam.core.frame import Intrinsics
 from longslam.geometry.fit import rigid_transform_2d
 
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import fold_quarter as fold
 
 

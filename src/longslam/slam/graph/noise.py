@@ -5,7 +5,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 ROBUST_KERNELS = ("cauchy", "huber", "none")
 

@@ -37,7 +37,7 @@ from typing import Literal
 import gtsam
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.geometry import log_xyyaw, relative_xyyaw
 from longslam.slam.graph import noise
 from longslam.slam.graph.noise import ROBUST_KERNELS

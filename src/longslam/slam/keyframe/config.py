@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
-from longslam.errors import InputError
-from longslam.settings import check_limits
+from longslam.core.errors import InputError
+from longslam.core.settings import check_limits
 from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.place_recognition import WORD_INDEXES
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from longslam.geometry import CameraMount, pose_from_xyyaw
 from longslam.geometry.voxel_stream import VoxelStream
-from longslam.gridmap import GridMap
+from longslam.core.gridmap import GridMap
 from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid
 
 

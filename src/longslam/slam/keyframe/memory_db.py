@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 SCHEMA_VERSION = 1
 

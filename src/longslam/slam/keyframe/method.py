@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Frame
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame
 from longslam.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
-from longslam.memory_release import release_free_memory
+from longslam.core.memory_release import release_free_memory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, Table
 from longslam.slam.features import Features, extract
@@ -36,7 +36,7 @@ from longslam.slam.keyframe.memory_db import MemoryDatabase
 from longslam.slam.keyframe.occupancy import depth_points_in_base, local_grid
 from longslam.slam.place_recognition import Vocabulary
 from longslam.slam.rows import Rows
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 
 class KeyframeMethod:

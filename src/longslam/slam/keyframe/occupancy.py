@@ -17,10 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 from longslam.geometry.cells import group_cells_2d
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 
 
 @dataclass

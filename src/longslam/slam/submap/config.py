@@ -1,7 +1,7 @@
 """The submap method's parameters: one typed config, the paper's / Voxgraph's values as defaults.
 
 Every field can be set from the command line (`longslam run --method submap --param voxel_size=0.1`)
-or a study file, through `longslam.settings.from_mapping`.
+or a study file, through `longslam.core.settings.from_mapping`.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from longslam.errors import InputError
-from longslam.settings import check_limits
+from longslam.core.errors import InputError
+from longslam.core.settings import check_limits
 from longslam.slam.frontend import FrontEndConfig
 
 

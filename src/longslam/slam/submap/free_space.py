@@ -24,8 +24,8 @@ from collections.abc import Iterable
 import numpy as np
 from scipy import ndimage
 
-from longslam.frame import Intrinsics
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.frame import Intrinsics
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid, local_grid
 
 

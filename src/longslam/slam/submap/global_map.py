@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from longslam.io.ply import vertex_rows, write_ply
-from longslam.memory_release import release_free_memory
-from longslam.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.memory_release import release_free_memory
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.geometry.cells import pack_3d
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 

@@ -34,10 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Frame
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame
 from longslam.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
-from longslam.memory_release import release_free_memory
+from longslam.core.memory_release import release_free_memory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.frontend import FrontEnd
@@ -49,7 +49,7 @@ from longslam.slam.rows import Rows
 from longslam.slam.submap.registration import RegistrationSettings, register
 from longslam.slam.submap.store import SubmapStore
 from longslam.slam.submap.tsdf import TSDF
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 
 MIN_VERTICAL_NORMAL = 0.7  # |normal z| above this: floor or ceiling, useless for x, y, yaw
 

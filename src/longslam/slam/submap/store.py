@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.slam.submap.tsdf import BLOCK_VOXELS, TSDF
 
 FILE_NAME = "submaps.db"

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.errors import InputError
-from longslam.frame import Intrinsics
+from longslam.core.errors import InputError
+from longslam.core.frame import Intrinsics
 from longslam.geometry.cells import group_cells_3d, pack_3d, unpack_3d
 
 BLOCK = 16  # voxels per block side

@@ -61,7 +61,7 @@ def failures_text(runs: list[dict[str, Any]], dead: dict[tuple, float]) -> str:
 
 def _nondeterministic(results: StudyResults) -> set[str]:
     """The study's method labels whose method declares itself non-deterministic."""
-    from longslam.errors import LongslamError
+    from longslam.core.errors import LongslamError
     from longslam.slam.catalog import get_spec
 
     labels = set()

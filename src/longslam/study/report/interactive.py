@@ -9,7 +9,7 @@ import plotly.graph_objects as go
 import plotly.io as pio
 from plotly.subplots import make_subplots
 
-from longslam.gridmap import GridMap
+from longslam.core.gridmap import GridMap
 from longslam.viz.plots import GROUND_TRUTH, grid_image, place_labels
 
 MAX_POINTS = 1500  # per line: a 1 km route's 10 Hz trajectory thinned, enough for the eye

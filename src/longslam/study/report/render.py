@@ -9,7 +9,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.io.atomic import write_text_atomic
 from longslam.io.outputs import special_file_kind
 from longslam.run.process_tree import STARVED_SHARE, starved

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.sim.sensors.catalog import IDEAL
 from longslam.study.database import DB_NAME, ResultsDB, check_results_tables
 from longslam.study.spec import DEFAULT_CAMERA

@@ -11,7 +11,7 @@ import os
 import sqlite3
 import sys
 
-from longslam.errors import LongslamError
+from longslam.core.errors import LongslamError
 
 EXPECTED_FAILURES = (LongslamError, OSError, sqlite3.Error)
 

@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 
 import longslam
-from longslam.errors import InputError
-from longslam.frame import Frame
+from longslam.core.errors import InputError
+from longslam.core.frame import Frame
 from longslam.geometry import camera_poses_from_planar, planar_from_camera_poses
 from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
-from longslam.progress import bar
+from longslam.core.progress import bar
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
@@ -34,7 +34,7 @@ from longslam.sim.noise import BiasNoise
 from longslam.sim.routes import Route
 from longslam.sim.sensors import IDEAL, SensorModel, get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 from longslam.world import load_world, world_key
 from longslam.world.reference import MeshSpec, is_mesh_ref, world_identity
 
@@ -42,7 +42,7 @@ from longslam.world.reference import MeshSpec, is_mesh_ref, world_identity
 RENDER_VERSION = 1
 
 
-log = logging.getLogger(__name__)  # -v shows where frames come from (longslam/cli_output.py)
+log = logging.getLogger(__name__)  # -v shows where frames come from (longslam/cli/output.py)
 
 def cache_root() -> Path:
     """The render cache: LONGSLAM_CACHE, or ~/.cache/longslam if it is unset or empty (an empty

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from typing import Generic, TypeVar
 
-from longslam.errors import UnknownNameError
+from longslam.core.errors import UnknownNameError
 
 T = TypeVar("T")
 

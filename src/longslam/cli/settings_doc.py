@@ -22,7 +22,7 @@ import tokenize
 from dataclasses import dataclass
 from typing import Any
 
-from longslam.settings import _field_type
+from longslam.core.settings import _field_type
 
 FAR = 1e12  # beyond this a number is taken as unbounded
 _STEPS = 80  # bisection steps: a float bound to ~1e-12 of its scale

@@ -19,7 +19,7 @@ import typing
 from collections.abc import Mapping
 from typing import Any, TypeVar
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 C = TypeVar("C")
 
@@ -144,7 +144,7 @@ def parameter_names(cls: type, prefix: str = "") -> list[str]:
 def _unknown_keys(cls: type, unknown: list[Any], what: str) -> str:
     """The error for keys `cls` does not have: "did you mean" for a near miss (a typo), the list of
     valid keys only when nothing is close, since a list of 42 names hides the one that was meant."""
-    from longslam.suggest import close_names
+    from longslam.core.suggest import close_names
 
     names = field_names(cls)
     candidates = names + [n for n in parameter_names(cls) if n not in names]

@@ -20,7 +20,7 @@ class UnknownNameError(InputError, KeyError):
         self.kind = kind
         self.name = name
         self.valid = sorted(valid)
-        from longslam.suggest import did_you_mean
+        from longslam.core.suggest import did_you_mean
 
         super().__init__(f"unknown {kind} {name!r}{did_you_mean(name, self.valid)}; "
                          f"valid {kind} names: {', '.join(self.valid)}")

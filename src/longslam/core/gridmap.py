@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 from longslam.io.atomic import atomic_path, naming_the_file
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 100

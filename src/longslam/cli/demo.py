@@ -18,9 +18,9 @@ from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
 from longslam.sim.noise import get_noise
 from longslam.sim.routes import get_route
-from longslam.simulate import check_seed, simulate
+from longslam.sim.simulate import check_seed, simulate
 from longslam.slam.catalog import default_method_names, get_spec
-from longslam.trajectory import Trajectory
+from longslam.core.trajectory import Trajectory
 from longslam.viz.plots import plot_errors_over_time, plot_plan
 from longslam.world import load_world
 

@@ -13,12 +13,12 @@ import sys
 # 11 s of CPU (the other core's) for 1 s of wall time. Set before numpy loads OpenBLAS.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
-from longslam.cli_output import configure, note
-from longslam.cli_parser import Parser, add_common_options
-from longslam.errors import LongslamError
+from longslam.cli.errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
+from longslam.cli.output import configure, note
+from longslam.cli.parser import Parser, add_common_options
+from longslam.core.errors import LongslamError
 
-log = logging.getLogger("longslam.cli")
+log = logging.getLogger("longslam.cli.main")
 
 
 CAMERA_HELP = {
@@ -39,7 +39,7 @@ def _camera_args(parser: argparse.ArgumentParser) -> None:
 
 
 def _camera(args: argparse.Namespace):
-    from longslam.settings import from_mapping
+    from longslam.core.settings import from_mapping
     from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 
     given = {field: getattr(args, f"camera_{key}") for key, field in CAMERA_KEYS.items()}
@@ -47,7 +47,7 @@ def _camera(args: argparse.Namespace):
 
 
 def _params(pairs: list[str]) -> dict:
-    from longslam.settings import parse_key_values
+    from longslam.core.settings import parse_key_values
 
     return parse_key_values(pairs)
 
@@ -127,7 +127,7 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.sim.noise import get_noise
     from longslam.sim.routes import get_route
     from longslam.io.sequence import SequenceReader
-    from longslam.simulate import simulate
+    from longslam.sim.simulate import simulate
     from longslam.world import world_label
 
     from longslam.io.outputs import check_not_an_input
@@ -277,7 +277,7 @@ class _LazyBar:
 
     def update(self, done: int, total: int) -> None:
         if self.bar is None:
-            from longslam.progress import bar
+            from longslam.core.progress import bar
 
             self.bar = bar(desc=self.desc, unit="frame", leave=False)
         self.bar.total = total
@@ -334,7 +334,7 @@ def cmd_import(args: argparse.Namespace) -> None:
 
 
 def cmd_demo(args: argparse.Namespace) -> None:
-    from longslam.demo import format_table, run_demo
+    from longslam.cli.demo import format_table, run_demo
 
     if args.viz is not None:
         from longslam.viz.live import check_target
@@ -349,7 +349,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
 
 
 def _list_params(method: str) -> None:
-    from longslam.settings_doc import describe
+    from longslam.cli.settings_doc import describe
     from longslam.slam.catalog import get_spec
 
     spec = get_spec(method)
@@ -440,7 +440,7 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
     from longslam.io.outputs import check_not_an_input
 
     check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")
-    from longslam.simulate import check_seed
+    from longslam.sim.simulate import check_seed
 
     check_seed(args.seed, "--seed")  # the same range wherever a seed enters
     world = _world(args, args.world)
@@ -665,7 +665,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="list the method's parameters: default, allowed values and what each does")
     p.set_defaults(func=cmd_list)
     add_common_options(parser)  # last, so that every subcommand has them (also after the command)
-    from longslam.cli_complete import attach_completers
+    from longslam.cli.complete import attach_completers
 
     attach_completers(parser)
     return parser

@@ -9,7 +9,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ import stat
 from pathlib import Path
 from typing import BinaryIO
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 _CHUNK = 1 << 20
 

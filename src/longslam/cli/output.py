@@ -11,7 +11,7 @@ import argparse
 import logging
 import sys
 
-from longslam import progress
+from longslam.core import progress
 
 _quiet = False
 

@@ -12,7 +12,7 @@ from typing import Any
 
 from argcomplete.completers import FilesCompleter
 
-from longslam.cli_parser import subcommand_parsers
+from longslam.cli.parser import subcommand_parsers
 
 
 def method_names(**_: Any) -> list[str]:
@@ -41,7 +41,7 @@ def world_names(prefix: str = "", **kwargs: Any) -> list[str]:
 
 def method_params(parsed_args: argparse.Namespace | None = None, **_: Any) -> list[str]:
     """`KEY=` for every parameter of the method given so far with --method (none before it)."""
-    from longslam.settings import parameter_names
+    from longslam.core.settings import parameter_names
     from longslam.slam.catalog import get_spec
 
     method = getattr(parsed_args, "method", None)

@@ -15,7 +15,7 @@ import re
 from collections.abc import Iterator
 from typing import Any, NoReturn
 
-from longslam.suggest import close_names, did_you_mean
+from longslam.core.suggest import close_names, did_you_mean
 
 # argparse's own test for a token that is a negative number rather than an option.
 _NEGATIVE_NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+$")

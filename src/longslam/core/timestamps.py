@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.errors import InputError
+from longslam.core.errors import InputError
 
 
 def nearest_indices(query: np.ndarray, stamps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
