@@ -45,7 +45,7 @@ from common import run_process, sequence  # noqa: E402
 from longslam.core.errors import InputError  # noqa: E402
 from longslam.run.score import score_files  # noqa: E402
 from longslam.core.settings import parse_key_values  # noqa: E402
-from longslam.sim.noise import get_noise  # noqa: E402
+from longslam.core.odometry_noise import get_noise  # noqa: E402
 from longslam.sim.routes import get_route  # noqa: E402
 
 SIDES = ("tree", "rev")

@@ -23,7 +23,7 @@ from longslam.eval.evaluation import evaluate
 from longslam.sim.simulate import rendered_sequence
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
-from longslam.sim.noise import get_noise
+from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.sim.simulate import noisy_odometry
 from longslam.world import get_world

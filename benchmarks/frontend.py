@@ -30,7 +30,7 @@ from longslam.core.settings import from_mapping, parse_key_values
 from longslam.core.frame import Frame
 from longslam.io.sequence import SequenceReader
 from longslam.eval.diagnose import loop_errors
-from longslam.geometry import planar_from_camera_poses
+from longslam.core.geometry import planar_from_camera_poses
 from longslam.slam.api import MethodContext
 from longslam.slam.catalog import create_method
 from longslam.slam.frontend import FrontEnd, FrontEndConfig

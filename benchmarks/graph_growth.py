@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from longslam.geometry import compose_xyyaw, relative_xyyaw
+from longslam.core.geometry import compose_xyyaw, relative_xyyaw
 from longslam.slam.graph import PoseGraph
 
 ODOMETRY_SIGMAS = (0.05, 0.01, 0.005)

@@ -19,10 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from longslam.eval.map_quality import map_scores, observed_walls
-from longslam.geometry.planar import planar_from_camera_poses
+from longslam.core.geometry.planar import planar_from_camera_poses
 from longslam.core.gridmap import GridMap
 from longslam.io.trajectory_files import read_tum
 from longslam.world import load_world
+from longslam.io.grid_files import read_grid
 
 KEYS = ("map_precision", "map_recall", "map_precision_aligned", "map_recall_aligned", "map_doubled_walls")
 
@@ -35,7 +36,7 @@ def score_run(run: Path, sequence: Path) -> tuple[dict, GridMap, GridMap]:
     truth = read_tum(sequence / "groundtruth.txt")
     observed = observed_walls(world.occupancy, planar_from_camera_poses(truth.poses, camera["camera_height"]),
                               camera["hfov_deg"], camera["max_depth"])
-    grid = GridMap.load(run / "grid.npz")
+    grid = read_grid(run / "grid.npz")
     estimate = read_tum(run / "trajectory.txt")
     # As study.run_scores does for align 'none': the map as it is, at the trajectory's height.
     scores = map_scores(grid, world.occupancy, 2.0, observed, height=float(np.mean(estimate.positions[:, 2])),

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from longslam.geometry import camera_poses_from_planar
+from longslam.core.geometry import camera_poses_from_planar
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.world import get_world
 

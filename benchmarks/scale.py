@@ -29,7 +29,7 @@ import numpy as np
 
 from common import run_process
 from longslam.eval.diagnose import loop_errors
-from longslam.geometry import planar_from_camera_poses
+from longslam.core.geometry import planar_from_camera_poses
 from longslam.io.sequence import SequenceReader
 from longslam.run.folder import read_table
 from longslam.run.score import score_files

@@ -20,7 +20,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum, write_tum
 from longslam.run.score import score
 from longslam.sim.camera import CameraSettings
-from longslam.sim.noise import get_noise
+from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import Route
 from longslam.sim.simulate import simulate
 from longslam.core.trajectory import Trajectory

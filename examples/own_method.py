@@ -65,7 +65,7 @@ def main(work: Path) -> dict:
     from longslam.io.sequence import SequenceReader
     from longslam.run.score import score
     from longslam.sim.camera import CameraSettings
-    from longslam.sim.noise import get_noise
+    from longslam.core.odometry_noise import get_noise
     from longslam.sim.routes import Route
     from longslam.sim.simulate import simulate
     from longslam.slam import catalog

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 from longslam.core.frame import Intrinsics
-from longslam.geometry import camera_poses_from_planar
+from longslam.core.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceWriter
 from longslam.sim.simulate import simulate
 from longslam.sim.camera import CameraSettings
-from longslam.sim.noise import get_noise
+from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import Route
 from longslam.core.trajectory import Trajectory
 

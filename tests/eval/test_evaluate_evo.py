@@ -15,7 +15,7 @@ from longslam.cli.main import build_parser, main
 from longslam.eval import metrics as lm
 from longslam.eval.evaluation import evaluate
 from longslam.eval.relations import APE_RELATIONS, RPE_RELATIONS
-from longslam.geometry import tum_from_poses
+from longslam.core.geometry import tum_from_poses
 from longslam.io.trajectory_files import write_tum
 from longslam.core.trajectory import Trajectory
 

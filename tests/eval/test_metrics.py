@@ -15,7 +15,7 @@ from longslam.eval.evaluation import evaluate
 from longslam.eval.align import align_trajectory, umeyama
 from longslam.eval.sync import associate, associate_by_index
 from longslam.core.timestamps import one_to_one_nearest
-from longslam.geometry import planar_poses, tum_from_poses
+from longslam.core.geometry import planar_poses, tum_from_poses
 from longslam.core.trajectory import Trajectory
 
 evo_metrics = pytest.importorskip("evo.core.metrics")

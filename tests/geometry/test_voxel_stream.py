@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from longslam.geometry.cells import average_3d
-from longslam.geometry.voxel_stream import VoxelStream
+from longslam.core.geometry.cells import average_3d
+from longslam.core.geometry.voxel_stream import VoxelStream
 
 
 def batch(parts: list[np.ndarray], voxel: float) -> np.ndarray:

@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation  # noqa: E402
 from conftest import write_bag_sequence, write_tiny_sequence  # noqa: E402
 from longslam.cli.main import main  # noqa: E402
 from longslam.core.errors import InputError  # noqa: E402
-from longslam.geometry import base_to_camera, planar_poses  # noqa: E402
+from longslam.core.geometry import base_to_camera, planar_poses  # noqa: E402
 from longslam.io.rosbag.conventions import ODOM_TOPIC  # noqa: E402
 from longslam.io.rosbag.export import export_sequence  # noqa: E402
 from longslam.io.rosbag.import_ import Topics, import_bag  # noqa: E402
@@ -27,7 +27,8 @@ from longslam.io.trajectory_files import read_tum  # noqa: E402
 from longslam.run.engine import run_sequence  # noqa: E402
 from longslam.run.folder import TRAJECTORY  # noqa: E402
 from longslam.run.score import score  # noqa: E402
-from longslam.sim.noise import get_noise  # noqa: E402
+from longslam.core.odometry_noise import get_noise  # noqa: E402
+from longslam.sim.noise import apply_noise
 from sequence_checks import assert_same_sequence  # noqa: E402
 
 
@@ -99,7 +100,7 @@ def test_the_noise_models_step_error_has_the_stated_variance():
     n = 200_001
     stamps = 0.1 * np.arange(n)
     xyyaw = np.column_stack([0.15 * np.arange(n), np.zeros(n), np.zeros(n)])
-    noisy = noise.apply(stamps, xyyaw, np.random.default_rng(7))
+    noisy = apply_noise(noise, stamps, xyyaw, np.random.default_rng(7))
     steps = np.diff(noisy[:, :2], axis=0)
     heading = noisy[:-1, 2]
     forward = np.cos(heading) * steps[:, 0] + np.sin(heading) * steps[:, 1]

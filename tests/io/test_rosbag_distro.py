@@ -21,7 +21,7 @@ from rosbags.typesys import Stores, get_typestore  # noqa: E402
 from conftest import write_bag_sequence  # noqa: E402
 from longslam.cli.main import main  # noqa: E402
 from longslam.core.errors import InputError  # noqa: E402
-from longslam.geometry import base_to_camera, invert  # noqa: E402
+from longslam.core.geometry import base_to_camera, invert  # noqa: E402
 from longslam.io.rosbag.conventions import TOPIC_PRESETS  # noqa: E402
 from longslam.io.rosbag.export import export_sequence  # noqa: E402
 from longslam.io.rosbag.import_ import import_bag  # noqa: E402

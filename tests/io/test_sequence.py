@@ -12,7 +12,7 @@ import pytest
 import longslam
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame, Intrinsics
-from longslam.geometry import camera_poses_from_planar
+from longslam.core.geometry import camera_poses_from_planar
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
 from longslam.core.timestamps import associate_lists
 from longslam.core.trajectory import Trajectory

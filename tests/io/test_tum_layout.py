@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from longslam.cli.main import main
 from longslam.eval.evaluation import evaluate
-from longslam.geometry import planar_poses
+from longslam.core.geometry import planar_poses
 from longslam.core.trajectory import Trajectory
 
 T0 = 1305031102.175304  # the first colour stamp of the real freiburg1_xyz

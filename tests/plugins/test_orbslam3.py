@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from longslam.core.frame import Intrinsics
-from longslam.geometry import camera_poses_from_planar
+from longslam.core.geometry import camera_poses_from_planar
 from longslam.io.trajectory_files import read_tum
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route

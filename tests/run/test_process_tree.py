@@ -32,6 +32,12 @@ def one_core():
     os.sched_setaffinity(0, before)
 
 
+# "Alone" needs a core nobody else wants: on a machine already loaded past its cores, the wait
+# measured is the load's, which is the other test's subject.
+_LOADED = os.getloadavg()[0] > len(os.sched_getaffinity(0)) - 0.5
+
+
+@pytest.mark.skipif(_LOADED, reason="the machine is loaded: no core is free for a run alone")
 def test_a_run_alone_on_its_core_waits_little(one_core):
     usage = TreeMonitor().start()
     _busy(0.6)

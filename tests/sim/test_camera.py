@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from longslam.core.errors import InputError
-from longslam.geometry import camera_poses_from_planar
+from longslam.core.geometry import camera_poses_from_planar
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.world import get_world
 

@@ -244,7 +244,7 @@ def test_sensed_frames_stay_lazy(tmp_path):
 
 
 def test_camera_motion_of_a_turn_in_place():
-    from longslam.geometry import camera_poses_from_planar
+    from longslam.core.geometry import camera_poses_from_planar
     from longslam.core.trajectory import Trajectory
 
     stamps = 0.1 * np.arange(5)

@@ -10,7 +10,7 @@ from longslam.cli.main import main
 from longslam.io.sequence import SequenceReader
 from longslam.sim import simulate as cache_module
 from longslam.sim.camera import CameraSettings
-from longslam.sim.noise import get_noise
+from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import Route
 from longslam.sim.simulate import simulate
 

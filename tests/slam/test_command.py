@@ -24,7 +24,7 @@ import pytest
 from conftest import one_line_error, write_tiny_sequence
 from longslam.cli.main import main
 from longslam.core.errors import InputError, MethodError
-from longslam.geometry import anchor, base_to_camera, hold_last, invert, pose_from_xyyaw
+from longslam.core.geometry import anchor, base_to_camera, hold_last, invert, pose_from_xyyaw
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
 from longslam.run.engine import run_sequence

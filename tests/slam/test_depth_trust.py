@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from longslam.core.frame import Frame
-from longslam.geometry import camera_poses_from_planar
+from longslam.core.geometry import camera_poses_from_planar
 from longslam.sim.sensors import FrameMotion, KinectV1, RealSenseD435, frame_rng
 from longslam.slam.depth_trust import DepthTrust, inverse_depth_noise, scan_weight, trusted_depth, trusted_range
 from longslam.slam.frontend import FrontEnd

@@ -16,7 +16,7 @@ from longslam.cli.main import main
 from longslam.io.sequence import SequenceReader
 from longslam.sim.simulate import frames_with_odometry, simulate
 from longslam.sim.camera import CameraSettings
-from longslam.sim.noise import get_noise
+from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import Route
 from longslam.sim.sensors import get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames

@@ -34,9 +34,9 @@ import time
 
 import numpy as np
 
-from longslam.geometry import base_to_camera, planar_from_camera_poses
+from longslam.core.geometry import base_to_camera, planar_from_camera_poses
 from longslam.slam.api import MethodSpec, Result
-from longslam.slam.keyframe.occupancy import assemble, local_grid
+from longslam.slam.occupancy import assemble, local_grid
 from longslam.core.trajectory import Trajectory
 
 

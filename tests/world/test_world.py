@@ -10,7 +10,7 @@ import open3d as o3d
 import pytest
 
 from longslam.core.errors import InputError, UnknownNameError
-from longslam.geometry import camera_poses_from_planar
+from longslam.core.geometry import camera_poses_from_planar
 from longslam.core.gridmap import FREE, OCCUPIED
 from longslam.sim.camera import RGBDCamera
 from longslam.world import WORLDS, build_mesh, get_world, load_mesh_world

@@ -28,7 +28,7 @@ def route_names(prefix: str = "", **kwargs: Any) -> list[str]:
 
 
 def noise_levels(**_: Any) -> list[str]:
-    from longslam.sim.noise import NOISE_LEVELS
+    from longslam.core.odometry_noise import NOISE_LEVELS
 
     return list(NOISE_LEVELS)
 

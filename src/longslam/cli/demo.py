@@ -16,7 +16,7 @@ from longslam.run.isolate import run_and_score
 from longslam.run.speed import format_real_time_factor
 from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
-from longslam.sim.noise import get_noise
+from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.sim.simulate import check_seed, simulate
 from longslam.slam.catalog import default_method_names, get_spec

@@ -124,7 +124,7 @@ def cmd_world(args: argparse.Namespace) -> None:
 
 
 def cmd_simulate(args: argparse.Namespace) -> None:
-    from longslam.sim.noise import get_noise
+    from longslam.core.odometry_noise import get_noise
     from longslam.sim.routes import get_route
     from longslam.io.sequence import SequenceReader
     from longslam.sim.simulate import simulate
@@ -261,7 +261,7 @@ def cmd_diagnose(args: argparse.Namespace) -> None:
         write_text_atomic(args.json, json.dumps(found.to_json(), indent=1, allow_nan=False) + "\n")
         print(f"wrote {args.json}")
     if args.plot is not None:
-        from longslam.viz.diagnose_plot import plot_diagnosis
+        from longslam.run.diagnose_plot import plot_diagnosis
 
         plot_diagnosis(found, args.plot)
         print(f"wrote {args.plot}")
@@ -379,7 +379,7 @@ def cmd_list(args: argparse.Namespace) -> None:
     if args.params_of is not None:
         _list_params(args.params_of)
         return
-    from longslam.sim.noise import NOISE_LEVELS
+    from longslam.core.odometry_noise import NOISE_LEVELS
     from longslam.sim.routes import ROUTES
     from longslam.sim.sensors import sensor_names
     from longslam.sim.tours import EXAMPLES as TOUR_EXAMPLES

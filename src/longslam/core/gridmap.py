@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
-import zipfile
-
 import json
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from longslam.core.errors import InputError
-from longslam.io.atomic import atomic_path, naming_the_file
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 100
 
@@ -58,24 +53,6 @@ class GridMap:
         out = np.full(len(rc), outside, dtype=np.int8)
         out[ok] = self.data[rc[ok, 0], rc[ok, 1]]
         return out
-
-    def save(self, path: str | Path) -> None:
-        """Write as .npz (data, resolution, origin), via a temporary name."""
-        path = Path(path)
-        # Through an open file: np.savez would add ".npz" to a temporary name without it.
-        with atomic_path(path) as tmp, naming_the_file(path), open(tmp, "wb") as file:
-            np.savez_compressed(file, data=self.data, resolution=self.resolution, origin=np.asarray(self.origin))
-
-    @classmethod
-    def load(cls, path: str | Path) -> "GridMap":
-        path = Path(path)
-        try:
-            with np.load(path) as npz:
-                return cls(npz["data"].astype(np.int8), float(npz["resolution"]), tuple(map(float, npz["origin"])))
-        except FileNotFoundError:
-            raise InputError(f"grid map file {path} does not exist") from None
-        except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile) as err:  # a truncated or foreign file
-            raise InputError(f"grid map file {path} is not a longslam grid (.npz with data, resolution, origin): {err}") from None
 
     def describe(self) -> str:
         return json.dumps({"shape": list(self.shape), "resolution": self.resolution, "origin": list(self.origin)})

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from longslam.core.errors import InputError
+from longslam.core.file_kinds import special_file_kind
 
 _CHUNK = 1 << 20
 
@@ -40,8 +41,6 @@ def read_bounded_text(path: Path, what: str, max_bytes: int, max_line: int, stre
         except OSError as err:
             raise InputError(f"{what} {path} cannot be read: {err.strerror}") from None
         if not (stat.S_ISREG(mode) or stat.S_ISFIFO(mode)):
-            from longslam.io.outputs import special_file_kind
-
             kind = "a folder" if stat.S_ISDIR(mode) else special_file_kind(path) or "not a regular file"
             raise InputError(f"{what} {path} is {kind}; expected a text file")
         try:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.core.errors import TrajectoryError
-from longslam.geometry import rigidity_violation
+from longslam.core.geometry import rigidity_violation
 
 RIGID_TOLERANCE = 1e-4
 

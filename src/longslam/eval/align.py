@@ -19,8 +19,8 @@ import numpy as np
 
 from longslam.core.errors import InputError, UnknownNameError
 from longslam.eval.sync import require_same_length
-from longslam.geometry import invert
-from longslam.geometry.fit import umeyama  # noqa: F401  (re-exported: evaluation's alignment)
+from longslam.core.geometry import invert
+from longslam.core.geometry.fit import umeyama  # noqa: F401  (re-exported: evaluation's alignment)
 from longslam.core.trajectory import Trajectory
 
 ALIGN_MODES = ("none", "se3", "sim3", "scale", "origin")

@@ -3,7 +3,7 @@ stretches that pick them up, the loop constraints against ground truth, and the 
 stretch ran on.
 
 Plain arrays in, plain dataclasses out: `longslam diagnose` (run/diagnose.py) reads the files,
-`viz/diagnose_plot.py` draws the result.
+`run/diagnose_plot.py` draws the result.
 
 - The error at a frame is the estimate's planar pose against the truth's, unaligned (as the ATE
   is scored by default): the position error is split along and across the truth's heading, and
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.geometry.planar import relative_xyyaw, wrap_angle
+from longslam.core.geometry.planar import relative_xyyaw, wrap_angle
 
 # A loop constraint further than this from the truth is wrong (the benchmarks' rule).
 WRONG_LOOP_M = 0.5

@@ -22,7 +22,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from longslam.core.errors import InputError
-from longslam.geometry.fit import rigid_transform_2d
+from longslam.core.geometry.fit import rigid_transform_2d
 from longslam.core.gridmap import OCCUPIED, GridMap
 
 

@@ -22,7 +22,7 @@ from longslam.eval.align import align_trajectory
 from longslam.eval.angle_pairs import pairs_by_angle
 from longslam.eval.pairs import consecutive_pairs
 from longslam.eval.sync import require_same_length
-from longslam.geometry import invert
+from longslam.core.geometry import invert
 from longslam.core.trajectory import Trajectory
 
 MIN_STEP = 0.01  # metres: ground-truth steps shorter than this are turning in place

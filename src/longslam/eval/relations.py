@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from longslam.core.errors import InputError, UnknownNameError
-from longslam.geometry import invert
+from longslam.core.geometry import invert
 from longslam.core.trajectory import Trajectory
 
 APE_RELATIONS = ("trans_part", "rot_part", "full", "angle_deg", "angle_rad", "point_distance")

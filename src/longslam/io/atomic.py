@@ -15,6 +15,7 @@ from typing import Any
 
 from longslam.core.errors import InputError
 from longslam.io.partials import partial_path
+from longslam.core.file_kinds import special_file_kind
 
 _AT_FDCWD, _RENAME_NOREPLACE = -100, 1
 # Text files are UTF-8 whatever the locale (under LANG=C without UTF-8 mode Python would write
@@ -87,8 +88,6 @@ def check_same_kind(tmp: Path, path: Path) -> None:
         return  # the link itself is replaced, never what it points to
     if stat.S_ISDIR(mode) == tmp.is_dir() and (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
         return
-    from longslam.io.outputs import special_file_kind
-
     kind = ("a symbolic link" if stat.S_ISLNK(mode) else "a folder" if stat.S_ISDIR(mode)
             else special_file_kind(path) or "a file")
     raise InputError(f"{path} is {kind}, not a {'folder' if tmp.is_dir() else 'regular file'} longslam may "

@@ -9,11 +9,11 @@ an input, lies inside one, or holds one.
 from __future__ import annotations
 
 import os
-import stat
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from longslam.core.errors import InputError
+from longslam.core.file_kinds import special_file_kind
 
 # What each kind of folder holds when longslam made it. A folder with anything else in it is not
 # replaced: the extra entry may be the user's (a run kept inside a sequence, notes, a dataset).
@@ -132,23 +132,6 @@ def replace_guard(kind: str, what: str | None = None):
         check_replaceable(path, kind, True, what)
 
     return guard
-
-
-def special_file_kind(path: str | Path) -> str | None:
-    """What `path` is if it exists and is neither a regular file nor a folder (through symbolic
-    links): "a named pipe (FIFO)", "a character device", ...; None otherwise. Only stat is called:
-    opening a FIFO blocks, and opening a device may act on it."""
-    try:
-        mode = os.stat(path).st_mode
-    except OSError:  # missing, or a dangling link: nothing there to lose
-        return None
-    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
-        return None
-    for test, kind in ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return kind
-    return "not a regular file"
 
 
 def check_output_file_free(path: str | Path, overwrite: bool, what: str = "output file") -> None:

@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 from longslam.core.errors import InputError
+from longslam.core.file_kinds import special_file_kind
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")  # what the figures can be saved as
 
@@ -17,8 +18,6 @@ def check_output_folder(path: str | Path, what: str = "output folder") -> Path:
     if path.is_symlink():
         raise InputError(f"{what} {path} is a symbolic link; give the path of a folder")
     if path.exists() and not path.is_dir():
-        from longslam.io.outputs import special_file_kind
-
         raise InputError(f"{what} {path} is {special_file_kind(path) or 'a file'}; expected a folder "
                          "(or a path that does not exist yet)")
     for parent in path.absolute().parents:

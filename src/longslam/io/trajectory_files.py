@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from longslam.core.errors import InputError, TrajectoryError
-from longslam.geometry import poses_from_tum, tum_from_poses
+from longslam.core.geometry import poses_from_tum, tum_from_poses
 from longslam.io.atomic import write_text_atomic
 from longslam.io.plain_table import plain_table
 from longslam.core.textfile import read_bounded_text

@@ -1,5 +1,5 @@
 """`longslam diagnose RUN SEQ`: a run's error split into parts along the route, read from its
-folder and its sequence (the maths is `eval/diagnose.py`, the picture `viz/diagnose_plot.py`)."""
+folder and its sequence (the maths is `eval/diagnose.py`, the picture `run/diagnose_plot.py`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import numpy as np
 from longslam.core.errors import InputError
 from longslam.eval.diagnose import (ErrorParts, LoopError, Stretch, error_parts, loop_errors, regions_of,
                                     stretches, worst_stretches)
-from longslam.geometry import planar_from_camera_poses
+from longslam.core.geometry import planar_from_camera_poses
 from longslam.io.trajectory_files import read_trajectory
 from longslam.run.folder import EVENTS, TRAJECTORY, read_events, read_table
 from longslam.run.score import other_sequence_warning

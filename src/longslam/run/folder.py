@@ -34,6 +34,7 @@ from longslam.run.resources import peak_rss_bytes
 from longslam.core.settings import to_toml
 from longslam.core.errors import InputError
 from longslam.slam.api import Event, Result, Table
+from longslam.io.grid_files import write_grid
 
 TRAJECTORY = "trajectory.txt"
 ONLINE = "online.txt"
@@ -132,7 +133,7 @@ def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> Non
     write_tum(out / ONLINE, result.online)
     write_config(out, measurements)
     if result.grid is not None:
-        result.grid.save(out / GRID)
+        write_grid(result.grid, out / GRID)
         write_map_server(result.grid, out / GRID_YAML)
     if result.cloud is not None and len(result.cloud):
         write_point_cloud(out / MAP, result.cloud)  # float32 rows whatever the method's dtype

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.geometry import camera_poses_from_planar
+from longslam.core.geometry import camera_poses_from_planar
 from longslam.sim.follower import DrivenPath, FollowerSettings, follow_paths
 from longslam.sim.navigation import NavigationGrid
 from longslam.sim.routes import Route

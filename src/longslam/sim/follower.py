@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.core.errors import InputError
-from longslam.geometry import wrap_angle
+from longslam.core.geometry import wrap_angle
 
 
 @dataclass(frozen=True)

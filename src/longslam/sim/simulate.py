@@ -22,7 +22,7 @@ import numpy as np
 import longslam
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
-from longslam.geometry import camera_poses_from_planar, planar_from_camera_poses
+from longslam.core.geometry import camera_poses_from_planar, planar_from_camera_poses
 from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
@@ -30,13 +30,14 @@ from longslam.core.progress import bar
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
-from longslam.sim.noise import BiasNoise
+from longslam.core.odometry_noise import BiasNoise
 from longslam.sim.routes import Route
 from longslam.sim.sensors import IDEAL, SensorModel, get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
 from longslam.core.trajectory import Trajectory
 from longslam.world import load_world, world_key
 from longslam.world.reference import MeshSpec, is_mesh_ref, world_identity
+from longslam.sim.noise import apply_noise
 
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1
@@ -157,7 +158,7 @@ def noisy_odometry(truth: Trajectory, noise: BiasNoise, seed: int, camera_height
     rng = np.random.default_rng(check_seed(seed))
     xyyaw = planar_from_camera_poses(truth.poses, camera_height)
     floor_z = float(truth.poses[0, 2, 3]) - camera_height
-    noisy = noise.apply(truth.timestamps, xyyaw, rng)
+    noisy = apply_noise(noise, truth.timestamps, xyyaw, rng)
     return Trajectory(truth.timestamps, camera_poses_from_planar(noisy, camera_height, floor_z), source="odometry")
 
 

@@ -17,7 +17,7 @@ import scipy.sparse as sp
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
-from longslam.geometry import invert, rigid_transform, xyyaw_from_pose
+from longslam.core.geometry import invert, rigid_transform, xyyaw_from_pose
 from longslam.slam.features import DESCRIPTOR_BYTES, Features
 
 _MATCH_CHUNK = 1 << 17

@@ -21,6 +21,7 @@ from typing import Any, Protocol
 
 from longslam.core.errors import LongslamError
 from longslam.study.record import RunRecord
+from longslam.io.grid_files import read_grid
 
 EXECUTORS = ("local", "ray")
 
@@ -84,9 +85,8 @@ def _local_child(task: Task, result_path: str, parent_pid: int) -> None:
     def load_truth():
         import numpy as np
 
-        from longslam.core.gridmap import GridMap
 
-        return GridMap.load(task.grid_path), np.load(task.observed_path)
+        return read_grid(task.grid_path), np.load(task.observed_path)
 
     try:
         record = execute_run(task.spec, task.run_dir, load_truth)
@@ -317,9 +317,8 @@ class RayExecutor:
         if key not in self._truth_refs:
             import numpy as np
 
-            from longslam.core.gridmap import GridMap
 
-            self._truth_refs[key] = [self._ray.put(GridMap.load(task.grid_path)), self._ray.put(np.load(task.observed_path))]
+            self._truth_refs[key] = [self._ray.put(read_grid(task.grid_path)), self._ray.put(np.load(task.observed_path))]
         return self._truth_refs[key]
 
     def submit(self, task: Task) -> None:

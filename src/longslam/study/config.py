@@ -51,7 +51,7 @@ from longslam.eval.align import ALIGN_MODES
 from longslam.core.settings import from_mapping
 from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
-from longslam.sim.noise import NOISE_LEVELS
+from longslam.core.odometry_noise import NOISE_LEVELS
 from longslam.sim.routes import ROUTES, Route, get_route, is_route_name, load_route_file
 from longslam.core.textfile import read_text
 from longslam.world.reference import same_world, world_label, world_ref

@@ -38,6 +38,7 @@ from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.routes import Route
 from longslam.core.trajectory import Trajectory
+from longslam.io.grid_files import write_grid, read_grid
 
 
 @contextlib.contextmanager
@@ -106,7 +107,7 @@ def prepare_route(
     world = load_world(route.world)
     if not grid_path.is_file():
         grid_path.parent.mkdir(parents=True, exist_ok=True)
-        world.occupancy.save(grid_path)
+        write_grid(world.occupancy, grid_path)
     driven = drive_route(world, route, follower)
     truth = camera_trajectory(driven.timestamps, driven.xyyaw, camera.camera_height, world.floor_z, source="ground truth")
     folder.mkdir(parents=True, exist_ok=True)
@@ -144,7 +145,7 @@ def load_route_data(out: Path, route: str, camera_name: str = "") -> RouteData:
 
 
 def load_world_grid(out: Path, world: str) -> GridMap:
-    return GridMap.load(world_grid_path(out, world))
+    return read_grid(world_grid_path(out, world))
 
 
 def clean_partials(folder: Path) -> int:

@@ -21,7 +21,7 @@ from longslam.core.jsonable import json_default
 from longslam.run.engine import run_frames
 from longslam.run.folder import RECORD, RUN_FILES, write_result
 from longslam.sim.simulate import frames_with_odometry, noisy_odometry
-from longslam.sim.noise import get_noise
+from longslam.core.odometry_noise import get_noise
 from longslam.sim.sensors import get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
 from longslam.slam.api import MethodContext

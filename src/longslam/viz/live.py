@@ -33,7 +33,6 @@ is complete.
 from __future__ import annotations
 
 import json
-import math
 import os
 import socket
 import sys
@@ -54,6 +53,7 @@ from longslam.slam.api import pose_graph
 from longslam.slam.graph import ODOMETRY
 from longslam.core.timestamps import nearest_indices
 from longslam.core.trajectory import Trajectory
+from longslam.core.file_kinds import special_file_kind
 
 VIEWER = "viewer"  # --viz without a file: spawn (or join) a viewer on this machine
 COLORS = {"truth": (60, 200, 60), "estimate": (230, 60, 40), "odometry": (120, 120, 120),
@@ -189,8 +189,6 @@ def check_target(target: str, overwrite: bool = False) -> None:
         raise InputError(f"--viz {target}: the folder {parent} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"--viz {target}: the folder {parent} is not writable")
-    from longslam.io.outputs import special_file_kind
-
     kind = special_file_kind(path)
     if kind is not None:
         raise InputError(f"--viz {target} is {kind}, not a regular file; longslam writes and --overwrite "

@@ -28,6 +28,7 @@ from longslam.core.errors import InputError
 from longslam.io.atomic import atomic_path, naming_the_file
 from longslam.core.textfile import read_text
 from longslam.vocabulary.tree import Vocabulary
+from longslam.core.file_kinds import special_file_kind
 
 DESCRIPTOR_BYTES = 32  # FORB::L
 # The loader's own bounds on the header (loadFromTextFile).
@@ -162,8 +163,6 @@ def check_vocabulary_file(path: str | Path, what: str = "vocabulary", final_newl
     `final_newline` accepts the final newline ORB-SLAM3's own saveToTextFile leaves (ORBvoc.txt
     has it). InputError names `what`, the file and the line, showing at most a short prefix of it.
     """
-    from longslam.io.outputs import special_file_kind
-
     path = Path(path)
     kind = special_file_kind(path)
     if kind is not None:  # opening a FIFO would wait for a writer

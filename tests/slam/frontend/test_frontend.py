@@ -8,9 +8,9 @@ from longslam.core.settings import from_mapping
 from longslam.core.errors import InputError
 from longslam.eval.evaluation import evaluate
 from longslam.core.frame import Frame, Intrinsics
-from longslam.geometry import base_to_camera, planar_from_camera_poses
-from longslam.geometry import compose_xyyaw as compose
-from longslam.geometry import relative_xyyaw as relative
+from longslam.core.geometry import base_to_camera, planar_from_camera_poses
+from longslam.core.geometry import compose_xyyaw as compose
+from longslam.core.geometry import relative_xyyaw as relative
 from longslam.io.sequence import SequenceReader
 from longslam.sim.routes import get_route
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
@@ -176,7 +176,7 @@ def test_a_loop_constraint_moves_the_final_trajectory_smoothly(demo):
 
 
 def test_the_planar_rigid_fit_recovers_a_known_motion():
-    from longslam.geometry import rigid_transform_2d
+    from longslam.core.geometry import rigid_transform_2d
 
     rng = np.random.default_rng(3)
     source = rng.uniform(-2, 2, (30, 2))

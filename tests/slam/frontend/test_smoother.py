@@ -6,8 +6,8 @@ import gtsam
 import numpy as np
 import pytest
 
-from longslam.geometry import compose_xyyaw as compose
-from longslam.geometry import relative_xyyaw as relative
+from longslam.core.geometry import compose_xyyaw as compose
+from longslam.core.geometry import relative_xyyaw as relative
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
 from longslam.slam.graph.factors import FactorGraph, WheelStep

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from longslam.core.errors import InputError
-from longslam.geometry import compose_xyyaw as compose, relative_xyyaw as relative
+from longslam.core.geometry import compose_xyyaw as compose, relative_xyyaw as relative
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
-from longslam.geometry import fold_quarter as fold
+from longslam.core.geometry import fold_quarter as fold
 from longslam.slam.frontend.wall_axes import WallAxes, WallAxesConfig, wall_direction
 from longslam.slam.graph.factors import WheelStep
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from longslam.core.errors import InputError
-from longslam.geometry import compose_xyyaw, planar_poses, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
+from longslam.core.geometry import compose_xyyaw, planar_poses, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
 from longslam.slam.graph import PoseGraph
 
 ODO_SIGMAS = (0.05, 0.05, 0.01)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from longslam.core.errors import InputError
-from longslam.geometry import compose_xyyaw, log_xyyaw, relative_xyyaw
+from longslam.core.geometry import compose_xyyaw, log_xyyaw, relative_xyyaw
 from longslam.slam.graph import PoseGraph
 
 from test_graph import LOOP_SIGMAS, ODO_SIGMAS, as_array, drifting_odometry, square_route

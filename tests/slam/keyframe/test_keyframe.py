@@ -7,7 +7,7 @@ from scipy import ndimage
 from longslam.core.errors import InputError
 from longslam.eval.evaluation import evaluate
 from longslam.core.frame import Frame
-from longslam.geometry import compose_xyyaw, wrap_angle
+from longslam.core.geometry import compose_xyyaw, wrap_angle
 from longslam.core.gridmap import OCCUPIED
 from longslam.io.sequence import SequenceReader
 from longslam.sim.camera import CameraSettings

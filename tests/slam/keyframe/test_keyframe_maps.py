@@ -6,10 +6,10 @@ import tracemalloc
 
 import numpy as np
 
-from longslam.geometry import CameraMount, pose_from_xyyaw
-from longslam.geometry.cells import average_3d
+from longslam.core.geometry import CameraMount, pose_from_xyyaw
+from longslam.core.geometry.cells import average_3d
 from longslam.slam.keyframe.maps import assemble_maps
-from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid
+from longslam.slam.occupancy import GridVotes, LocalGrid
 
 MOUNT = CameraMount(camera_height=1.25, floor_z=-0.4)
 CELL, VOXEL = 0.05, 0.05

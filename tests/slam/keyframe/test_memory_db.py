@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from longslam.core.errors import InputError
-from longslam.geometry import pose_from_xyyaw
+from longslam.core.geometry import pose_from_xyyaw
 from longslam.slam.keyframe.memory_db import MemoryDatabase
 
 

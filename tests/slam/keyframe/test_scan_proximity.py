@@ -4,10 +4,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from longslam.geometry import compose_xyyaw, relative_xyyaw, wrap_angle
+from longslam.core.geometry import compose_xyyaw, relative_xyyaw, wrap_angle
 from longslam.slam.features import Features
 from longslam.slam.keyframe.memory import Node
-from longslam.slam.keyframe.occupancy import LocalGrid
+from longslam.slam.occupancy import LocalGrid
 from longslam.slam.keyframe.scan_proximity import ScanLinkSettings, scan_link, shares_open_space
 
 CELL = 0.05

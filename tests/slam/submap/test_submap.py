@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 from longslam.core.errors import InputError
 from longslam.eval.metrics import ate
 from longslam.core.frame import Frame, Intrinsics
-from longslam.geometry import camera_poses_from_planar, pose_from_xyyaw, relative_xyyaw, wrap_angle
+from longslam.core.geometry import camera_poses_from_planar, pose_from_xyyaw, relative_xyyaw, wrap_angle
 from longslam.core.gridmap import OCCUPIED
 from longslam.io.sequence import SequenceReader
 from longslam.sim.camera import CameraSettings, RGBDCamera
@@ -20,7 +20,7 @@ from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.method import SubmapMethod
 from longslam.slam.submap.registration import register
-from longslam.geometry.cells import group_cells_3d, pack_3d, unpack_3d
+from longslam.core.geometry.cells import group_cells_3d, pack_3d, unpack_3d
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 from longslam.world import get_world
 
@@ -293,7 +293,7 @@ def test_bad_parameters_are_input_errors():
 
 @pytest.mark.parametrize("low, high", [(-50, 50), (0, 30), (-30, -1), (3, 4), (-(1 << 20), 1 << 20)])
 def test_group_cells_2d_is_np_unique_of_the_64_bit_key(low, high):
-    from longslam.geometry.cells import group_cells_2d
+    from longslam.core.geometry.cells import group_cells_2d
 
     ij = np.random.default_rng(0).integers(low, high + 1, size=(3000, 2))
     i, j, inverse = group_cells_2d(ij[:, 0], ij[:, 1])
@@ -305,7 +305,7 @@ def test_group_cells_2d_is_np_unique_of_the_64_bit_key(low, high):
 
 @pytest.mark.parametrize("spread", [0.3, 400.0])  # a dense box of voxels, a sparse one (sort)
 def test_cell_averages_are_the_sorted_groups_means_to_the_bit(spread):
-    from longslam.geometry.cells import average_2d, average_3d
+    from longslam.core.geometry.cells import average_2d, average_3d
 
     points = np.random.default_rng(1).uniform(-spread, spread, size=(4000, 3))
     for average, dims, cell in ((average_3d, 3, 0.05), (average_2d, 2, 0.05)):

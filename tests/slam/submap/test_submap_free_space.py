@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from longslam.core.frame import Intrinsics
-from longslam.geometry import CameraMount
+from longslam.core.geometry import CameraMount
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.slam.submap.free_space import SubmapFreeSpace, carve, fuse_free_space, grid_cells
 from longslam.slam.submap.global_map import grid_from_tsdf

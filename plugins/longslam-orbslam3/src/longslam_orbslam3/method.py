@@ -21,7 +21,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
-from longslam.geometry import camera_poses_from_planar, poses_from_tum
+from longslam.core.geometry import camera_poses_from_planar, poses_from_tum
 from longslam.slam import stats
 from longslam.slam.api import Event, MethodContext, MethodSpec, Result
 from longslam.core.trajectory import Trajectory

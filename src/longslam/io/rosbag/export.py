@@ -23,8 +23,8 @@ import numpy as np
 
 import longslam
 from longslam.core.errors import InputError
-from longslam.geometry import base_to_camera, invert
-from longslam.geometry.planar import xyyaw_from_pose
+from longslam.core.geometry import base_to_camera, invert
+from longslam.core.geometry.planar import xyyaw_from_pose
 from longslam.io.atomic import atomic_path
 from longslam.io.partials import clean_stale_partials
 from longslam.io.outputs import BAG, ROS1_BAG, check_not_an_input, check_replaceable, replace_guard
@@ -37,7 +37,7 @@ from longslam.io.rosbag.conventions import (
 )
 from longslam.io.rosbag.messages import ROS1, ROS2, MessageBuilder, encode_depth
 from longslam.io.sequence import SequenceReader
-from longslam.sim.noise import BiasNoise, get_noise
+from longslam.core.odometry_noise import BiasNoise, get_noise, noise_of_meta
 
 FORMATS = ("ros1", "ros2")
 STORAGES = ("sqlite3", "mcap")
@@ -52,23 +52,6 @@ class ExportSummary:
     linear_variance: float | None  # per step, m^2 (None without odometry)
     yaw_variance: float | None  # per step, rad^2
     notes: tuple[str, ...] = ()  # what reading the sequence left out (unpaired images, repeated stamps...)
-
-
-def _noise_of(meta: dict, where: Path) -> BiasNoise:
-    """The noise model the sequence's odometry was drawn with, from meta.json."""
-    if "noise_linear_std" in meta and "noise_angular_std_deg" in meta:
-        try:
-            return BiasNoise(str(meta.get("noise", "sequence")), float(meta["noise_linear_std"]),
-                             float(meta["noise_angular_std_deg"]), float(meta.get("noise_redraw_period_s", 10.0)))
-        except (TypeError, ValueError):
-            raise InputError(f"{where}/meta.json: noise_linear_std and noise_angular_std_deg must be numbers") from None
-    if "noise" in meta:
-        return get_noise(str(meta["noise"]))
-    raise InputError(
-        f"{where} has odometry.txt but its meta.json names no noise level (fields noise, or noise_linear_std "
-        f"and noise_angular_std_deg), so the odometry's covariance is unknown; give it with "
-        f"--odom-noise LEVEL (none, small, medium, large, xlarge)"
-    )
 
 
 def _camera_height(reader: SequenceReader, given: float | None) -> float:
@@ -212,7 +195,7 @@ def export_sequence(
     _check_out(out, fmt, overwrite, sequence)
     reader = SequenceReader(sequence)
     noise = given_noise if given_noise is not None else (
-        _noise_of(reader.meta, reader.path) if reader.odometry is not None else None)
+        noise_of_meta(reader.meta, reader.path) if reader.odometry is not None else None)
     height = _camera_height(reader, camera_height)
     camera_in_base = base_to_camera(height)
     base_in_camera = invert(camera_in_base)

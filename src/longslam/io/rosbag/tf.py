@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from longslam.core.errors import InputError
-from longslam.geometry import invert
+from longslam.core.geometry import invert
 
 
 def interpolate_poses(stamps_ns: np.ndarray, poses: np.ndarray, query_ns: np.ndarray, max_gap_ns: int,

@@ -52,7 +52,7 @@ import numpy as np
 
 from longslam.core.errors import InputError, LongslamError, MethodError
 from longslam.core.frame import Frame
-from longslam.geometry import CameraMount, anchor, base_to_camera, camera_poses_from_planar, hold_last
+from longslam.core.geometry import CameraMount, anchor, base_to_camera, camera_poses_from_planar, hold_last
 from longslam.io.atomic import write_text
 from longslam.io.sequence import DEFAULT_MAX_DIFF, DEPTH_SCALE, SequenceWriter
 from longslam.io.sequence.layout import STAMP_DECIMALS

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.geometry import compose_xyyaw, wrap_angle
+from longslam.core.geometry import compose_xyyaw, wrap_angle
 from longslam.slam.graph.factors import WheelStep
 
 

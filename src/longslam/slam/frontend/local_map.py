@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from longslam.geometry.cells import average_2d
+from longslam.core.geometry.cells import average_2d
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame, Intrinsics
-from longslam.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
+from longslam.core.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
 from longslam.core.memory_release import release_free_memory
 from longslam.slam.api import Table
 from longslam.slam.depth_trust import DepthTrust, measured_noise, range_for_noise, scan_weight, trusted_depth, trusted_range

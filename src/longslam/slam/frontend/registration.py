@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.geometry import wrap_angle
+from longslam.core.geometry import wrap_angle
 from longslam.slam.frontend.local_map import LocalMap
 
 

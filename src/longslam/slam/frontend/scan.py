@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.core.frame import Intrinsics
-from longslam.geometry.cells import average_2d
+from longslam.core.geometry.cells import average_2d
 
 
 @dataclass(frozen=True)

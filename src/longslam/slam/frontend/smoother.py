@@ -19,7 +19,7 @@ import gtsam
 import numpy as np
 
 from longslam.core.errors import InputError
-from longslam.geometry import compose_xyyaw, relative_xyyaw
+from longslam.core.geometry import compose_xyyaw, relative_xyyaw
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.frame_store import FrameRecord, FrameStore
 from longslam.slam.graph.factors import X, FactorGraph, WheelStep, pose_array

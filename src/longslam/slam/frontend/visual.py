@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from longslam.core.frame import Intrinsics
-from longslam.geometry.fit import rigid_transform_2d
+from longslam.core.geometry.fit import rigid_transform_2d
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.core.frame import Frame
-from longslam.geometry import wrap_angle
+from longslam.core.geometry import wrap_angle
 from longslam.slam.frontend.filter import BiasFilter
 from longslam.slam.frontend.visual import VisualOdometry, VisualStep
 from longslam.slam.graph.factors import WheelStep

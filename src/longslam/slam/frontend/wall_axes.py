@@ -26,7 +26,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from longslam.core.errors import InputError
-from longslam.geometry import fold_quarter as fold
+from longslam.core.geometry import fold_quarter as fold
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from longslam.geometry import fold_quarter
+from longslam.core.geometry import fold_quarter
 from longslam.slam.graph import noise
 from longslam.slam.graph.solver import levenberg_marquardt
 

@@ -38,7 +38,7 @@ import gtsam
 import numpy as np
 
 from longslam.core.errors import InputError
-from longslam.geometry import log_xyyaw, relative_xyyaw
+from longslam.core.geometry import log_xyyaw, relative_xyyaw
 from longslam.slam.graph import noise
 from longslam.slam.graph.noise import ROBUST_KERNELS
 from longslam.slam.graph.solver import gtsam_levenberg_marquardt

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from longslam.core.frame import Intrinsics
-from longslam.geometry import pose_from_xyyaw, wrap_angle
+from longslam.core.geometry import pose_from_xyyaw, wrap_angle
 from longslam.slam.features import Features
 from longslam.slam.graph import LoopCheck, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig

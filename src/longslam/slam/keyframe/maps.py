@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.geometry import CameraMount, pose_from_xyyaw
-from longslam.geometry.voxel_stream import VoxelStream
+from longslam.core.geometry import CameraMount, pose_from_xyyaw
+from longslam.core.geometry.voxel_stream import VoxelStream
 from longslam.core.gridmap import GridMap
-from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid
+from longslam.slam.occupancy import GridVotes, LocalGrid
 
 
 def assemble_maps(

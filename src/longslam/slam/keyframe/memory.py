@@ -17,7 +17,7 @@ import numpy as np
 from longslam.slam.features import Features
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.memory_db import MemoryDatabase
-from longslam.slam.keyframe.occupancy import LocalGrid
+from longslam.slam.occupancy import LocalGrid
 from longslam.slam.place_recognition import Vocabulary
 
 # A node id -> its (estimated, odometry) camera poses, as the database stores them.

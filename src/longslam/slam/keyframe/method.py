@@ -21,7 +21,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
-from longslam.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
+from longslam.core.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
 from longslam.core.memory_release import release_free_memory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, Table
@@ -33,7 +33,7 @@ from longslam.slam.keyframe.loops import SOURCES, LoopCloser, counter_names
 from longslam.slam.keyframe.maps import assemble_maps
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
 from longslam.slam.keyframe.memory_db import MemoryDatabase
-from longslam.slam.keyframe.occupancy import depth_points_in_base, local_grid
+from longslam.slam.occupancy import depth_points_in_base, local_grid
 from longslam.slam.place_recognition import Vocabulary
 from longslam.slam.rows import Rows
 from longslam.core.trajectory import Trajectory

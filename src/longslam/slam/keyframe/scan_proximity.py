@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.geometry import relative_xyyaw, wrap_angle
+from longslam.core.geometry import relative_xyyaw, wrap_angle
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
 from longslam.slam.keyframe.memory import Node
-from longslam.slam.keyframe.occupancy import LocalGrid
+from longslam.slam.occupancy import LocalGrid
 
 
 @dataclass(frozen=True)

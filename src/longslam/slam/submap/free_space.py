@@ -26,7 +26,7 @@ from scipy import ndimage
 
 from longslam.core.frame import Intrinsics
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
-from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid, local_grid
+from longslam.slam.occupancy import GridVotes, LocalGrid, local_grid
 
 
 class SubmapFreeSpace:

@@ -11,7 +11,7 @@ import numpy as np
 from longslam.io.ply import vertex_rows, write_ply
 from longslam.core.memory_release import release_free_memory
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
-from longslam.geometry.cells import pack_3d
+from longslam.core.geometry.cells import pack_3d
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 
 

@@ -36,7 +36,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
-from longslam.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
+from longslam.core.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
 from longslam.core.memory_release import release_free_memory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result

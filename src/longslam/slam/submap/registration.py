@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.geometry import compose_xyyaw
+from longslam.core.geometry import compose_xyyaw
 from longslam.slam.submap.tsdf import TSDF
 
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
-from longslam.geometry.cells import group_cells_3d, pack_3d, unpack_3d
+from longslam.core.geometry.cells import group_cells_3d, pack_3d, unpack_3d
 
 BLOCK = 16  # voxels per block side
 BLOCK_VOXELS = BLOCK**3

@@ -15,6 +15,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.study.report.results import StudyResults, on_camera
+from longslam.io.grid_files import read_grid
 
 FIGURES_DIR = "report_files"
 
@@ -76,7 +77,6 @@ def _route_figures(results: StudyResults, route: str, camera: object | None, tru
     """The figures of one route: of one row group's runs (a camera and/or a sensor), or of all
     (camera None: one camera and one sensor)."""
     from longslam.eval.map_quality import map_scores
-    from longslam.core.gridmap import GridMap
     from longslam.io.trajectory_files import read_tum
     from longslam.study.report.interactive import curves_figure, trajectories_figure
     from longslam.viz.plots import plot_curves_by_distance, plot_map_over_truth, plot_maps, plan_view, plot_plans
@@ -165,7 +165,7 @@ def _route_figures(results: StudyResults, route: str, camera: object | None, tru
             if not run.get("grid_path"):
                 continue
             try:
-                maps[method] = GridMap.load(out / run["grid_path"])
+                maps[method] = read_grid(out / run["grid_path"])
             except InputError as err:
                 left_out.append(f"map of {run['key']} left out of the map figures ({err})")
                 continue

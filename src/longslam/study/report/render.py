@@ -11,7 +11,6 @@ from pathlib import Path
 
 from longslam.core.errors import InputError
 from longslam.io.atomic import write_text_atomic
-from longslam.io.outputs import special_file_kind
 from longslam.run.process_tree import STARVED_SHARE, starved
 from longslam.study.database import DB_NAME
 from longslam.study.report.distribution import FAILURE_RULE, distribution_table
@@ -19,6 +18,7 @@ from longslam.study.paper import CITATION
 from longslam.study.report.figures import Figure, make_figures
 from longslam.study.report.results import load_results
 from longslam.study.report.runs import RunsTable, every_run_table, runs_html, runs_markdown
+from longslam.core.file_kinds import special_file_kind
 from longslam.study.report.tables import (
     Table, _paper_columns, accuracy_table, field_table, map_table, memory_table, paper_tables, runs_table,
 )

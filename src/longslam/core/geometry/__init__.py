@@ -1,14 +1,14 @@
 """Geometry shared by every stage: SE(3) transforms, planar robot poses, rigid fits.
 
-`from longslam.geometry import X` works for every public helper; the modules say where each lives:
+`from longslam.core.geometry import X` works for every public helper; the modules say where each lives:
 `se3` (4x4 transforms, TUM conversion), `planar` (x, y, yaw, the camera mount, odometry with its
 jump filter), `fit` (Umeyama's rigid / similarity fit), `anchor` (a system's own map frame placed
 in the world, sparse poses held per frame).
 """
 
-from longslam.geometry.anchor import anchor, hold_last
-from longslam.geometry.fit import rigid_transform, rigid_transform_2d, umeyama
-from longslam.geometry.planar import (
+from longslam.core.geometry.anchor import anchor, hold_last
+from longslam.core.geometry.fit import rigid_transform, rigid_transform_2d, umeyama
+from longslam.core.geometry.planar import (
     R_BASE_CAMERA,
     CameraMount,
     PlanarOdometry,
@@ -24,7 +24,7 @@ from longslam.geometry.planar import (
     wrap_angle,
     xyyaw_from_pose,
 )
-from longslam.geometry.se3 import invert, poses_from_tum, rigidity_violation, tum_from_poses
+from longslam.core.geometry.se3 import invert, poses_from_tum, rigidity_violation, tum_from_poses
 
 __all__ = [
     "R_BASE_CAMERA", "CameraMount", "anchor", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",

@@ -19,7 +19,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
-from longslam.geometry.cells import group_cells_2d
+from longslam.core.geometry.cells import group_cells_2d
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 
 

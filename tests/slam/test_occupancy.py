@@ -7,9 +7,9 @@ import pytest
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
-from longslam.geometry import base_to_camera
+from longslam.core.geometry import base_to_camera
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN
-from longslam.slam.keyframe.occupancy import GridVotes, LocalGrid, assemble, local_grid
+from longslam.slam.occupancy import GridVotes, LocalGrid, assemble, local_grid
 
 CAMERA_HEIGHT = 1.25
 INTR = Intrinsics.from_fov(64, 48, 90)

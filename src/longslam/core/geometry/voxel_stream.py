@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.geometry.cells import average_3d
+from longslam.core.geometry.cells import average_3d
 
 # 0.8 m at keyframe's 5 cm voxels: a building is some hundred slabs. The largest slab's filter is
 # the stream's peak, and its points grow with the laps: on paper-1km-x3 (keyframe's 2.4 million

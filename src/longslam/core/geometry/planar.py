@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from longslam.geometry.se3 import invert
+from longslam.core.geometry.se3 import invert
 
 # Rotation taking camera-frame vectors to base-frame vectors: camera z (forward) is base x,
 # camera x (right) is base -y, camera y (down) is base -z.

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from longslam.geometry.se3 import invert
+from longslam.core.geometry.se3 import invert
 
 
 def anchor(poses: np.ndarray, world_first: np.ndarray, first: int = 0) -> np.ndarray:
