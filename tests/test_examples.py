@@ -30,7 +30,7 @@ def test_own_method(tmp_path, render_cache, monkeypatch):
     monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
     from longslam.slam import catalog
 
-    monkeypatch.setattr(catalog, "BUILTIN", dict(catalog.BUILTIN))
+    monkeypatch.setattr(catalog.METHODS, "_items", dict(catalog.METHODS._items))
     scores = _load("own_method").main(tmp_path)
     assert scores["ate"] < 1.0
 

@@ -14,39 +14,31 @@ methods does not import every method; the methods themselves never import this m
 
 from __future__ import annotations
 
-import importlib
-import sys
-from functools import lru_cache
-from importlib.metadata import entry_points
 from typing import Any
 
-from longslam.core.errors import UnknownNameError
+from longslam.core.registry import Registry
 from longslam.slam.api import Method, MethodContext, MethodSpec
 
 ENTRY_POINT_GROUP = "longslam.methods"
-BUILTIN = {
-    "keyframe": "longslam.slam.keyframe.method:SPEC",
-    "odometry": "longslam.slam.odometry:SPEC",
-    "submap": "longslam.slam.submap.method:SPEC",
-    # Any program that reads a TUM RGB-D folder and writes a trajectory (slam/command).
-    "command": "longslam.slam.command.method:SPEC",
-}
 
 
-def _load(target: str) -> Any:
-    module, _, attribute = target.partition(":")
-    return getattr(importlib.import_module(module), attribute)
+def _as_spec(name: str, loaded: Any) -> MethodSpec:
+    """A plugin's entry point: a MethodSpec, or a factory that becomes the spec of one."""
+    return loaded if isinstance(loaded, MethodSpec) else MethodSpec(name, None, loaded)
 
 
-@lru_cache(maxsize=8)
-def _plugins(search_path: tuple[str, ...]) -> dict[str, Any]:
-    # Keyed on sys.path: a package made importable later (a test, a notebook) is then found.
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name not in BUILTIN}
+METHODS: Registry[MethodSpec] = Registry("method", ENTRY_POINT_GROUP, _as_spec)
+METHODS.register_lazy("keyframe", "longslam.slam.keyframe.method:SPEC")
+METHODS.register_lazy("odometry", "longslam.slam.odometry:SPEC")
+METHODS.register_lazy("submap", "longslam.slam.submap.method:SPEC")
+# Any program that reads a TUM RGB-D folder and writes a trajectory (slam/command).
+METHODS.register_lazy("command", "longslam.slam.command.method:SPEC")
+BUILTIN = tuple(METHODS.builtin_names())
 
 
 def method_names() -> list[str]:
     """Every method by name: the built-in ones, then the plugins'."""
-    return list(BUILTIN) + sorted(_plugins(tuple(sys.path)))
+    return METHODS.names()
 
 
 def required_params(name: str) -> tuple[str, ...]:
@@ -71,15 +63,7 @@ def default_method_names() -> list[str]:
 
 
 def get_spec(name: str) -> MethodSpec:
-    if name in BUILTIN:
-        return _load(BUILTIN[name])
-    plugins = _plugins(tuple(sys.path))
-    if name not in plugins:
-        raise UnknownNameError("method", name, method_names())
-    loaded = plugins[name].load()
-    if isinstance(loaded, MethodSpec):
-        return loaded
-    return MethodSpec(name, None, loaded)
+    return METHODS.get(name)
 
 
 def check_params(name: str, params: dict[str, Any] | None = None, typed: bool = False) -> Any:

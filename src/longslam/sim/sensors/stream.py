@@ -45,7 +45,7 @@ def _sense(sensor: SensorModel, frame: Frame, motion: FrameMotion, seed: int) ->
     try:
         made = sensor.sense(clean_rgb, clean_depth, frame.intrinsics, motion, frame_rng(sensor.name, seed, frame.index))
     except (Exception, SystemExit) as err:
-        from longslam.sim.sensors.catalog import failure
+        from longslam.core.registry import failure
 
         raise InputError(f"{where}: sense() raised {failure(err)}") from None
     if not isinstance(made, (tuple, list)) or len(made) != 2:
