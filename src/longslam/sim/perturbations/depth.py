@@ -41,7 +41,7 @@ class DepthOffset(Perturbation):
 def reproject_depth(depth: np.ndarray, intrinsics: Intrinsics, rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
     """`depth` as seen by a camera at `position` with `rotation` in this camera's frame: each
     return moved and projected, the nearest kept where several land on one pixel; one-pixel cracks
-    of that forward warp filled from their nearest neighbour, larger uncovered areas left at 0."""
+    of that forward warp filled from the nearer of their two neighbours, uncovered areas left at 0."""
     h, w = depth.shape
     v, u = np.nonzero(depth > 0)
     z = depth[v, u].astype(np.float64)
@@ -55,13 +55,15 @@ def reproject_depth(depth: np.ndarray, intrinsics: Intrinsics, rotation: np.ndar
     inside = (pu >= 0) & (pu < w) & (pv >= 0) & (pv < h)
     flat = np.full(h * w, np.inf)
     np.minimum.at(flat, pv[inside] * w + pu[inside], seen[inside, 2])
-    out = flat.reshape(h, w).astype(np.float32)
-    nearest = cv2.erode(out, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_REPLICATE)
-    holes = ~np.isfinite(out)
-    crack = holes & np.isfinite(nearest) & (cv2.blur(holes.astype(np.float32), (3, 3)) <= 2.0 / 9.0)
-    out[crack] = nearest[crack]
-    out[~np.isfinite(out)] = 0.0
-    return out
+    out = flat.reshape(h, w)
+    # A crack is a hole with returns on both sides, across or along: a surface stretched by the
+    # move, not one uncovered.
+    padded = np.pad(out, 1, constant_values=np.inf)
+    left, right, up, down = padded[1:-1, :-2], padded[1:-1, 2:], padded[:-2, 1:-1], padded[2:, 1:-1]
+    across = np.where(np.isfinite(left) & np.isfinite(right), np.minimum(left, right), np.inf)
+    along = np.where(np.isfinite(up) & np.isfinite(down), np.minimum(up, down), np.inf)
+    out = np.where(np.isfinite(out), out, np.minimum(across, along))
+    return np.where(np.isfinite(out), out, 0.0).astype(np.float32)
 
 
 class DepthDropout(Perturbation):
