@@ -272,10 +272,22 @@ def test_a_perturbation_of_ones_own_through_the_entry_point(plugin, capsys):
 
 # ------------------------------------------------------------------ simulate --perturb
 
-def test_cli_simulate_perturb_writes_the_frames_that_get_through_and_names_them(tmp_path, capsys, monkeypatch):
-    monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
-    (tmp_path / "tiny.txt").write_text("20 31.25\n23 31.25\n")
-    common = ["simulate", "--route", str(tmp_path / "tiny.txt"), "--width", "32", "--height", "24", "--seed", "3"]
+@pytest.fixture(scope="module")
+def tiny_route(tmp_path_factory):
+    """A 3 m route rendered at 32 x 24 once for this module's tests, in a render cache of their own."""
+    root = tmp_path_factory.mktemp("perturb-simulate")
+    (root / "tiny.txt").write_text("20 31.25\n23 31.25\n")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("LONGSLAM_CACHE", str(root / "cache"))
+        yield root / "tiny.txt"
+
+
+def _simulate_args(route, *more: str) -> list[str]:
+    return ["simulate", "--route", str(route), "--width", "32", "--height", "24", "--seed", "3", *more]
+
+
+def test_cli_simulate_perturb_writes_the_frames_that_get_through_and_names_them(tiny_route, tmp_path, capsys):
+    common = _simulate_args(tiny_route)
     assert main(common + ["--out", str(tmp_path / "plain")]) == 0
     assert main(common + ["--perturb", "drop=0.4", "--perturb", "exposure=1", "--out", str(tmp_path / "perturbed")]) == 0
     assert "perturbed by drop=0.4+exposure=1 (" in capsys.readouterr().out
@@ -293,3 +305,12 @@ def test_cli_simulate_perturb_writes_the_frames_that_get_through_and_names_them(
                                   [FrameMotion.still(t) for t in plain.timestamps]))
     assert [f.timestamp for f in again] == list(perturbed.timestamps)
     assert all((f.rgb == perturbed.frame(i).rgb).all() for i, f in enumerate(again))
+
+
+def test_a_perturbation_that_fails_midway_leaves_no_sequence(tiny_route, plugin, tmp_path, capsys):
+    code = main(_simulate_args(tiny_route, "--perturb", "drop=0.2", "--perturb", "broken", "--out", str(tmp_path / "seq")))
+    assert code == 2
+    one_line_error(capsys, "perturbation 'broken=1', frame 0: perturb() raised or returned other than (rgb, depth)")
+    # Neither the sequence nor its temporary folder: only the plugin's own files are there.
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["longslam_test_perturbations-0.1.dist-info",
+                                                          "longslam_test_perturbations.py"]
