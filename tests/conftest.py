@@ -130,7 +130,7 @@ def one_line_error(capsys, *needles: str) -> str:
 # (a study, Ray, ORB-SLAM3). `pytest -m "not slow"` is the fast set for the edit-test loop.
 SLOW_MODULES = {
     "test_frontend", "test_keyframe", "test_maps", "test_orbslam3", "test_own_building", "test_report_study",
-    "test_run_safety", "test_sensor_study", "test_simulate", "test_study", "test_submap", "test_tum_layout",
+    "test_perturbation_study", "test_run_safety", "test_sensor_study", "test_simulate", "test_study", "test_submap", "test_tum_layout",
     "test_viz_live", "test_viz_viewer",
 }
 SLOW_TESTS = {

@@ -47,10 +47,21 @@ def test_a_run_alone_on_its_core_waits_little(one_core):
     assert usage.cpu_wait_share < 0.3
 
 
+def _wait_until_running(processes: list, timeout_s: float = 10.0) -> None:
+    """Until each process has used some CPU: on a loaded machine an interpreter takes a while to start."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        used = [int(open(f"/proc/{p.pid}/schedstat").read().split()[0]) for p in processes]
+        if min(used) > 50_000_000:  # ns: past start-up, in the busy loop
+            return
+        time.sleep(0.05)
+    raise AssertionError("the busy processes did not start")
+
+
 def test_a_run_beside_two_busy_processes_on_its_core_is_marked_starved(one_core):
     hogs = [subprocess.Popen([sys.executable, "-c", BUSY.format(s=3.0)]) for _ in range(2)]
     try:
-        time.sleep(0.3)  # the hogs are running
+        _wait_until_running(hogs)
         monitor = TreeMonitor().start()
         _busy(1.2)
         usage = monitor.stop()

@@ -134,14 +134,19 @@ def cmd_simulate(args: argparse.Namespace) -> None:
 
     check_not_an_input(args.out, _given_files([args.route, args.world, args.places]), "sequence folder")
     route = get_route(args.route, _world(args, args.world))
+    from longslam.sim.perturbations import parse_perturbations
     from longslam.sim.sensors import get_sensor
 
     noise = get_noise(args.noise)
     sensor = get_sensor(args.sensor)  # before any rendering: a typo costs nothing
-    out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite, sensor=sensor)
+    perturbations = parse_perturbations(args.perturb)
+    out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite, sensor=sensor,
+                   perturbations=perturbations)
     meta = SequenceReader(out).meta  # renders cached before meta had world_name: the route's world
     name = meta.get("world_name") or world_label(route.world)
-    print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}")
+    perturbed = (f", perturbed by {meta['perturbation']} ({meta['frames_dropped']} frames dropped)"
+                 if perturbations else "")
+    print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}{perturbed}")
 
 
 def _run_inputs(args: argparse.Namespace) -> tuple[str, str, dict]:
@@ -397,6 +402,9 @@ def cmd_list(args: argparse.Namespace) -> None:
     problems = {name: sensor_problem(name) for name in sensor_names()}
     print("sensors:     ", ", ".join(name + (f" (broken: {problems[name]})" if problems[name] else "")
                                      for name in sensor_names()))
+    from longslam.sim.perturbations.catalog import describe_levels
+
+    print("perturbations:", "; ".join(describe_levels()), "(--perturb NAME[=LEVEL])")
 
 
 def cmd_study(args: argparse.Namespace) -> None:
@@ -536,6 +544,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise and of the sensor's")
     p.add_argument("--sensor", default="ideal", help="sensor model: ideal (perfect colour and depth), kinect-v1, "
                                                      "realsense-d435, or a plugin's (see `longslam list`)")
+    p.add_argument("--perturb", action="append", default=[], metavar="NAME[=LEVEL]",
+                   help="a perturbation after the sensor model: drop, drop-burst, depth-offset, exposure, blur, "
+                        "depth-dropout, or a plugin's (see `longslam list`); repeatable, applied in order")
     p.add_argument("--out", required=True, help="sequence folder to write")
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     _camera_args(p)
@@ -660,7 +671,7 @@ def build_parser() -> argparse.ArgumentParser:
     _camera_args(p)
     p.set_defaults(func=cmd_vocabulary_build)
 
-    p = sub.add_parser("list", help="list worlds, routes, noise levels, methods and sensors, or a method's parameters")
+    p = sub.add_parser("list", help="list worlds, routes, noise levels, methods, sensors and perturbations, or a method's parameters")
     p.add_argument("--params", dest="params_of", metavar="METHOD",
                    help="list the method's parameters: default, allowed values and what each does")
     p.set_defaults(func=cmd_list)

@@ -4,7 +4,8 @@ Rendering is deterministic for a (world, route, camera, follower), so the frames
 once, as a TUM RGB-D sequence without odometry, under a key made from those settings. A
 sequence for a (noise level, sensor, seed) is that rendering plus its own odometry, drawn per
 frame by the noise model; with the ideal sensor its frames are hard links to the cached ones,
-with any other the sensor model's output of them, written anew.
+with any other the sensor model's output of them, written anew. Perturbations (frames dropped,
+the lights dimmed...) act on the sensor model's output, so they too reuse the cached render.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import hashlib
 import json
 import logging
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict
 from pathlib import Path
 
@@ -31,6 +32,8 @@ from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
 from longslam.core.odometry_noise import BiasNoise
+from longslam.sim.perturbations import Perturbation, canonical
+from longslam.sim.perturbations.stream import perturbed_frames
 from longslam.sim.routes import Route
 from longslam.sim.sensors import IDEAL, SensorModel, get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
@@ -172,9 +175,11 @@ def simulate(
     overwrite: bool = False,
     progress: bool = True,
     sensor: SensorModel | str = IDEAL,
+    perturbations: Sequence[Perturbation] = (),
 ) -> Path:
-    """Write a sequence for (route, noise, sensor, seed) to `out`, rendering the route only if not
-    cached. The sensor model (a name or a model) draws from the same seed as the odometry."""
+    """Write a sequence for (route, noise, sensor, perturbations, seed) to `out`, rendering the
+    route only if not cached. The sensor model (a name or a model) and the perturbations (applied
+    in order, after the sensor model) draw from the same seed as the odometry."""
     sensor = get_sensor(sensor) if isinstance(sensor, str) else sensor
     out = check_output_folder(out, "sequence folder")
     mesh = MeshSpec.from_ref(route.world).path if is_mesh_ref(route.world) else None
@@ -197,21 +202,39 @@ def simulate(
         sensor_model=sensor.describe(),
         longslam_version=longslam.__version__,
     )
-    if sensor.is_ideal:
+    if perturbations:  # absent without them, so an unperturbed sequence's meta.json is unchanged
+        meta.update(perturbation=canonical(perturbations), perturbations=[p.describe() for p in perturbations],
+                    frames_dropped=len(dropped_frames(reader, perturbations, seed)))
+    if sensor.is_ideal and not perturbations:
         derive_sequence(rendered, out, odometry, meta, overwrite=overwrite)
     else:
-        write_sensed_sequence(reader, out, sensor, seed, odometry, meta, overwrite=overwrite, progress=progress)
+        write_sensed_sequence(reader, out, sensor, seed, odometry, meta, overwrite=overwrite, progress=progress,
+                              perturbations=perturbations)
     return out
 
 
-def write_sensed_sequence(reader: SequenceReader, out: Path, sensor: SensorModel, seed: int, odometry: Trajectory,
-                          meta: dict, overwrite: bool = False, progress: bool = True) -> None:
-    """The rendered frames of `reader` as `sensor` delivers them, with `odometry`, into `out`."""
+def dropped_frames(reader: SequenceReader, perturbations: Sequence[Perturbation], seed: int) -> list[int]:
+    """The indices of the rendered frames the perturbations drop (decided without reading an image)."""
     truth = reader.ground_truth
     assert truth is not None, "a rendered sequence always has ground truth"
-    frames = sensed_frames(reader, sensor, seed, camera_motions(truth))
+    kept = {f.timestamp for f in perturbed_frames(reader, perturbations, seed, truth.timestamps, camera_motions(truth))}
+    return [i for i, t in enumerate(reader.timestamps) if float(t) not in kept]
+
+
+def write_sensed_sequence(reader: SequenceReader, out: Path, sensor: SensorModel, seed: int, odometry: Trajectory,
+                          meta: dict, overwrite: bool = False, progress: bool = True,
+                          perturbations: Sequence[Perturbation] = ()) -> None:
+    """The rendered frames of `reader` as `sensor` delivers them, then perturbed, with `odometry`
+    (every pose: a dropped frame is the camera's loss, not the wheels'), into `out`."""
+    truth = reader.ground_truth
+    assert truth is not None, "a rendered sequence always has ground truth"
+    motions = camera_motions(truth)
+    frames = sensed_frames(reader, sensor, seed, motions)
+    if perturbations:
+        frames = perturbed_frames(frames, perturbations, seed, truth.timestamps, motions)
+    desc = f"sensor {sensor.name}" + (f", {canonical(perturbations)}" if perturbations else "")
     with SequenceWriter(out, reader.intrinsics, reader.max_depth, meta, overwrite=overwrite) as writer:
-        for frame in bar(frames, total=len(reader), desc=f"sensor {sensor.name}", unit="frame", disable=not progress, leave=False):
+        for frame in bar(frames, total=len(reader), desc=desc, unit="frame", disable=not progress, leave=False):
             writer.add(frame.timestamp, frame.rgb, frame.depth)
         writer.set_ground_truth(truth)
         writer.set_odometry(odometry)

@@ -14,6 +14,10 @@
 
     sensors = ["ideal", "kinect-v1"] # optional: sensor models, an axis of the study (default: ideal
                                     # alone, with no sensor in the run keys and folders)
+    perturbations = ["none", "drop=0.1", "drop=0.3", "blur=0.02+exposure=2"]
+                                    # optional: perturbations after the sensor model, NAME[=LEVEL],
+                                    # several joined by '+', or none; an axis of the study (default:
+                                    # none, with no perturbation in the run keys and folders)
 
     [camera]                        # optional: width, height, fov, max_depth, camera_height
     width = 320
@@ -59,6 +63,7 @@ from longslam.world.reference import same_world, world_label, world_ref
 TOP_KEYS = (
     "name", "world", "routes", "noise", "methods", "seeds", "align", "map_tolerance_cells",
     "camera", "cameras", "follower", "params", "variants", "sensors", "repeats",
+    "perturbations",
 )
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
@@ -110,6 +115,9 @@ class StudyConfig:
     # The `sensors` axis; empty for a study without one (the ideal sensor), whose runs keep the
     # keys and folders they had before sensors were an axis.
     sensors: tuple[str, ...] = ()
+    # The `perturbations` axis, each entry's canonical text (`drop=0.1`, `none`); empty for a study
+    # without one, whose runs keep the keys, folders and hashes they had before perturbations.
+    perturbations: tuple[str, ...] = ()
     # Runs of each cell: a non-deterministic system (threads that race) gives a distribution, and
     # the report gives its median, spread and failure rate. 1 keeps a study's keys and hashes.
     repeats: int = 1
@@ -124,17 +132,22 @@ class StudyConfig:
         """The sensor of each run: the study's sensors, or [""] (the ideal sensor) without them."""
         return list(self.sensors) or [""]
 
+    def perturbation_axis(self) -> list[str]:
+        """The perturbation of each run: the study's entries, or [""] (none) without them."""
+        return list(self.perturbations) or [""]
+
     @property
     def run_count(self) -> int:
         """How many runs the study plans: one per route, camera, noise level, method and seed."""
-        return (len(self.routes) * len(self.camera_axis()) * len(self.sensor_axis()) * len(self.noise)
-                * len(self.methods) * len(self.seeds) * self.repeats)
+        return (len(self.routes) * len(self.camera_axis()) * len(self.sensor_axis()) * len(self.perturbation_axis())
+                * len(self.noise) * len(self.methods) * len(self.seeds) * self.repeats)
 
     def grid_text(self) -> str:
         """The grid and its run count, counted without planning a run: '2 routes x 4 noise levels x
         3 methods x 5 seeds = 120 runs' (a camera axis shown when the study names cameras)."""
         parts = [(len(self.routes), "route")] + ([(len(self.cameras), "camera")] if self.cameras else [])
         parts += [(len(self.sensors), "sensor")] if self.sensors else []
+        parts += [(len(self.perturbations), "perturbation")] if self.perturbations else []
         parts += [(len(self.noise), "noise level"), (len(self.methods), "method"), (len(self.seeds), "seed")]
         parts += [(self.repeats, "repeat")] if self.repeats > 1 else []
         return " x ".join(f"{n} {w}{'' if n == 1 else 's'}" for n, w in parts) + f" = {self.run_count} runs"
@@ -158,6 +171,8 @@ class StudyConfig:
             described["cameras"] = {c.name: asdict(c.settings) for c in self.cameras}
         if self.sensors:  # absent without the axis, as cameras are
             described["sensors"] = list(self.sensors)
+        if self.perturbations:  # absent without the axis, as sensors are
+            described["perturbations"] = list(self.perturbations)
         if self.repeats != 1:  # absent for one run per cell, as cameras are
             described["repeats"] = self.repeats
         return described
@@ -275,12 +290,13 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
         raise r.error("follower", str(err)) from None
 
     sensors = _sensors(r, data) if "sensors" in data else []
+    perturbations = _perturbations(r, data) if "perturbations" in data else []
     repeats = _repeats(r, data.get("repeats", 1))
     config = StudyConfig(
         name=name, world=world, routes=tuple(routes), noise=tuple(noise), methods=tuple(methods),
         seeds=tuple(seeds), camera=camera, follower=follower, align=align,
         map_tolerance_cells=float(tolerance), source=str(path), cameras=tuple(cameras), sensors=tuple(sensors),
-        repeats=repeats,
+        repeats=repeats, perturbations=tuple(perturbations),
     )
     if config.run_count > MAX_RUNS:
         raise StudyConfigError(f"study file {path}: {config.grid_text()}, more than a study may plan ({MAX_RUNS}); "
@@ -338,6 +354,30 @@ def _sensors(r: _Reader, data: dict) -> list[str]:
             raise r.error(f"sensors[{i}]", f"sensor {name!r} cannot be a folder name: 1 to 64 letters, digits, '_', '.' "
                                            "or '-', starting with a letter or digit")
     return sensors
+
+
+def _perturbations(r: _Reader, data: dict) -> list[str]:
+    from longslam.sim.perturbations import canonical, parse_entry
+
+    value = data["perturbations"]
+    expected = "none, or NAME[=LEVEL] joined by '+' (see `longslam list`)"
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value:
+        raise r.error("perturbations", f"expected a non-empty list of perturbations, each {expected}; got {value!r}")
+    entries: list[str] = []
+    for i, item in enumerate(value):
+        key = f"perturbations[{i}]"
+        if not isinstance(item, str):
+            raise r.error(key, f"expected a perturbation (a string: {expected}), got {item!r}")
+        try:
+            text = canonical(parse_entry(item))  # every level named: drop and drop=0.1 are one folder
+        except InputError as err:
+            raise r.error(key, str(err)) from None
+        if text in entries:
+            raise r.error(key, f"{item!r} is listed twice (as {text!r})")
+        entries.append(text)
+    return entries
 
 
 def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:

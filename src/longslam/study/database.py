@@ -4,7 +4,8 @@ Table `runs` has one row per run key (`route/noise/method/seed-N`, or `route/cam
 seed-N` in a study with named cameras; its primary key, so a run is there at most once): its
 configuration (`camera_name` is the camera's name, "camera" for the one camera of a `[camera]`
 study and for every run recorded before cameras had names; `camera` holds its settings; `sensor` is the sensor model, "ideal" for a study without a
-sensors axis and for every run recorded before sensors were one), status
+sensors axis and for every run recorded before sensors were one; `perturbation` the perturbations'
+text, "none" likewise), status
 ('ok' or 'error' with the error text), the headline metrics as columns (ate, e_trans, e_rot,
 peak_rss_bytes, map_precision, ...), the full metrics, curves against distance travelled and
 harness figures as JSON text, and the paths of its files relative to the study folder. Table `study` holds the study's configuration.
@@ -23,6 +24,7 @@ from typing import Any
 from longslam.core.errors import InputError
 from longslam.run.folder import RUN_FILES
 from longslam.study.record import HEADLINE, JSON_PARTS, RunRecord
+from longslam.sim.perturbations.parse import NONE
 from longslam.sim.sensors.catalog import IDEAL
 from longslam.study.spec import DEFAULT_CAMERA
 
@@ -39,6 +41,7 @@ SPEC_COLUMNS = {
     # `camera` was the settings (JSON) before cameras had names, so the name has a column of its own.
     "camera_name": "TEXT",
     "sensor": "TEXT",
+    "perturbation": "TEXT",  # the perturbations' text (drop=0.1, none)
     "repeat": "INTEGER",  # which run of its cell (0 for every run recorded before studies repeated cells)
 }
 OUTCOME_COLUMNS = {
@@ -134,7 +137,8 @@ class ResultsDB:
             "key": spec.key, "study": spec.study, "world": spec.world, "route": spec.route, "noise": spec.noise,
             "method": spec.method, "method_name": spec.method_name, "params": spec.params, "seed": spec.seed,
             "camera": spec.camera, "camera_name": getattr(spec, "camera_name", "") or DEFAULT_CAMERA,
-            "sensor": getattr(spec, "sensor", "") or IDEAL, "repeat": getattr(spec, "repeat", 0),
+            "sensor": getattr(spec, "sensor", "") or IDEAL, "perturbation": getattr(spec, "perturbation", "") or NONE,
+            "repeat": getattr(spec, "repeat", 0),
             "follower": spec.follower, "align": spec.align,
             "config_hash": spec.config_hash, "spec": spec.describe(),
             "status": record.status, "error": record.error, "traceback": record.traceback,
@@ -160,7 +164,7 @@ class ResultsDB:
 
     def runs(self, status: str | None = None) -> list[dict[str, Any]]:
         """Every run (or those with `status`) as dicts, JSON columns decoded, in key order."""
-        query = "SELECT * FROM runs" + (" WHERE status = ?" if status else "") + " ORDER BY route, camera_name, sensor, noise, method, seed, repeat"
+        query = "SELECT * FROM runs" + (" WHERE status = ?" if status else "") + " ORDER BY route, camera_name, sensor, perturbation, noise, method, seed, repeat"
         out = []
         for row in self._conn.execute(query, (status,) if status else ()):
             item = dict(row)
@@ -168,6 +172,8 @@ class ResultsDB:
                 item["camera_name"] = DEFAULT_CAMERA
             if item.get("sensor") is None:  # recorded before sensors were an axis: the ideal sensor
                 item["sensor"] = IDEAL
+            if item.get("perturbation") is None:  # recorded before perturbations were an axis: none
+                item["perturbation"] = NONE
             if item.get("repeat") is None:  # recorded before studies repeated cells
                 item["repeat"] = 0
             for column in JSON_COLUMNS:

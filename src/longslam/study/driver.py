@@ -1,9 +1,10 @@
-"""Run a study: every (route, camera, sensor, noise level, method, seed), in parallel, resumable.
+"""Run a study: every (route, camera, sensor, perturbation, noise level, method, seed), in parallel, resumable.
 
     DIR/results.sqlite    one row per finished run (see `longslam.study.database`)
     DIR/runs/<route>/<noise>/<method>/seed-<n>/   trajectory.txt, online.txt, stats.json, grid.npz...
     DIR/runs/<route>/<camera>/<noise>/<method>/seed-<n>/   the same, in a study with named cameras
     DIR/runs/<route>/[<camera>/]<sensor>/<noise>/<method>/seed-<n>/   in a study with a sensors axis
+    DIR/runs/<route>/[<camera>/][<sensor>/]<perturbation>/<noise>/<method>/seed-<n>/   with a perturbations axis
     DIR/logs/...          each local run's stdout and stderr
     DIR/report.md, DIR/report.html
 

@@ -26,6 +26,7 @@ def _grid(config: dict[str, Any]) -> dict[str, Any]:
         "methods": sorted((m.get("label"), m.get("method")) for m in config.get("methods", [])),
         "seeds": sorted(config.get("seeds", [])),
         "sensors": sorted(config.get("sensors", [])),
+        "perturbations": sorted(config.get("perturbations", [])),
         "repeats": config.get("repeats", 1),
     }
 
@@ -35,6 +36,7 @@ def _summary(config: dict[str, Any]) -> str:
     methods = ", ".join(m.get("label", "?") for m in config.get("methods", []))
     seeds = config.get("seeds", [])
     sensors = f"; sensors {', '.join(config['sensors'])}" if config.get("sensors") else ""
+    sensors += f"; perturbations {', '.join(config['perturbations'])}" if config.get("perturbations") else ""
     sensors += f"; {config['repeats']} repeats" if config.get("repeats", 1) != 1 else ""
     return (f"study {config.get('name')!r} (routes {routes}; noise {', '.join(config.get('noise', []))}; "
             f"methods {methods}{sensors}; {len(seeds)} seed{'' if len(seeds) == 1 else 's'})")
@@ -107,6 +109,9 @@ def merged(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
     if old.get("sensors") or new.get("sensors"):
         # A folder without the axis holds the ideal sensor's runs under keys without a sensor.
         result["sensors"] = union("sensors", lambda s: s)
+    if old.get("perturbations") or new.get("perturbations"):
+        # A folder without the axis holds the unperturbed runs under keys without a perturbation.
+        result["perturbations"] = union("perturbations", lambda p: p)
     if max(old.get("repeats", 1), new.get("repeats", 1)) != 1:
         result["repeats"] = max(old.get("repeats", 1), new.get("repeats", 1))
     return result

@@ -1,4 +1,5 @@
-"""The runs of a study: one per (route, camera, sensor, noise level, method, seed), as plain picklable data."""
+"""The runs of a study: one per (route, camera, sensor, perturbation, noise level, method, seed), as plain
+picklable data."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import Any
 
 from longslam.sim.camera import CameraSettings
 from longslam.sim.follower import FollowerSettings
+from longslam.sim.perturbations.parse import NONE
 from longslam.sim.sensors.catalog import IDEAL
 from longslam.sim.routes import Route
 from longslam.study.config import StudyConfig
@@ -38,6 +40,9 @@ class RunSpec:
     camera_name: str = ""  # a [cameras.NAME] of the study; "" for the one camera of a [camera] study
     sensor: str = ""  # a sensor of the study's `sensors`; "" for a study without them (the ideal sensor)
     repeat: int = 0  # which run of its cell, 0 to the study's repeats - 1
+    # An entry of the study's `perturbations` (canonical: `drop=0.1`, `none`); "" for a study
+    # without them (no perturbation).
+    perturbation: str = ""
 
     @property
     def key(self) -> str:
@@ -46,6 +51,7 @@ class RunSpec:
         # old study folder resumes into the same rows and folders.
         camera = f"{self.camera_name}/" if self.camera_name else ""
         sensor = f"{self.sensor}/" if self.sensor else ""
+        sensor += f"{self.perturbation}/" if self.perturbation else ""
         # A cell's first run keeps the key it had before studies repeated cells.
         repeat = f"-repeat-{self.repeat}" if self.repeat else ""
         return f"{self.route}/{camera}{sensor}{self.noise}/{self.method}/seed-{self.seed}{repeat}"
@@ -63,6 +69,10 @@ class RunSpec:
         # The ideal sensor, named or not, is the frames as rendered: the hashes from before sensors.
         if described["sensor"] in ("", IDEAL):
             described.pop("sensor")
+        # No perturbation, named or not, is the frames as the sensor delivers them: the hashes from
+        # before perturbations.
+        if described["perturbation"] in ("", NONE):
+            described.pop("perturbation")
         if not described["repeat"]:  # a cell's first run: the hashes from before repeats
             described.pop("repeat")
         described["world"] = world_identity(self.world)  # a mesh by its content: moving the file is no change
@@ -88,6 +98,11 @@ class RunSpec:
         """The sensor model the run sees its frames through."""
         return self.sensor or IDEAL
 
+    @property
+    def perturbation_name(self) -> str:
+        """The perturbations the run sees its frames through, as text: `none` for none."""
+        return self.perturbation or NONE
+
 
 def plan_runs(config: StudyConfig) -> list[RunSpec]:
     """Every run of the study, seed by seed (and repeat by repeat): a study stopped early has whole
@@ -95,7 +110,8 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
     runs = []
     for seed, repeat in product(config.seeds, range(config.repeats)):
         for route in config.routes:
-            for (camera_name, camera), sensor, noise in product(config.camera_axis(), config.sensor_axis(), config.noise):
+            for (camera_name, camera), sensor, perturbation, noise in product(
+                    config.camera_axis(), config.sensor_axis(), config.perturbation_axis(), config.noise):
                 for entry in config.methods:
                     runs.append(
                         RunSpec(
@@ -115,6 +131,7 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
                             camera_name=camera_name,
                             sensor=sensor,
                             repeat=repeat,
+                            perturbation=perturbation,
                         )
                     )
     return runs

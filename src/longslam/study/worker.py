@@ -1,8 +1,8 @@
 """One run of a study, as a worker does it: frames in, method run, outputs written, scores made.
 
-The worker reuses the route's rendered frames and draws the odometry for (noise level, seed) and
-the sensor's noise for (sensor, seed) on the fly, exactly as `longslam simulate` would write them,
-so a run matches `simulate` + `run`.
+The worker reuses the route's rendered frames and draws the odometry for (noise level, seed), the
+sensor's noise for (sensor, seed) and the perturbations for (perturbation, seed) on the fly,
+exactly as `longslam simulate` would write them, so a run matches `simulate` + `run`.
 It returns a JSON-ready record that the parent stores in the results database.
 """
 
@@ -22,6 +22,8 @@ from longslam.run.engine import run_frames
 from longslam.run.folder import RECORD, RUN_FILES, write_result
 from longslam.sim.simulate import frames_with_odometry, noisy_odometry
 from longslam.core.odometry_noise import get_noise
+from longslam.sim.perturbations import parse_entry
+from longslam.sim.perturbations.stream import perturbed_frames
 from longslam.sim.sensors import get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
 from longslam.slam.api import MethodContext
@@ -68,6 +70,7 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
     assert truth is not None, "a rendered sequence always has ground truth"
     odometry = noisy_odometry(truth, get_noise(spec.noise), spec.seed, camera.camera_height)
     sensor = get_sensor(spec.sensor_name)
+    perturbations = parse_entry(spec.perturbation_name)
 
     run_dir = Path(run_dir)
     if run_dir.exists():  # from a run whose record never reached the database
@@ -77,14 +80,19 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
         tmp.mkdir()
         context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
         frames = frames_with_odometry(reader, odometry)
+        motions = camera_motions(truth) if not sensor.is_ideal or perturbations else []
         if not sensor.is_ideal:
-            frames = sensed_frames(frames, sensor, spec.seed, camera_motions(truth))
+            frames = sensed_frames(frames, sensor, spec.seed, motions)
+        if perturbations:
+            frames = perturbed_frames(frames, perturbations, spec.seed, truth.timestamps, motions)
         result, measurements = run_frames(spec.method_name, frames, context, spec.params, total=len(reader), progress=progress)
         measurements.update(sequence=str(rendered), route=spec.route, noise=spec.noise, seed=spec.seed, label=spec.method)
         if spec.camera_name:
             measurements["camera"] = spec.camera_name
         if spec.sensor:
             measurements["sensor"] = spec.sensor
+        if spec.perturbation:
+            measurements["perturbation"] = spec.perturbation
         measurements = name_final_folder(measurements, tmp, run_dir)
         write_result(tmp, result, measurements)
         scores = score_run(result, measurements, truth, spec.align, load_truth, spec.map_tolerance_cells)

@@ -43,7 +43,7 @@ def failure_reason(run: dict[str, Any], dead_reckoning_ate: float | None) -> str
 
 
 def _sequence(run: dict[str, Any]) -> tuple:
-    return run["route"], run.get("camera_name"), run.get("sensor"), run["noise"], run["seed"]
+    return run["route"], run.get("camera_name"), run.get("sensor"), run.get("perturbation"), run["noise"], run["seed"]
 
 
 def dead_reckoning_ates(runs: list[dict[str, Any]]) -> dict[tuple, float]:

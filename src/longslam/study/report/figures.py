@@ -74,8 +74,8 @@ def make_figures(results: StudyResults, left_out: list[str] | None = None) -> li
 
 def _route_figures(results: StudyResults, route: str, camera: object | None, truth_grid,
                    left_out: list[str]) -> list[Figure]:
-    """The figures of one route: of one row group's runs (a camera and/or a sensor), or of all
-    (camera None: one camera and one sensor)."""
+    """The figures of one route: of one row group's runs (a camera, a sensor and/or a
+    perturbation), or of all (camera None: one of each)."""
     from longslam.eval.map_quality import map_scores
     from longslam.io.trajectory_files import read_tum
     from longslam.study.report.interactive import curves_figure, trajectories_figure

@@ -176,6 +176,7 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
         f"routes {', '.join(results.routes)}, noise levels {', '.join(results.noise)}, "
         f"methods {', '.join(results.methods)}, "
         + (f"sensors {', '.join(results.sensors)}, " if config.get("sensors") else "")
+        + (f"perturbations {', '.join(results.perturbations)}, " if config.get("perturbations") else "")
         + f"seeds {', '.join(map(str, seeds))}.",
         (f"Cameras: {'; '.join(f'{n}: {_camera_shown(c)}' for n, c in named.items())}. {counts}" if named
          else f"Camera {_camera_shown(config.get('camera', {}))}. {counts}"),

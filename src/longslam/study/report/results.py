@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from longslam.core.errors import InputError
+from longslam.sim.perturbations.parse import NONE
 from longslam.sim.sensors.catalog import IDEAL
 from longslam.study.database import DB_NAME, ResultsDB, check_results_tables
 from longslam.study.spec import DEFAULT_CAMERA
@@ -15,14 +16,19 @@ from longslam.study.spec import DEFAULT_CAMERA
 
 @dataclass(frozen=True)
 class RowGroup:
-    """The runs of one camera and/or one sensor, in a study whose tables are split by them (None:
-    that axis is not split)."""
+    """The runs of one camera, sensor and/or perturbation, in a study whose tables are split by
+    them (None: that axis is not split)."""
 
     camera: str | None = None
     sensor: str | None = None
+    perturbation: str | None = None
+
+    @property
+    def parts(self) -> list[str]:
+        return [part for part in (self.camera, self.sensor, self.perturbation) if part is not None]
 
     def __str__(self) -> str:
-        return ", ".join(part for part in (self.camera, self.sensor) if part is not None)
+        return ", ".join(self.parts)
 
 
 @dataclass
@@ -36,6 +42,7 @@ class StudyResults:
     methods: list[str]
     cameras: list[str] = field(default_factory=lambda: [DEFAULT_CAMERA])
     sensors: list[str] = field(default_factory=lambda: [IDEAL])
+    perturbations: list[str] = field(default_factory=lambda: [NONE])
 
     @property
     def columns(self) -> list[tuple[str, str]]:
@@ -54,26 +61,39 @@ class StudyResults:
         return len(self.sensors) > 1 or len(self.config.get("sensors", [])) > 1
 
     @property
+    def by_perturbation(self) -> bool:
+        """Whether the tables and figures are split by perturbation: the study has more than one."""
+        return len(self.perturbations) > 1 or len(self.config.get("perturbations", [])) > 1
+
+    @property
+    def _split(self) -> bool:
+        return self.by_camera or self.by_sensor or self.by_perturbation
+
+    @property
     def row_cameras(self) -> list[RowGroup | None]:
-        """The groups a method's rows are split into: each camera and/or sensor, or [None] for all
-        runs at once."""
-        if not (self.by_camera or self.by_sensor):
+        """The groups a method's rows are split into: each camera, sensor and/or perturbation, or
+        [None] for all runs at once."""
+        if not self._split:
             return [None]
         cameras = list(self.cameras) if self.by_camera else [None]
         sensors = list(self.sensors) if self.by_sensor else [None]
-        return [RowGroup(c, s) for c in cameras for s in sensors]
+        perturbations = list(self.perturbations) if self.by_perturbation else [None]
+        return [RowGroup(c, s, p) for c in cameras for s in sensors for p in perturbations]
 
     @property
     def group_title(self) -> str:
-        """The heading of the tables' group column: 'camera', 'sensor' or 'camera, sensor'."""
-        return ", ".join(name for name, split in (("camera", self.by_camera), ("sensor", self.by_sensor)) if split)
+        """The heading of the tables' group column: 'camera', 'sensor', 'camera, sensor',
+        'perturbation'..."""
+        return ", ".join(name for name, split in (("camera", self.by_camera), ("sensor", self.by_sensor),
+                                                  ("perturbation", self.by_perturbation)) if split)
 
     def group_of(self, run: dict[str, Any]) -> RowGroup | None:
         """The row group a run belongs to (see `row_cameras`)."""
-        if not (self.by_camera or self.by_sensor):
+        if not self._split:
             return None
         return RowGroup(run.get("camera_name", DEFAULT_CAMERA) if self.by_camera else None,
-                        (run.get("sensor") or IDEAL) if self.by_sensor else None)
+                        (run.get("sensor") or IDEAL) if self.by_sensor else None,
+                        (run.get("perturbation") or NONE) if self.by_perturbation else None)
 
     def camera_of(self, group: "RowGroup | str | None") -> str:
         """The camera of a row group (the study's first when the group does not split cameras)."""
@@ -93,13 +113,14 @@ class StudyResults:
 
 
 def on_camera(run: dict[str, Any], camera: "RowGroup | str | None") -> bool:
-    """Whether a run is one of `camera`'s: a camera's name, or a row group of a camera and/or a
-    sensor (every run is, for None)."""
+    """Whether a run is one of `camera`'s: a camera's name, or a row group of a camera, a sensor
+    and/or a perturbation (every run is, for None)."""
     if camera is None:
         return True
     if isinstance(camera, RowGroup):
         return ((camera.camera is None or run.get("camera_name", DEFAULT_CAMERA) == camera.camera)
-                and (camera.sensor is None or (run.get("sensor") or IDEAL) == camera.sensor))
+                and (camera.sensor is None or (run.get("sensor") or IDEAL) == camera.sensor)
+                and (camera.perturbation is None or (run.get("perturbation") or NONE) == camera.perturbation))
     return run.get("camera_name", DEFAULT_CAMERA) == camera
 
 
@@ -107,7 +128,7 @@ def runs_anchor(route: str, noise: str, method: str, camera: "RowGroup | str | N
     """The HTML id of a (route, camera and/or sensor, noise, method) group's first row in the table
     of every run: 'runs/' and the runs' key without the seed (an id may hold anything but white
     space)."""
-    group = [p for p in (camera.camera, camera.sensor) if p] if isinstance(camera, RowGroup) else ([camera] if camera else [])
+    group = [p for p in camera.parts if p] if isinstance(camera, RowGroup) else ([camera] if camera else [])
     parts = [route] + group + [noise, method]
     return "runs/" + "/".join(re.sub(r"\s+", "_", p) for p in parts)
 
@@ -132,4 +153,6 @@ def load_results(out: str | Path) -> StudyResults:
     methods = _ordered([m["label"] for m in config.get("methods", [])], [r["method"] for r in runs])
     cameras = _ordered(list(config.get("cameras", {})), [r["camera_name"] for r in runs]) or [DEFAULT_CAMERA]
     sensors = _ordered(list(config.get("sensors", [])), [r.get("sensor") or IDEAL for r in runs]) or [IDEAL]
-    return StudyResults(out, config, runs, ok, routes, noise, methods, cameras, sensors)
+    perturbations = _ordered(list(config.get("perturbations", [])),
+                             [r.get("perturbation") or NONE for r in runs]) or [NONE]
+    return StudyResults(out, config, runs, ok, routes, noise, methods, cameras, sensors, perturbations)

@@ -124,7 +124,8 @@ def _order(results: StudyResults):
         return values.index(value) if value in values else len(values)
 
     return lambda r: (index(results.routes, r["route"]), index(results.cameras, r.get("camera_name", "")),
-                      index(results.sensors, r.get("sensor") or "ideal"), index(results.noise, r["noise"]),
+                      index(results.sensors, r.get("sensor") or "ideal"),
+                      index(results.perturbations, r.get("perturbation") or "none"), index(results.noise, r["noise"]),
                       index(results.methods, r["method"]), r["seed"], r.get("repeat") or 0)
 
 
@@ -134,6 +135,7 @@ def every_run_table(results: StudyResults) -> RunsTable:
     columns = METRICS + (MAP_METRICS if with_maps else ()) + FIGURES
     repeats = any(r.get("repeat") for r in results.runs)
     identity = (["route"] + (["camera"] if results.by_camera else []) + (["sensor"] if results.by_sensor else [])
+                + (["perturbation"] if results.by_perturbation else [])
                 + ["noise", "method", "seed"] + (["repeat"] if repeats else []))
     table = RunsTable(
         "All runs",
@@ -157,7 +159,8 @@ def every_run_table(results: StudyResults) -> RunsTable:
         table.rows.append(RunRow(
             key=run["key"], status=status, ok=ok,
             identity=([run["route"]] + ([group.camera or ""] if results.by_camera else [])
-                      + ([group.sensor or ""] if results.by_sensor else []) + [run["noise"], run["method"], str(run["seed"])]
+                      + ([group.sensor or ""] if results.by_sensor else [])
+                      + ([group.perturbation or ""] if results.by_perturbation else []) + [run["noise"], run["method"], str(run["seed"])]
                       + ([str(run.get("repeat") or 0)] if repeats else [])),
             cells=[_value(run, column, scale) for column, _, scale in columns],
             links=_links(out, run),
