@@ -43,6 +43,8 @@ Every mistake is a `StudyConfigError` naming the file, the key and the valid val
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import math
 import re
 import tomllib
@@ -203,17 +205,23 @@ class _Reader:
     def error(self, key: str, message: str) -> StudyConfigError:
         return StudyConfigError(f"study file {self.path}: {key}: {message}")
 
-    def string_list(self, data: dict, key: str, valid: list[str] | None, what: str) -> list[str]:
+    def strings(self, data: dict, key: str, what: str, hint: str = "", valid: str = "") -> Iterator[tuple[str, str]]:
+        """(item key, item) of `data[key]`, a non-empty list of strings (one string is a list of one);
+        `hint` says what each string is, `valid` lists the valid ones."""
         value = data[key]
         if isinstance(value, str):
             value = [value]
         if not isinstance(value, list) or not value:
-            hint = f"; valid values: {_valid(valid)}" if valid else ""
-            raise self.error(key, f"expected a non-empty list of {what}, got {value!r}{hint}")
-        out = []
+            raise self.error(key, f"expected a non-empty list of {what}s{hint}; got {value!r}{valid}")
         for i, item in enumerate(value):
             if not isinstance(item, str):
-                raise self.error(f"{key}[{i}]", f"expected a {what} (a string), got {item!r}")
+                raise self.error(f"{key}[{i}]", f"expected a {what} (a string{hint}), got {item!r}")
+            yield f"{key}[{i}]", item
+
+    def string_list(self, data: dict, key: str, valid: list[str] | None, what: str) -> list[str]:
+        out: list[str] = []
+        listed = f"; valid values: {_valid(valid)}" if valid else ""
+        for i, (_, item) in enumerate(self.strings(data, key, what, valid=listed)):
             if valid is not None and item not in valid:
                 raise self.error(f"{key}[{i}]", f"unknown {what} {item!r}; valid values: {_valid(valid)}")
             if item in out:
@@ -359,17 +367,9 @@ def _sensors(r: _Reader, data: dict) -> list[str]:
 def _perturbations(r: _Reader, data: dict) -> list[str]:
     from longslam.sim.perturbations import canonical, parse_entry
 
-    value = data["perturbations"]
-    expected = "none, or NAME[=LEVEL] joined by '+' (see `longslam list`)"
-    if isinstance(value, str):
-        value = [value]
-    if not isinstance(value, list) or not value:
-        raise r.error("perturbations", f"expected a non-empty list of perturbations, each {expected}; got {value!r}")
+    expected = ": none, or NAME[=LEVEL] joined by '+' (see `longslam list`)"
     entries: list[str] = []
-    for i, item in enumerate(value):
-        key = f"perturbations[{i}]"
-        if not isinstance(item, str):
-            raise r.error(key, f"expected a perturbation (a string: {expected}), got {item!r}")
+    for key, item in r.strings(data, "perturbations", "perturbation", expected):
         try:
             text = canonical(parse_entry(item))  # every level named: drop and drop=0.1 are one folder
         except InputError as err:
@@ -381,18 +381,10 @@ def _perturbations(r: _Reader, data: dict) -> list[str]:
 
 
 def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
-    value = data["routes"]
     valid = (f"a route name ({_valid(ROUTES.names())}), a long route (NAME-xN, tour-<L>km[-seed<S>]) or a "
              "waypoint file relative to the study file")
-    if isinstance(value, str):
-        value = [value]
-    if not isinstance(value, list) or not value:
-        raise r.error("routes", f"expected a non-empty list; each entry {valid}")
     routes: list[Route] = []
-    for i, item in enumerate(value):
-        key = f"routes[{i}]"
-        if not isinstance(item, str):
-            raise r.error(key, f"expected {valid}, got {item!r}")
+    for key, item in r.strings(data, "routes", "route", f": {valid}"):
         if is_route_name(item):
             try:
                 # A registered route keeps its own world (refused below if not the study's); a tour

@@ -47,13 +47,13 @@ from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.jsonable import json_default
 from longslam.io.atomic import rename_no_replace, replace_file
+from longslam.io.outputs import check_output_file_free
 from longslam.io.partials import partial_path
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.api import pose_graph
 from longslam.slam.graph import ODOMETRY
 from longslam.core.timestamps import nearest_indices
 from longslam.core.trajectory import Trajectory
-from longslam.core.file_kinds import special_file_kind
 
 VIEWER = "viewer"  # --viz without a file: spawn (or join) a viewer on this machine
 COLORS = {"truth": (60, 200, 60), "estimate": (230, 60, 40), "odometry": (120, 120, 120),
@@ -189,12 +189,7 @@ def check_target(target: str, overwrite: bool = False) -> None:
         raise InputError(f"--viz {target}: the folder {parent} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"--viz {target}: the folder {parent} is not writable")
-    kind = special_file_kind(path)
-    if kind is not None:
-        raise InputError(f"--viz {target} is {kind}, not a regular file; longslam writes and --overwrite "
-                         "replaces only regular files; choose another path")
-    if (path.exists() or path.is_symlink()) and not overwrite:
-        raise InputError(f"--viz {target} exists already; choose another file or pass --overwrite")
+    check_output_file_free(path, overwrite, "--viz")
 
 
 class LiveView:

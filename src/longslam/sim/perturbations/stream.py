@@ -13,6 +13,7 @@ from longslam.core.frame import Frame
 from longslam.sim.perturbations.base import FrameContext, Perturbation, perturbation_rng
 from longslam.sim.sensors.base import FrameMotion
 from longslam.core.registry import failure
+from longslam.sim.image_contract import checked_images
 
 
 def frame_context(frame: Frame, timestamps: np.ndarray, motions: Sequence[FrameMotion], seed: int) -> FrameContext:
@@ -32,15 +33,10 @@ def _perturb(perturbations: Sequence[Perturbation], frame: Frame, context: Frame
         where = f"perturbation {p.text!r}, frame {frame.index}"
         try:
             made = p.perturb(rgb, depth, context, perturbation_rng(p.name, context.seed, context.index))
-            rgb, depth = (np.asarray(x) for x in made)
+            rgb, depth = made
         except (Exception, SystemExit) as err:  # a plugin's code: what it raises or returns, named
             raise InputError(f"{where}: perturb() raised or returned other than (rgb, depth): {failure(err)}") from None
-        if rgb.dtype != np.uint8 or rgb.shape != shape + (3,):
-            raise InputError(f"{where}: perturb() returned rgb {rgb.dtype} {rgb.shape}; expected uint8 {shape + (3,)}")
-        if depth.dtype != np.float32 or depth.shape != shape:
-            raise InputError(f"{where}: perturb() returned depth {depth.dtype} {depth.shape}; expected float32 {shape}")
-        if not np.all(np.isfinite(depth)) or (depth.size and depth.min() < 0):
-            raise InputError(f"{where}: perturb() returned depth with NaN, inf or negative values; expected metres >= 0")
+        rgb, depth = checked_images(where, "perturb()", rgb, depth, shape)
     return rgb, depth
 
 

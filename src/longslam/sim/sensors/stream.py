@@ -10,8 +10,10 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
+from longslam.core.registry import failure
 from longslam.sim.sensors.base import FrameMotion, SensorModel, frame_rng
 from longslam.core.trajectory import Trajectory
+from longslam.sim.image_contract import checked_images
 
 
 def camera_motions(truth: Trajectory) -> list[FrameMotion]:
@@ -45,30 +47,12 @@ def _sense(sensor: SensorModel, frame: Frame, motion: FrameMotion, seed: int) ->
     try:
         made = sensor.sense(clean_rgb, clean_depth, frame.intrinsics, motion, frame_rng(sensor.name, seed, frame.index))
     except (Exception, SystemExit) as err:
-        from longslam.core.registry import failure
-
         raise InputError(f"{where}: sense() raised {failure(err)}") from None
     if not isinstance(made, (tuple, list)) or len(made) != 2:
         got = f"{len(made)} values" if isinstance(made, (tuple, list)) else f"a {type(made).__name__}"
         raise InputError(f"{where}: sense() returned {got}; expected (rgb, depth)")
-    return _checked(sensor, frame, *made)
-
-
-def _checked(sensor: SensorModel, frame: Frame, rgb, depth) -> tuple[np.ndarray, np.ndarray]:
-    """The model's output, refused with its name if it is not images of the frame's shape."""
     shape = (frame.intrinsics.height, frame.intrinsics.width)
-    try:
-        rgb, depth = np.asarray(rgb), np.asarray(depth)
-    except Exception:  # a ragged list, say
-        rgb, depth = np.asarray(None), np.asarray(None)
-    where = f"sensor {sensor.name!r}, frame {frame.index}"
-    if rgb.dtype != np.uint8 or rgb.shape != shape + (3,):
-        raise InputError(f"{where}: sense() returned rgb {rgb.dtype} {rgb.shape}; expected uint8 {shape + (3,)}")
-    if depth.dtype != np.float32 or depth.shape != shape:
-        raise InputError(f"{where}: sense() returned depth {depth.dtype} {depth.shape}; expected float32 {shape}")
-    if not np.all(np.isfinite(depth)) or (depth.size and depth.min() < 0):
-        raise InputError(f"{where}: sense() returned depth with NaN, inf or negative values; expected metres >= 0, 0 for no return")
-    return rgb, depth
+    return checked_images(where, "sense()", *made, shape)
 
 
 def sensed_frame(clean: Frame, sensor: SensorModel, seed: int, motion: FrameMotion) -> Frame:
