@@ -7,6 +7,7 @@ import json
 import logging
 import os
 import sys
+import traceback
 
 # One OpenBLAS thread per process unless the user sets it: a run's matrices are small, a study
 # runs one method per core, and OpenBLAS's spinning threads cost a keyframe run on paper-300m
@@ -16,7 +17,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from longslam.cli.errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
 from longslam.cli.output import configure, note
 from longslam.cli.parser import Parser, add_common_options
-from longslam.core.errors import LongslamError
+from longslam.core.errors import LongslamError, MethodError
 
 log = logging.getLogger("longslam.cli.main")
 
@@ -752,6 +753,9 @@ def main(argv: list[str] | None = None) -> int:
     except EXPECTED_FAILURES as err:
         if getattr(args, "debug", False):
             raise
+        if isinstance(err, MethodError) and err.__cause__ is not None:
+            # A method's bug: its author needs the traceback; the line below says whose it is.
+            traceback.print_exception(err.__cause__, file=sys.stderr)
         print(f"longslam {args.command}: error: {describe_failure(err, getattr(args, 'out', None))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -35,4 +35,6 @@ class TrajectoryError(InputError):
 
 class MethodError(LongslamError):
     """A method, or the program it runs, that broke its contract: a program that exited non-zero,
-    crashed, ran out of time or wrote no trajectory. The run failed; the input may be fine."""
+    crashed, ran out of time or wrote no trajectory; a method whose code raised, or returned other
+    than the API says. The run failed; the input may be fine. Raised from the method's own error,
+    whose traceback (`__cause__`) the command prints for the method's author."""

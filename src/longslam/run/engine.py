@@ -10,13 +10,13 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from longslam.core.errors import InputError
+from longslam.core.errors import InputError, LongslamError, MethodError
 from longslam.core.frame import Frame
 from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.partials import clean_stale_partials
@@ -81,6 +81,23 @@ def _run_method(method_name: str, spec: Any, config: Any, frames: Iterable[Frame
         raise
 
 
+# What a method's code may raise and still be reporting, not breaking: longslam's own errors (a
+# bad parameter, a program that failed), the system's (a full disk), a lack of memory, an interrupt.
+_REPORTED = (LongslamError, OSError, MemoryError, KeyboardInterrupt, SystemExit)
+
+
+@contextlib.contextmanager
+def _method_code(method_name: str, call: str) -> Iterator[None]:
+    """Around a call into a method: any other exception is the method's bug, raised as a MethodError
+    that names the method and the call, chained to the original so its traceback is kept."""
+    try:
+        yield
+    except _REPORTED:
+        raise
+    except Exception as err:
+        raise MethodError(f"method {method_name!r}: {call} raised {type(err).__name__}: {err}") from err
+
+
 def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterable[Frame], context: MethodContext,
           params: dict[str, Any] | None, total: int | None, progress: bool, observer: RunObserver | None,
           baseline_rss: int) -> tuple[Result, dict[str, Any]]:
@@ -103,10 +120,12 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
             observer_time += time.perf_counter() - t0
         for frame in bar(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
             t0 = time.perf_counter()
-            pose = method.step(frame)
+            with _method_code(method_name, f"step() of frame {frame.index}"):
+                pose = method.step(frame)
             step_times.append(time.perf_counter() - t0)
             if np.shape(pose) != (4, 4):
-                raise InputError(f"method {method_name!r} returned a pose of shape {np.shape(pose)} for frame {frame.index}; expected (4, 4)")
+                raise MethodError(f"method {method_name!r} returned a pose of shape {np.shape(pose)} for frame "
+                                  f"{frame.index}; expected (4, 4)")
             if first_t is None:
                 first_t = frame.timestamp
             last_t = frame.timestamp
@@ -120,7 +139,8 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
         if count == 0:
             raise InputError("the sequence has no frames")
         t0 = time.perf_counter()
-        result = method.finish()
+        with _method_code(method_name, "finish()"):
+            result = method.finish()
     finally:
         usage = monitor.stop()
     finish_time = time.perf_counter() - t0
