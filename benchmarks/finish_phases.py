@@ -78,8 +78,8 @@ def main(argv: list[str] | None = None) -> None:
         _wrap(owner, name, label)
     params = parse_key_values(args.param)
     measurements = run_sequence("keyframe", args.sequence, args.out, params=params or None, overwrite=True, progress=False)
-    print(f"finish {measurements['finish_time_s']:.1f} s; RSS (MiB) every 1,000 frames:",
-          [(f, round(b / 2**20)) for f, b in measurements["rss_samples"] if f % 1000 == 0 or f == measurements["frames"]])
+    print(f"finish {measurements.finish_time_s:.1f} s; RSS (MiB) every 1,000 frames:",
+          [(f, round(b / 2**20)) for f, b in measurements.rss_samples if f % 1000 == 0 or f == measurements.frames])
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ import numpy as np
 
 from common import run_and_score, sequence
 from longslam.io.sequence import SequenceReader
+from longslam.run.measurements import RunMeasurements
 from longslam.run.score import score
 from longslam.core.settings import parse_key_values
 
@@ -32,9 +33,9 @@ def run(work: Path, method: str, seq: Path, params: dict, tag: str) -> tuple[dic
     return run_and_score(method, seq, work / "runs" / f"{seq.name}-{method}{tag}", params)
 
 
-def rss_at_distances(figures: dict, truth, marks=(250, 500, 750, 1000)) -> list[str]:
+def rss_at_distances(figures: RunMeasurements, truth, marks=(250, 500, 750, 1000)) -> list[str]:
     distance = truth.distances()
-    samples = np.array(figures["rss_samples"], dtype=np.float64)
+    samples = np.array(figures.rss_samples, dtype=np.float64)
     out = []
     for mark in marks:
         frame = int(np.searchsorted(distance, mark))
@@ -75,7 +76,7 @@ def main() -> None:
                 seq = sequence(work, "paper-300m", noise, seed)
                 scores, figures = run(work, args.method, seq, params, args.tag)
                 rows["m"].append(scores)
-                rtf.append(figures["real_time_factor"])
+                rtf.append(figures.real_time_factor)
                 rows["o"].append(score(SequenceReader(seq).ground_truth, SequenceReader(seq).odometry))
             mean = lambda who, key: float(np.mean([s[key] for s in rows[who]]))  # noqa: E731
             print(
@@ -90,11 +91,11 @@ def main() -> None:
             truth = SequenceReader(seq).ground_truth
             scores, figures = run(work, args.method, seq, params, args.tag)
             odom = score(truth, SequenceReader(seq).odometry)
-            stats = figures["method_stats"]
+            stats = figures.method_stats
             counters = ", ".join(f"{k} {stats[k]}" for k in COUNTERS if k in stats)
             print(f"seed {seed}: ATE {scores['ate']:.2f} m (odometry {odom['ate']:.2f}), E_trans {scores['e_trans']:.4f}, "
-                  f"E_rot {scores['e_rot']:.3f}; peak RSS {figures['peak_rss_bytes'] / 1e6:.0f} MB "
-                  f"(baseline {figures['baseline_rss_bytes'] / 1e6:.0f} MB); RTF {figures['real_time_factor']:.1f}")
+                  f"E_rot {scores['e_rot']:.3f}; peak RSS {figures.peak_rss_bytes / 1e6:.0f} MB "
+                  f"(baseline {figures.baseline_rss_bytes / 1e6:.0f} MB); RTF {figures.real_time_factor:.1f}")
             print(f"   {counters}")
             print(f"   RSS by distance: {'; '.join(rss_at_distances(figures, truth))}")
             print(f"   map bytes: {stats.get('map_bytes')}")

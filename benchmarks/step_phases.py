@@ -143,8 +143,8 @@ def main() -> None:
         labels.append(label)
     measurements = run_sequence(args.method, args.sequence, args.out, parse_key_values(args.param), overwrite=True,
                                 progress=False)
-    frames = measurements["frames"]
-    print(f"{args.method} on {args.sequence}: {frames} frames, finish {measurements['finish_time_s']:.1f} s")
+    frames = measurements.frames
+    print(f"{args.method} on {args.sequence}: {frames} frames, finish {measurements.finish_time_s:.1f} s")
     report(clock, frames, labels)
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from common import run_and_score, sequence
 from longslam.io.sequence import SequenceReader
+from longslam.run.measurements import RunMeasurements
 from longslam.run.score import score
 from longslam.core.settings import parse_key_values
 from longslam.slam.catalog import method_names
@@ -63,23 +64,23 @@ def table_300m(work: Path, noises: list[str], seeds: int, params: dict, with_key
         for method, tag, p in variants:
             runs = [run(work, s, method, p, tag) for s in seqs]
             ates = [r["metrics"]["ate"] for r in runs]
-            rtf = np.mean([r["measurements"]["real_time_factor"] for r in runs])
+            rtf = np.mean([r["measurements"].real_time_factor for r in runs])
             label = f"{method} {tag}" if method == "submap" else method
             print(f"{noise:>7} | {label:>18} | {mean_std(ates)} | {mean_std([r['metrics']['e_trans'] for r in runs])} | "
                   f"{mean_std([r['metrics']['e_rot'] for r in runs])} | {rtf:6.1f} | {np.mean(ates) / odo_ate:.2f}", flush=True)
             for r in runs:
-                stats = r["measurements"]["method_stats"]
-                rows.append({"noise": noise, "method": label, "ate": r["metrics"]["ate"], "rtf": r["measurements"]["real_time_factor"],
+                stats = r["measurements"].method_stats
+                rows.append({"noise": noise, "method": label, "ate": r["metrics"]["ate"], "rtf": r["measurements"].real_time_factor,
                              "peak_rss_mb": r["measurements"]["peak_rss_bytes"] / 1e6,
                              "registrations": (stats.get("registrations_accepted"), stats.get("registrations_rejected")),
                              "loops": (stats.get("loops_accepted"), stats.get("loops_rejected"))})
     return rows
 
 
-def memory_by_distance(seq: Path, figures: dict, marks=(250.0, 500.0, 750.0, 1000.0)) -> dict[float, float]:
+def memory_by_distance(seq: Path, figures: RunMeasurements, marks=(250.0, 500.0, 750.0, 1000.0)) -> dict[float, float]:
     """Resident memory (MB) at the first sample at or after each distance travelled."""
     distances = SequenceReader(seq).ground_truth.distances()
-    samples = figures["rss_samples"]
+    samples = figures.rss_samples
     out = {}
     for mark in marks:
         frame = int(np.searchsorted(distances, mark))
@@ -99,7 +100,7 @@ def table_1km(work: Path, params: dict, with_keyframe: bool) -> None:
     methods = [("submap", {**params, "loop_closure": False})] + ([("keyframe", {})] if with_keyframe else [])
     for method, p in methods:
         r = run(work, seq, method, p, "1km")
-        f, stats = r["measurements"], r["measurements"]["method_stats"]
+        f, stats = r["measurements"], r["measurements"].method_stats
         print(f"{method}: ATE {r['metrics']['ate']:.2f} m, E_trans {r['metrics']['e_trans']:.4f}, "
               f"E_rot {r['metrics']['e_rot']:.3f} deg/m, real-time factor {f['real_time_factor']:.1f}, "
               f"peak RSS {f['peak_rss_bytes'] / 1e6:.0f} MB")

@@ -47,7 +47,7 @@ def main() -> None:
         if args.frontend:
             params["frontend.mode"] = args.frontend
         scores, measured = run_and_score("keyframe", seq, out, params)
-        stats = measured["method_stats"]
+        stats = measured.method_stats
         times = read_table(out / "nodes.csv").column("time_ms")
         pairs = {kind: loop_pairs(out / "memory.db", kind) for kind in ("loop", "proximity")}
         if index in ("bruteforce", "flat") and exact is None:
@@ -59,8 +59,8 @@ def main() -> None:
             f"{index:10s} {seq.name}: node time first 100 {times[:100].mean():.1f} ms, last 100 "
             f"{times[-100:].mean():.1f} ms (ratio {times[-100:].mean() / times[:100].mean():.2f}); "
             f"{stats['vocabulary_words']} words; loops {stats['loops_accepted']}; exact run's loops found: {shared}; "
-            f"ATE {scores['ate']:.3f} m, E_rot {scores['e_rot']:.3f} deg/m; wall {measured['wall_time_s']:.1f} s, "
-            f"method {measured['method_time_s']:.1f} s, peak {measured['peak_rss_bytes'] / 1e6:.0f} MB",
+            f"ATE {scores['ate']:.3f} m, E_rot {scores['e_rot']:.3f} deg/m; wall {measured.wall_time_s:.1f} s, "
+            f"method {measured.method_time_s:.1f} s, peak {measured.peak_rss_bytes / 1e6:.0f} MB",
             flush=True,
         )
 

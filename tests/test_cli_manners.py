@@ -4,6 +4,8 @@ every option, "did you mean", bags given to `run`, arguments checked before work
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import argparse
 import io
 import logging
@@ -262,7 +264,8 @@ def _captured_run(monkeypatch) -> dict:
 
     def fake(method, sequence, out, params, **_):
         seen.update(method=method, sequence=str(sequence), params=params)
-        return {"frames": 1, "real_time_factor": 2.0, "peak_rss_bytes": 1e6}
+        return SimpleNamespace(frames=1, real_time_factor=2.0, peak_rss_bytes=1e6, observer_time_s=None, about={},
+                               method_stats={})
 
     monkeypatch.setattr(engine, "run_sequence", fake)
     return seen

@@ -233,7 +233,7 @@ def test_import_a_bag_written_by_hand(tmp_path):
     np.testing.assert_allclose(seq.ground_truth.poses[0][:3, 3], odometry[0][:3, 3] + [0.0005, 0, 0], atol=1e-4)
     # and a method runs on it
     measurements = run_sequence("odometry", tmp_path / "seq", tmp_path / "run", progress=False)
-    assert measurements["frames"] == 12
+    assert measurements.frames == 12
 
 
 def test_import_errors_are_clear(tmp_path):

@@ -36,7 +36,7 @@ def test_odometry_method_returns_the_odometry(sequence, tmp_path):
     assert stats["frames"] == N
     assert stats["peak_rss_bytes"] >= stats["baseline_rss_bytes"] > 10_000_000
     assert abs(stats["sequence_duration_s"] - N * 0.1) < 1e-6
-    assert figures["real_time_factor"] > 1.0
+    assert figures.real_time_factor > 1.0
     tenths = stats["step_time_mean_s_by_tenth"]  # the per-frame cost along the route, in ten parts
     assert len(tenths) == 10 and np.mean(tenths) == pytest.approx(stats["step_time_mean_s"], rel=0.2)
     assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no temporary folder left
@@ -64,7 +64,7 @@ def test_existing_run_folder_is_refused(sequence, tmp_path):
 
 def test_isolated_run_measures_its_own_process(sequence, tmp_path):
     figures = run_sequence_isolated("odometry", sequence[0], tmp_path / "run", progress=False)
-    assert figures["frames"] == N and figures["peak_rss_bytes"] > 0
+    assert figures.frames == N and figures.peak_rss_bytes > 0
     with pytest.raises(RuntimeError, match="method"):
         run_sequence_isolated("no-such-method", sequence[0], tmp_path / "run2", progress=False)
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from longslam.core.errors import MethodError
 from longslam.run import engine
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.slam.api import MethodSpec, Result
@@ -124,7 +125,7 @@ def test_descriptors_are_restored_after_an_error(tmp_path, capfd):
 
 
 def test_close_is_called_when_a_run_fails_and_not_when_it_finishes(tiny_sequence, tmp_path):
-    with pytest.raises(RuntimeError, match="frame 3"):
+    with pytest.raises(MethodError, match="frame 3"):
         engine.run_sequence("fails", tiny_sequence, tmp_path / "failed", progress=False)
     assert Native.closed == ["closed"]
     Native.closed.clear()
@@ -134,7 +135,7 @@ def test_close_is_called_when_a_run_fails_and_not_when_it_finishes(tiny_sequence
 
 def test_process_cpu_time_counts_the_method_threads(tiny_sequence, tmp_path):
     measurements = engine.run_sequence("threaded", tiny_sequence, tmp_path / "run", progress=False)
-    assert measurements["process_cpu_time_s"] >= 0.4
+    assert measurements.process_cpu_time_s >= 0.4
 
 
 def test_the_demo_and_a_study_prepare_each_method_before_its_runs(tmp_path, monkeypatch):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import json
 
 import numpy as np
@@ -11,6 +13,7 @@ from longslam.core.errors import InputError
 from longslam.run.folder import STATS, read_table, write_result, write_table
 from longslam.slam.api import Result, Table
 from longslam.core.trajectory import Trajectory
+from longslam.run.measurements import RunMeasurements
 
 
 def _result(tables: dict[str, Table]) -> Result:
@@ -36,7 +39,7 @@ def test_an_empty_table_is_a_header_alone(tmp_path):
 
 def test_the_run_folder_gets_each_table_as_csv_and_stats_stay_small(tmp_path):
     many = Table(("frame_i", "frame_j"), np.column_stack([np.arange(5000), np.arange(5000) + 7]))
-    write_result(tmp_path, _result({"loops": many}), {"method": "x"})
+    write_result(tmp_path, _result({"loops": many}), _measurements("x"))
     assert len(read_table(tmp_path / "loops.csv").rows) == 5000
     assert (tmp_path / STATS).stat().st_size < 2000
     assert "loops" not in json.loads((tmp_path / STATS).read_text())
@@ -45,10 +48,17 @@ def test_the_run_folder_gets_each_table_as_csv_and_stats_stay_small(tmp_path):
 @pytest.mark.parametrize("name", ["../escape", "a b", ""])
 def test_a_table_name_that_is_no_file_name_is_refused(tmp_path, name):
     with pytest.raises(InputError, match="result table"):
-        write_result(tmp_path, _result({name: Table(("a",), np.zeros((1, 1)))}), {"method": "x"})
+        write_result(tmp_path, _result({name: Table(("a",), np.zeros((1, 1)))}), _measurements("x"))
 
 
 def test_a_table_file_that_is_not_numbers_names_the_file(tmp_path):
     (tmp_path / "t.csv").write_text("a,b\n1,x\n")
     with pytest.raises(InputError, match="t.csv"):
         read_table(tmp_path / "t.csv")
+
+
+def _measurements(method: str) -> RunMeasurements:
+    """Figures of a run that never ran: what write_result needs beside a result."""
+    fields = {f.name: 0 for f in dataclasses.fields(RunMeasurements) if f.name not in ("observer_time_s", "about")}
+    return RunMeasurements(**{**fields, "method": method, "params": {}, "config": {}, "method_stats": {},
+                              "step_time_mean_s_by_tenth": [], "cpu_wait_by_thread": {}, "rss_samples": []})

@@ -137,15 +137,15 @@ def test_a_program_run_as_a_method_is_anchored_and_measured_with_its_child(tiny,
     estimate = read_tum(run / "trajectory.txt")
     np.testing.assert_allclose(estimate.poses, truth.poses, atol=1e-5)  # the program's map frame is undone
     assert score(truth, estimate)["ate"] < 1e-5
-    method = figures["method_stats"]
+    method = figures.method_stats
     assert method["coverage"] == 1.0 and method["frames_covered"] == N and method["program_exit_status"] == 0
     assert method["anchor_frame"] == 0 and method["uses_wheel_odometry"] == "the anchor pose only"
     assert str(program) in method["command_line"] and "{" not in method["command_line"]
     # The run's peak is the process tree's: the program's child held 150 MB beside the run's own memory.
-    assert figures["peak_rss_bytes"] >= figures["baseline_rss_bytes"] + (CHILD_MB - 10) * 2**20
-    assert figures["child_processes"] >= 2 and method["program_max_rss_bytes"] >= (CHILD_MB - 10) * 2**20
+    assert figures.peak_rss_bytes >= figures.baseline_rss_bytes + (CHILD_MB - 10) * 2**20
+    assert figures.child_processes >= 2 and method["program_max_rss_bytes"] >= (CHILD_MB - 10) * 2**20
     stats = json.loads((run / "stats.json").read_text())
-    assert stats["peak_rss_bytes"] == figures["peak_rss_bytes"]  # written as measured, not the process's own
+    assert stats["peak_rss_bytes"] == figures.peak_rss_bytes  # written as measured, not the process's own
     # Its console went to the run's console.log; the TUM folder written for it is gone, its files stay.
     assert "stand-in: reading" in (run / "console.log").read_text()
     assert not (run / "sequence").exists() and (run / "program" / "CameraTrajectory.txt").is_file()
@@ -162,7 +162,7 @@ def test_a_sparse_trajectory_holds_its_last_pose_and_reports_its_coverage(tiny, 
                                   "--name", "keyframes.txt"),
               "trajectory": "keyframes.txt", "format": "euroc"}
     figures = run_sequence("command", sequence, tmp_path / "run", params, progress=False)
-    method = figures["method_stats"]
+    method = figures.method_stats
     assert method["frames_covered"] == 7 and method["coverage"] == pytest.approx(1 / 3)
     assert method["program_poses"] == 7 and method["program_poses_unmatched"] == 0
     estimate = read_tum(tmp_path / "run" / "trajectory.txt")
@@ -179,7 +179,7 @@ def test_a_kitti_file_gives_a_pose_a_frame_in_order(tiny, program, tmp_path):
     params = {"command": _command(program, *_truth_option(sequence), "--write", "--format", "kitti"),
               "format": "kitti"}
     figures = run_sequence("command", sequence, tmp_path / "run", params, progress=False)
-    assert figures["method_stats"]["coverage"] == 1.0
+    assert figures.method_stats["coverage"] == 1.0
     np.testing.assert_allclose(read_tum(tmp_path / "run" / "trajectory.txt").poses, truth.poses, atol=1e-5)
 
 
@@ -189,7 +189,7 @@ def test_robot_frame_poses_become_camera_poses(tiny, program, tmp_path):
     figures = run_sequence("command", sequence, tmp_path / "run", params, progress=False)
     estimate = read_tum(tmp_path / "run" / "trajectory.txt")
     np.testing.assert_allclose(estimate.poses, truth.poses, atol=1e-5)
-    assert figures["method_stats"]["camera_height"] == pytest.approx(1.25)  # the first odometry pose's height
+    assert figures.method_stats["camera_height"] == pytest.approx(1.25)  # the first odometry pose's height
 
 
 def test_a_program_that_exits_non_zero_fails_the_run_with_its_last_lines(tiny, program, tmp_path):

@@ -160,7 +160,7 @@ def test_a_viewer_closed_in_the_middle_of_a_run(sequence, tmp_path, monkeypatch)
         monkeypatch.setattr(live, "VIEWER_WAIT_S", 2.0)
         # a viewer that stays: the run streams to it and ends as usual
         figures = run_sequence("odometry", sequence, tmp_path / "shown", progress=False, viz="viewer")
-        assert figures["frames"] == 25 and figures["observer_time_s"] > 0
+        assert figures.frames == 25 and figures.observer_time_s > 0
         # the viewer goes away before the run ends: the run finishes, its folder whole, and says so
         finish = live.LiveView._finish
 

@@ -88,7 +88,8 @@ def run_demo(
         run_dir = out / "runs" / name
         scores, measurements = run_and_score(name, sequence, run_dir, progress=progress, viz=_viz_target(viz, name))
         estimate = read_tum(run_dir / TRAJECTORY)
-        rows.append({"method": name, **scores, **{k: measurements[k] for k in ("peak_rss_bytes", "real_time_factor")}})
+        rows.append({"method": name, **scores, "peak_rss_bytes": measurements.peak_rss_bytes,
+                     "real_time_factor": measurements.real_time_factor})
         paths[name] = estimate.positions[:, :2]
         curves[name] = error_over_time(truth, estimate)
         ates[name] = scores["ate"]

@@ -184,13 +184,13 @@ def cmd_run(args: argparse.Namespace) -> None:
     from longslam.run.speed import describe_real_time_factor
 
     print(
-        f"wrote {args.out}: {measurements['frames']} frames, {describe_real_time_factor(measurements['real_time_factor'])}, "
-        f"peak RSS {measurements['peak_rss_bytes'] / 1e6:.0f} MB"
-        + (f", live view {measurements['observer_time_s']:.1f} s" if "observer_time_s" in measurements else "")
+        f"wrote {args.out}: {measurements.frames} frames, {describe_real_time_factor(measurements.real_time_factor)}, "
+        f"peak RSS {measurements.peak_rss_bytes / 1e6:.0f} MB"
+        + (f", live view {measurements.observer_time_s:.1f} s" if measurements.observer_time_s is not None else "")
     )
-    for text in measurements.get("sequence_notes", []):
+    for text in measurements.about.get("sequence_notes", []):
         note(f"{args.sequence}: {text}")
-    for text in measurements.get("method_stats", {}).get("notes", []):
+    for text in measurements.method_stats.get("notes", []):
         note(f"{method}: {text}")
 
 

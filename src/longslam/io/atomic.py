@@ -144,7 +144,7 @@ def write_bytes(path: str | Path, data: bytes) -> None:
         Path(path).write_bytes(data)
 
 
-def name_final_folder(figures: dict[str, Any], tmp: Path, out: Path) -> dict[str, Any]:
+def name_final_folder(figures: Any, tmp: Path, out: Path) -> Any:
     """The figures with every path into the temporary folder `tmp` (a method's database, say)
     named by where it will be, in `out`, once the run folder is renamed."""
     prefix = str(tmp)

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +17,7 @@ import numpy as np
 
 from longslam.core.errors import InputError, LongslamError, MethodError
 from longslam.core.frame import Frame
-from longslam.io.atomic import atomic_path, name_final_folder
+from longslam.io.atomic import atomic_path
 from longslam.io.partials import clean_stale_partials
 from longslam.io.outputs import RUN, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.paths import check_output_folder
@@ -28,16 +27,15 @@ from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
 from longslam.core.progress import bar
 from longslam.run.observer import RunObserver
-from longslam.run.process_tree import TreeMonitor
+from longslam.run.measurements import RunMeasurements
+from longslam.run.meter import RunMeter
+from longslam.run.process_tree import TreeUsage
 from longslam.run.provenance import provenance
 from longslam.run.read_ahead import IMAGES, read_ahead
-from longslam.run.resources import current_rss_bytes, peak_rss_bytes
+from longslam.run.resources import current_rss_bytes
 from longslam.core.settings import to_mapping
 from longslam.slam.api import Closable, MethodContext, Result, images_every_frame
 from longslam.slam.catalog import get_spec
-
-RSS_SAMPLE_EVERY = 50  # frames between samples of resident memory
-
 
 def run_frames(
     method_name: str,
@@ -47,7 +45,7 @@ def run_frames(
     total: int | None = None,
     progress: bool = True,
     observer: RunObserver | None = None,
-) -> tuple[Result, dict[str, Any]]:
+) -> tuple[Result, RunMeasurements]:
     """Feed every frame to a new method and finish it. Returns its result and the harness's
     measurements (times, memory, the config the method ran with and the method's own stats).
 
@@ -70,7 +68,7 @@ def run_frames(
 
 def _run_method(method_name: str, spec: Any, config: Any, frames: Iterable[Frame], context: MethodContext,
                 params: dict[str, Any] | None, total: int | None, progress: bool,
-                observer: RunObserver | None, baseline_rss: int) -> tuple[Result, dict[str, Any]]:
+                observer: RunObserver | None, baseline_rss: int) -> tuple[Result, RunMeasurements]:
     method = spec.build(context, config)
     try:
         return _feed(method_name, method, config, spec, frames, context, params, total, progress, observer,
@@ -100,100 +98,103 @@ def _method_code(method_name: str, call: str) -> Iterator[None]:
 
 def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterable[Frame], context: MethodContext,
           params: dict[str, Any] | None, total: int | None, progress: bool, observer: RunObserver | None,
-          baseline_rss: int) -> tuple[Result, dict[str, Any]]:
+          baseline_rss: int) -> tuple[Result, RunMeasurements]:
     wanted = set(images_every_frame(method)) | set(getattr(observer, "images_every_frame", ()))
     images = tuple(name for name in IMAGES if name in wanted)
     if images:
         frames = read_ahead(frames, images)
-    step_times: list[float] = []
-    rss_samples: list[tuple[int, int]] = []
-    first_t = last_t = None
-    wall_start = time.perf_counter()
-    cpu_start = time.process_time()
-    monitor = TreeMonitor().start()
+    meter = RunMeter()
     try:
-        count = 0
-        observer_time = 0.0
         if observer is not None:
-            t0 = time.perf_counter()
-            observer.start(method, context)
-            observer_time += time.perf_counter() - t0
+            with meter.observer():
+                observer.start(method, context)
         for frame in bar(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
-            t0 = time.perf_counter()
-            with _method_code(method_name, f"step() of frame {frame.index}"):
+            with meter.step(), _method_code(method_name, f"step() of frame {frame.index}"):
                 pose = method.step(frame)
-            step_times.append(time.perf_counter() - t0)
             if np.shape(pose) != (4, 4):
                 raise MethodError(f"method {method_name!r} returned a pose of shape {np.shape(pose)} for frame "
                                   f"{frame.index}; expected (4, 4)")
-            if first_t is None:
-                first_t = frame.timestamp
-            last_t = frame.timestamp
+            meter.frame_done(frame.timestamp)
             if observer is not None:
-                t0 = time.perf_counter()
-                observer.frame(frame, pose, method)
-                observer_time += time.perf_counter() - t0
-            if count % RSS_SAMPLE_EVERY == 0:
-                rss_samples.append((count, current_rss_bytes()))
-            count += 1
-        if count == 0:
+                with meter.observer():
+                    observer.frame(frame, pose, method)
+        if meter.frames == 0:
             raise InputError("the sequence has no frames")
-        t0 = time.perf_counter()
-        with _method_code(method_name, "finish()"):
+        with meter.finish(), _method_code(method_name, "finish()"):
             result = method.finish()
     finally:
-        usage = monitor.stop()
-    finish_time = time.perf_counter() - t0
-    cpu_time = time.process_time() - cpu_start
+        usage = meter.stop()
     if observer is not None:
-        t0 = time.perf_counter()
-        observer.finish(result)
-        observer_time += time.perf_counter() - t0
-    wall_time = time.perf_counter() - wall_start
-    rss_samples.append((count, current_rss_bytes()))
+        with meter.observer():
+            observer.finish(result)
+    return result, _measurements(method_name, spec, config, params, meter, usage, baseline_rss, result,
+                                 observer is not None)
 
-    steps = np.array(step_times)
-    method_time = float(steps.sum() + finish_time)
-    duration = float(last_t - first_t) + (float(last_t - first_t) / max(count - 1, 1))
-    measurements = {
+
+def _measurements(method_name: str, spec: Any, config: Any, params: dict[str, Any] | None, meter: RunMeter,
+                  usage: TreeUsage, baseline_rss: int, result: Result, observed: bool) -> RunMeasurements:
+    wall_time = meter.wall_time()
+    steps = meter.steps()
+    method_time = float(steps.sum() + meter.finish_time)
+    duration = meter.sequence_duration()
+    return RunMeasurements(
         **provenance(),
-        "method": method_name,
-        "params": dict(params or {}),
-        "config": to_mapping(config) if spec.config_type is not None else dict(config),
-        "frames": count,
-        "sequence_duration_s": duration,
-        "wall_time_s": wall_time,
-        "method_time_s": method_time,
-        "finish_time_s": finish_time,
-        # CPU time of the whole process, every thread, from the first frame to the end of `finish`:
-        # a method with threads of its own (ORB-SLAM3's mapping and loop closing) works beside
-        # `step`, which the wall-clock figures above do not see. Reading ahead (and an observer) count too.
-        "process_cpu_time_s": cpu_time,
-        "step_time_mean_s": float(steps.mean()),
-        "step_time_p95_s": float(np.percentile(steps, 95)),
-        "step_time_max_s": float(steps.max()),
-        # The mean step over each tenth of the frames: whether the per-frame cost grows with the route.
-        "step_time_mean_s_by_tenth": [float(part.mean()) for part in np.array_split(steps, 10) if len(part)],
-        # Simulated seconds per second of the method's own processing (reading frames excluded).
-        "real_time_factor": duration / method_time if method_time > 0 else float("inf"),
-        # The CPU the run was denied: how long its threads (and any child processes') were ready to run
-        # but waited for a core (run/process_tree.py), and that wait's share of wait plus CPU time.
-        "cpu_wait_s": usage.cpu_wait_s,
-        "cpu_wait_share": usage.cpu_wait_share,
-        "starved": usage.starved,
-        "tree_cpu_time_s": usage.cpu_time_s,
-        # Whose threads waited: [CPU s, wait s] by thread name, the 8 that waited longest.
-        "cpu_wait_by_thread": {name: [round(c, 3), round(w, 3)] for name, (c, w) in list(usage.by_thread.items())[:8]},
-        "child_processes": usage.child_processes,
-        # The process's own peak, or with child processes (a program run as a method) the largest
-        # sum of the tree's resident memory seen in one sample.
-        "peak_rss_bytes": max(peak_rss_bytes(), usage.peak_rss_bytes),
-        "baseline_rss_bytes": baseline_rss,
-        "rss_samples": rss_samples,
-        "method_stats": result.stats,
-    }
-    if observer is not None:
-        measurements["observer_time_s"] = observer_time
+        method=method_name,
+        params=dict(params or {}),
+        config=to_mapping(config) if spec.config_type is not None else dict(config),
+        frames=meter.frames,
+        sequence_duration_s=duration,
+        wall_time_s=wall_time,
+        method_time_s=method_time,
+        finish_time_s=meter.finish_time,
+        process_cpu_time_s=meter.cpu_time,
+        step_time_mean_s=float(steps.mean()),
+        step_time_p95_s=float(np.percentile(steps, 95)),
+        step_time_max_s=float(steps.max()),
+        step_time_mean_s_by_tenth=[float(part.mean()) for part in np.array_split(steps, 10) if len(part)],
+        real_time_factor=duration / method_time if method_time > 0 else float("inf"),
+        cpu_wait_s=usage.cpu_wait_s,
+        cpu_wait_share=usage.cpu_wait_share,
+        starved=usage.starved,
+        tree_cpu_time_s=usage.cpu_time_s,
+        cpu_wait_by_thread={name: [round(c, 3), round(w, 3)] for name, (c, w) in list(usage.by_thread.items())[:8]},
+        child_processes=usage.child_processes,
+        peak_rss_bytes=meter.peak_rss(),
+        baseline_rss_bytes=baseline_rss,
+        rss_samples=meter.rss_samples,
+        method_stats=result.stats,
+        observer_time_s=meter.observer_time if observed else None,
+    )
+
+
+def run_into_folder(
+    out: Path,
+    method_name: str,
+    frames: Iterable[Frame],
+    reader: SequenceReader,
+    params: dict[str, Any] | None,
+    about: dict[str, Any],
+    *,
+    progress: bool = False,
+    observer: RunObserver | None = None,
+    overwrite: bool = False,
+    may_replace: Callable[[Path], str | None] | None = None,
+    before_rename: Callable[[Path, Result, RunMeasurements], None] | None = None,
+) -> tuple[Result, RunMeasurements]:
+    """Run `method_name` over `frames` (of the sequence `reader` reads) into the run folder `out`,
+    whole or not at all: the method works in a temporary folder, its files and stats.json (with
+    `about`: what the run was given) are written there, `before_rename(tmp, ...)` adds its own, and
+    the folder is renamed to `out` last. Returns the result and the measurements."""
+    with atomic_path(out, overwrite=overwrite, may_replace=may_replace) as tmp:
+        tmp.mkdir(parents=True)
+        context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
+        result, measurements = run_frames(method_name, frames, context, params, total=len(reader),
+                                          progress=progress, observer=observer)
+        measurements.about.update(about)
+        measurements = measurements.in_folder(tmp, out)
+        write_result(tmp, result, measurements)
+        if before_rename is not None:
+            before_rename(tmp, result, measurements)
     return result, measurements
 
 
@@ -206,7 +207,7 @@ def run_sequence(
     progress: bool = True,
     intrinsics: str | tuple[float, float, float, float] | None = None,
     viz: str | None = None,
-) -> dict[str, Any]:
+) -> RunMeasurements:
     """Run a method over a sequence on disk and write the run folder `out`. Returns the measurements.
 
     `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one.
@@ -229,18 +230,15 @@ def run_sequence(
 
 
 def _run_into(method_name: str, sequence: str | Path, reader: SequenceReader, out: Path, params: dict[str, Any] | None,
-              overwrite: bool, progress: bool, observer: RunObserver | None) -> dict[str, Any]:
+              overwrite: bool, progress: bool, observer: RunObserver | None) -> RunMeasurements:
     clean_stale_partials(out.parent)  # run folders of runs that were killed
+    about: dict[str, Any] = {
+        "sequence": str(Path(sequence).resolve()),
+        "intrinsics": {**reader.intrinsics.to_dict(), "source": reader.intrinsics_source},
+    }
+    if reader.notes:
+        about["sequence_notes"] = list(reader.notes)
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
-    with atomic_path(out, overwrite=overwrite, may_replace=replace_guard(RUN)) as tmp:
-        tmp.mkdir(parents=True)
-        context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
-        result, measurements = run_frames(method_name, reader, context, params, total=len(reader), progress=progress,
-                                          observer=observer)
-        measurements["sequence"] = str(Path(sequence).resolve())
-        measurements["intrinsics"] = {**reader.intrinsics.to_dict(), "source": reader.intrinsics_source}
-        if reader.notes:
-            measurements["sequence_notes"] = list(reader.notes)
-        measurements = name_final_folder(measurements, tmp, out)
-        write_result(tmp, result, measurements)
+    _, measurements = run_into_folder(out, method_name, reader, reader, params, about, progress=progress,
+                                      observer=observer, overwrite=overwrite, may_replace=replace_guard(RUN))
     return measurements

@@ -35,6 +35,7 @@ from longslam.core.settings import to_toml
 from longslam.core.errors import InputError
 from longslam.slam.api import Event, Result, Table
 from longslam.io.grid_files import write_grid
+from longslam.run.measurements import RunMeasurements
 
 TRAJECTORY = "trajectory.txt"
 ONLINE = "online.txt"
@@ -64,14 +65,14 @@ def write_point_cloud(path: Path, points: np.ndarray) -> None:
     write_ply(path, chunks, comment="made by longslam")
 
 
-def write_config(out: Path, measurements: dict[str, Any]) -> None:
+def write_config(out: Path, method: str, config: dict[str, Any], sequence: str | None = None) -> None:
     """config.toml: the method and every parameter it ran with, as KISS-ICP keeps its config
     beside its results, so a run can be repeated from its folder alone."""
-    run = {"method": measurements["method"]}
-    if "sequence" in measurements:
-        run["sequence"] = measurements["sequence"]
+    run = {"method": method}
+    if sequence is not None:
+        run["sequence"] = sequence
     text = "# written by longslam: the method and the parameters this run used\n" + to_toml(
-        {"run": run, "params": measurements.get("config") or {}}
+        {"run": run, "params": config or {}}
     )
     write_text(out / CONFIG, text)
 
@@ -126,12 +127,12 @@ def read_table(path: Path) -> Table:
     return Table(columns, rows.reshape(-1, len(columns)))
 
 
-def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> None:
+def write_result(out: Path, result: Result, measurements: RunMeasurements) -> None:
     """Write a result's files into an existing folder; stats.json last, with the peak memory of
     the whole run (this writing included)."""
     write_tum(out / TRAJECTORY, result.trajectory)
     write_tum(out / ONLINE, result.online)
-    write_config(out, measurements)
+    write_config(out, measurements.method, measurements.config, measurements.about.get("sequence"))
     if result.grid is not None:
         write_grid(result.grid, out / GRID)
         write_map_server(result.grid, out / GRID_YAML)
@@ -146,5 +147,5 @@ def write_result(out: Path, result: Result, measurements: dict[str, Any]) -> Non
     # The peak so far covers writing every other file (Open3D's import and the map included):
     # stats.json, written last, is tiny. A run with child processes (a program run as a method)
     # keeps the larger peak the engine measured over its process tree.
-    measurements["peak_rss_bytes"] = max(int(measurements.get("peak_rss_bytes") or 0), peak_rss_bytes())
-    write_text(out / STATS, json.dumps(measurements, indent=2, default=json_default) + "\n")
+    measurements.peak_rss_bytes = max(measurements.peak_rss_bytes, peak_rss_bytes())
+    write_text(out / STATS, json.dumps(measurements.to_dict(), indent=2, default=json_default) + "\n")

@@ -13,6 +13,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
 from longslam.run.engine import run_sequence
 from longslam.run.folder import TRAJECTORY
+from longslam.run.measurements import RunMeasurements
 from longslam.run.score import score
 
 
@@ -50,7 +51,7 @@ def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any
     return payload
 
 
-def run_sequence_isolated(*args: Any, **kwargs: Any) -> dict[str, Any]:
+def run_sequence_isolated(*args: Any, **kwargs: Any) -> RunMeasurements:
     """`run_sequence` in a fresh process, so its peak memory is the run's alone."""
     return run_isolated(run_sequence, *args, **kwargs)
 
@@ -58,7 +59,7 @@ def run_sequence_isolated(*args: Any, **kwargs: Any) -> dict[str, Any]:
 def run_and_score(
     method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None, progress: bool = False,
     viz: str | None = None,
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[dict[str, Any], RunMeasurements]:
     """Run a method over a sequence in its own process, then score its final trajectory against the
     sequence's ground truth. Returns (scores, measurements): what the demo and benchmarks print."""
     measurements = run_sequence_isolated(method, sequence, out, params, overwrite=True, progress=progress, viz=viz)

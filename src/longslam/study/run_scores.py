@@ -18,6 +18,7 @@ from longslam.core.gridmap import GridMap
 from longslam.run.score import score
 from longslam.slam.api import Result
 from longslam.core.trajectory import Trajectory
+from longslam.run.measurements import RunMeasurements
 
 CURVE_POINTS = 600  # at most this many points of each curve (error, memory) are kept per run
 TruthLoader = Callable[[], tuple[GridMap, np.ndarray]]
@@ -40,7 +41,7 @@ def _thin_places(xy: np.ndarray, most: int = 500) -> list[list[float]]:
 
 def score_run(
     result: Result,
-    measurements: dict[str, Any],
+    measurements: RunMeasurements,
     truth: Trajectory,
     align: str = "none",
     load_truth: TruthLoader | None = None,
@@ -58,7 +59,7 @@ def score_run(
     at = np.clip(np.searchsorted(truth.timestamps, ref.timestamps), 0, len(truth) - 1)
     errors = ape_errors(ref, est, "translation")  # the ATE's per-pose term: no alignment
     error_curve = _thin(list(zip(travelled[at], errors)))
-    memory_curve = _thin([(travelled[min(int(i), len(truth) - 1)], rss) for i, rss in measurements["rss_samples"]])
+    memory_curve = _thin([(travelled[min(int(i), len(truth) - 1)], rss) for i, rss in measurements.rss_samples])
 
     quality = None
     if result.grid is not None and load_truth is not None:

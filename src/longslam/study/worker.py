@@ -15,18 +15,18 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from longslam.io.atomic import atomic_path, name_final_folder
 from longslam.io.sequence import SequenceReader
 from longslam.core.jsonable import json_default
-from longslam.run.engine import run_frames
-from longslam.run.folder import RECORD, RUN_FILES, write_result
+from longslam.run.engine import run_into_folder
+from longslam.run.measurements import RunMeasurements
+from longslam.run.folder import RECORD, RUN_FILES
 from longslam.sim.simulate import frames_with_odometry, noisy_odometry
 from longslam.core.odometry_noise import get_noise
 from longslam.sim.perturbations import parse_entry
 from longslam.sim.perturbations.stream import perturbed_frames
 from longslam.sim.sensors import get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
-from longslam.slam.api import MethodContext
+from longslam.slam.api import Result
 from longslam.study.prepare import render_once
 from longslam.study.record import OK, RunRecord
 from longslam.study.run_scores import TruthLoader, score_run
@@ -76,31 +76,33 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
     if run_dir.exists():  # from a run whose record never reached the database
         shutil.rmtree(run_dir)
     run_dir.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(run_dir) as tmp:
-        tmp.mkdir()
-        context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
-        frames = frames_with_odometry(reader, odometry)
-        motions = camera_motions(truth) if not sensor.is_ideal or perturbations else []
-        if not sensor.is_ideal:
-            frames = sensed_frames(frames, sensor, spec.seed, motions)
-        if perturbations:
-            frames = perturbed_frames(frames, perturbations, spec.seed, truth.timestamps, motions)
-        result, measurements = run_frames(spec.method_name, frames, context, spec.params, total=len(reader), progress=progress)
-        measurements.update(sequence=str(rendered), route=spec.route, noise=spec.noise, seed=spec.seed, label=spec.method)
-        if spec.camera_name:
-            measurements["camera"] = spec.camera_name
-        if spec.sensor:
-            measurements["sensor"] = spec.sensor
-        if spec.perturbation:
-            measurements["perturbation"] = spec.perturbation
-        measurements = name_final_folder(measurements, tmp, run_dir)
-        write_result(tmp, result, measurements)
+    frames = frames_with_odometry(reader, odometry)
+    motions = camera_motions(truth) if not sensor.is_ideal or perturbations else []
+    if not sensor.is_ideal:
+        frames = sensed_frames(frames, sensor, spec.seed, motions)
+    if perturbations:
+        frames = perturbed_frames(frames, perturbations, spec.seed, truth.timestamps, motions)
+    about: dict[str, Any] = {"sequence": str(rendered), "route": spec.route, "noise": spec.noise, "seed": spec.seed,
+                             "label": spec.method}
+    if spec.camera_name:
+        about["camera"] = spec.camera_name
+    if spec.sensor:
+        about["sensor"] = spec.sensor
+    if spec.perturbation:
+        about["perturbation"] = spec.perturbation
+    records: list[RunRecord] = []
+
+    def score_and_record(tmp: Path, result: Result, measurements: RunMeasurements) -> None:
         scores = score_run(result, measurements, truth, spec.align, load_truth, spec.map_tolerance_cells)
+        figures = measurements.to_dict()
+        del figures["rss_samples"]
         record = RunRecord(
-            OK, **scores,
-            measurements={k: v for k, v in measurements.items() if k != "rss_samples"},
-            host=socket.gethostname(),
+            OK, **scores, measurements=figures, host=socket.gethostname(),
             files={kind: name for kind, name in RUN_FILES.items() if (tmp / name).is_file()},
         )
         (tmp / RECORD).write_text(to_json(record) + "\n", encoding="utf-8", errors="surrogateescape")
-    return record
+        records.append(record)
+
+    run_into_folder(run_dir, spec.method_name, frames, reader, spec.params, about, progress=progress,
+                    before_rename=score_and_record)
+    return records[0]

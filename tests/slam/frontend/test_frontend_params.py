@@ -79,7 +79,7 @@ def test_each_front_end_field_is_a_parameter_and_lands_in_config_toml(method, pa
     # Only that field moved.
     others = [(p, _get(config.frontend, p)) for p, _, _ in LEAVES if p != path]
     assert others == [(p, d) for p, _, d in LEAVES if p != path]
-    write_config(tmp_path, {"method": method, "config": to_mapping(config)})
+    write_config(tmp_path, method, to_mapping(config))
     written = tomllib.loads((tmp_path / CONFIG).read_text())["params"]
     assert _get(written["frontend"], path) == (list(value) if isinstance(value, tuple) else value)
     # And the file reads back as the same config.
