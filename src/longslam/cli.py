@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import os
+import re
 import sys
 
 # One OpenBLAS thread per process unless the user sets it: a run's matrices are small, a study
@@ -16,7 +18,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from longslam.cli_errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
 from longslam.cli_output import configure, note
 from longslam.cli_parser import Parser, add_common_options
-from longslam.errors import LongslamError
+from longslam.errors import InputError, LongslamError
 
 log = logging.getLogger("longslam.cli")
 
@@ -43,7 +45,17 @@ def _camera(args: argparse.Namespace):
     from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 
     given = {field: getattr(args, f"camera_{key}") for key, field in CAMERA_KEYS.items()}
-    return from_mapping(CameraSettings, {k: v for k, v in given.items() if v is not None}, "camera")
+    try:
+        return from_mapping(CameraSettings, {k: v for k, v in given.items() if v is not None}, "camera")
+    except InputError as err:  # named as the user gave it: --fov, not the field hfov_deg
+        keys = {**{key: key for key in CAMERA_KEYS}, **{field: key for key, field in CAMERA_KEYS.items()}}
+        bad = re.match(r"camera(?: setting |: parameter )(\w+)(?: \(\w+\))?(=\S+:| must be)", str(err))
+        if bad is None or bad[1] not in keys:
+            raise
+        option = "--" + keys[bad[1]].replace("_", "-")
+        rest = str(err)[bad.end():].strip()
+        raise InputError(f"{option} {getattr(args, 'camera_' + keys[bad[1]])}: expected "
+                         f"{rest.removeprefix('expected ').split(', got ')[0]}") from None
 
 
 def _params(pairs: list[str]) -> dict:
@@ -188,9 +200,44 @@ def cmd_run(args: argparse.Namespace) -> None:
         note(f"{method}: {text}")
 
 
+# evaluate's library fields -> its options, for the checks that can only run on the poses
+EVALUATE_OPTIONS = {"n_to_align": "--n-to-align", "max_diff": "--t-max-diff", "min_step": "--min-step",
+                    "rpe_delta": "--delta", "delta_tol": "--delta-tol"}
+
+
+def _as_options(message: str) -> str:
+    return re.sub(r"\b(" + "|".join(EVALUATE_OPTIONS) + r")\b", lambda m: EVALUATE_OPTIONS[m[1]], message)
+
+
+def _check_evaluate_options(args: argparse.Namespace) -> list[str]:
+    """The evaluate options' values, checked before any file is read and named as options (the
+    library's checks name its fields); returns warnings for options that will have no effect."""
+    numbers = (("--delta", args.delta, lambda v: v > 0, "a number > 0 (in --delta-unit)"),
+               ("--delta-tol", args.delta_tol, lambda v: v >= 0, "a share of --delta >= 0"),
+               ("--t-max-diff", args.t_max_diff, lambda v: v >= 0, "a time difference >= 0 s"),
+               ("--t-offset", args.t_offset, lambda v: True, "a number of seconds"),
+               ("--min-step", args.min_step, lambda v: v > 0, "a length > 0 m"))
+    for option, value, ok, expected in numbers:
+        if not (math.isfinite(value) and ok(value)):
+            raise InputError(f"{option} {value:g}: expected a finite {expected.removeprefix('a ')}")
+    if args.n_to_align != -1 and args.n_to_align < 3:
+        raise InputError(f"--n-to-align {args.n_to_align}: expected -1 (all poses) or a whole number >= 3")
+    same = [p for p in (args.save_results, args.save_rpe_results) if p]
+    if len(same) == 2 and os.path.abspath(same[0]) == os.path.abspath(same[1]):
+        raise InputError(f"--save-results and --save-rpe-results both name {same[0]}; give each its own file")
+    warnings = []
+    if args.n_to_align != -1 and args.align == "none" and not args.align_flag and not args.correct_scale:
+        # only an alignment is fitted on the first N poses; without one the option changes nothing
+        warnings.append(f"--n-to-align {args.n_to_align} has no effect without --align (or -a, -s)")
+    return warnings
+
+
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from longslam.eval.evaluate_output import format_text, scores_json
     from longslam.run.score import score_files_full
+
+    for warning in _check_evaluate_options(args):
+        print(f"warning: {warning}", file=sys.stderr)
 
     for option, path, suffix in (("--save-plot", args.save_plot, None), ("--save-results", args.save_results, ".zip"),
                                  ("--save-rpe-results", args.save_rpe_results, ".zip")):
@@ -207,13 +254,16 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     warnings: list[str] = []
     # -a is --align's se3; --align sim3 beside it asks for more, and wins.
     align = "se3" if args.align_flag and args.align == "none" else args.align
-    evaluation = score_files_full(
-        args.estimate, args.groundtruth, align=align, max_diff=args.t_max_diff, min_step=args.min_step,
-        warnings=warnings, offset=args.t_offset, estimate_topic=args.est_topic, truth_topic=args.ref_topic,
-        delta=args.delta, delta_unit=args.delta_unit, all_pairs=args.all_pairs, delta_tol=args.delta_tol,
-        pairs_from_reference=args.pairs_from_reference, pose_relation=args.pose_relation,
-        correct_scale=args.correct_scale, align_origin=args.align_origin, n_to_align=args.n_to_align,
-    )
+    try:
+        evaluation = score_files_full(
+            args.estimate, args.groundtruth, align=align, max_diff=args.t_max_diff, min_step=args.min_step,
+            warnings=warnings, offset=args.t_offset, estimate_topic=args.est_topic, truth_topic=args.ref_topic,
+            delta=args.delta, delta_unit=args.delta_unit, all_pairs=args.all_pairs, delta_tol=args.delta_tol,
+            pairs_from_reference=args.pairs_from_reference, pose_relation=args.pose_relation,
+            correct_scale=args.correct_scale, align_origin=args.align_origin, n_to_align=args.n_to_align,
+        )
+    except InputError as err:  # the checks that need the poses name the library's fields
+        raise InputError(_as_options(str(err))) from None
     for warning in warnings:
         print(f"warning: {warning}", file=sys.stderr)
     names = (str(args.groundtruth), str(args.estimate))
