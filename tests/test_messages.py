@@ -96,12 +96,47 @@ def test_evaluate_errors_name_the_option_not_the_field(seq, capsys, option, need
 
 
 @pytest.mark.parametrize("option, needle", [
-    (["--fov", "0"], "--fov 0: expected a number in (0, 180) degrees"),
+    (["--fov", "0"], "--fov must be a number in (0, 180) degrees, got 0"),
     (["--fov", "nan"], "--fov nan: expected a finite number"),
-    (["--width", "0"], "--width 0: expected a positive integer"),
-    (["--max-depth", "20"], "--max-depth 20: expected a positive number of metres, at most 13.107"),
+    (["--width", "0"], "--width must be a positive integer, got 0"),
+    (["--max-depth", "20"], "--max-depth must be a positive number of metres, at most 13.107"),
 ])
 def test_camera_errors_name_the_option_not_the_field(tmp_path, capsys, option, needle):
     assert main(["simulate", "--route", "demo", "--out", str(tmp_path / "seq"), *option]) == 2
     assert "hfov_deg" not in one_line_error(capsys, needle)
     assert not (tmp_path / "seq").exists()
+
+
+def test_an_input_named_in_its_label_is_not_named_twice(seq, tmp_path, capsys):
+    assert main(["vocabulary", "build", "--sequence", str(seq), "--out", str(seq / "voc.txt")]) == 2
+    line = one_line_error(capsys, f"is inside the input {seq};")
+    assert f"{seq} {seq}" not in line
+
+
+def test_a_binary_vocabulary_is_called_binary_not_echoed(tmp_path):
+    from longslam.errors import InputError
+    from longslam.vocabulary.dbow2 import check_vocabulary_file
+
+    path = tmp_path / "voc.txt"
+    path.write_bytes(b"\xffJ\x07\xf4" + bytes(range(256)) * 4)
+    with pytest.raises(InputError) as refused:
+        check_vocabulary_file(path)
+    message = str(refused.value)
+    assert message.endswith("its first line is b'\\xffJ\\x07\\xf4'... (binary data, not text)"), message
+    path.write_bytes(b"10 6 0 0\n\x01\x02\xff\xfe garbage \x1b[31m red\n")
+    with pytest.raises(InputError, match=r"voc.txt:2: .*got 4: b'\\x01\\x02\\xff\\xfe'\.\.\. \(binary data, not text\)$"):
+        check_vocabulary_file(path)
+
+
+def test_a_full_disk_inside_a_write_names_the_output(seq, tmp_path, capsys, monkeypatch):
+    import errno
+
+    from longslam.eval import evo_results
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")  # as a write() deep in a library: no file
+
+    monkeypatch.setattr(evo_results, "save_ape_result", full)
+    zipped = tmp_path / "a.zip"
+    assert main(["evaluate", str(seq / "odometry.txt"), str(seq / "groundtruth.txt"), "--save-results", str(zipped)]) == 2
+    one_line_error(capsys, f"writing {zipped}: No space left on device", "the disk is full")

@@ -54,8 +54,9 @@ def _camera(args: argparse.Namespace):
             raise
         option = "--" + keys[bad[1]].replace("_", "-")
         rest = str(err)[bad.end():].strip()
-        raise InputError(f"{option} {getattr(args, 'camera_' + keys[bad[1]])}: expected "
-                         f"{rest.removeprefix('expected ').split(', got ')[0]}") from None
+        if bad[2] == " must be":
+            raise InputError(f"{option} must be {rest}") from None
+        raise InputError(f"{option} {getattr(args, 'camera_' + keys[bad[1]])}: {rest}") from None
 
 
 def _params(pairs: list[str]) -> dict:
@@ -774,6 +775,16 @@ def _glue_negative_values(argv: list[str], options: set[str]) -> list[str]:
     return out
 
 
+# The options that name what a command writes: a failure with no file of its own (a full disk
+# met inside a library's write) is said to be writing these.
+OUTPUT_OPTIONS = ("out", "save_plot", "save_results", "save_rpe_results")
+
+
+def _outputs(args: argparse.Namespace) -> str | None:
+    given = [str(getattr(args, name)) for name in OUTPUT_OPTIONS if getattr(args, name, None) not in (None, False, "")]
+    return " or ".join(given) or None
+
+
 def main(argv: list[str] | None = None) -> int:
     _tolerant_output()
     parser = build_parser()
@@ -791,7 +802,7 @@ def main(argv: list[str] | None = None) -> int:
     except EXPECTED_FAILURES as err:
         if getattr(args, "debug", False):
             raise
-        print(f"longslam {args.command}: error: {describe_failure(err, getattr(args, 'out', None))}", file=sys.stderr)
+        print(f"longslam {args.command}: error: {describe_failure(err, _outputs(args))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"longslam {args.command}: interrupted", file=sys.stderr)

@@ -44,13 +44,15 @@ def check_not_an_input(out: str | Path, inputs: Mapping[str, str | Path | None],
         if given is None:
             continue
         source = _real(given)
+        # a label that names its path already ("input seq160") is not followed by it again
+        named = label if label.endswith(f" {given}") else f"{label} {given}"
         if target == source:
-            raise InputError(f"{what} {out} is the {label} {given} itself; choose another --out")
+            raise InputError(f"{what} {out} is the {named} itself; choose another --out")
         if target in source.parents:
-            raise InputError(f"{what} {out} holds the {label} {given}; writing there would delete it; "
+            raise InputError(f"{what} {out} holds the {named}; writing there would delete it; "
                              "choose another --out")
         if inside and source in target.parents:
-            raise InputError(f"{what} {out} is inside the {label} {given}; write beside the input, not into it")
+            raise InputError(f"{what} {out} is inside the {named}; write beside the input, not into it")
 
 
 def _entries(path: Path) -> list[str]:
