@@ -207,6 +207,7 @@ EVALUATE_OPTIONS = {"n_to_align": "--n-to-align", "max_diff": "--t-max-diff", "m
 
 
 def _as_options(message: str) -> str:
+    message = message.replace("align='none'", "--align none")
     return re.sub(r"\b(" + "|".join(EVALUATE_OPTIONS) + r")\b", lambda m: EVALUATE_OPTIONS[m[1]], message)
 
 

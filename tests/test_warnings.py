@@ -1,0 +1,84 @@
+"""Warnings for what runs but is likely not what the user meant: an option that has no effect,
+poses of another frame, a shorter sequence, a wait or a planning that would otherwise be silent.
+Each was silent before its fix."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import write_tiny_sequence
+from longslam.cli import main
+
+
+@pytest.fixture()
+def seq(tmp_path) -> Path:
+    return write_tiny_sequence(tmp_path / "seq", n=30, turn=1.0)[0]
+
+
+def _warnings(err: str) -> list[str]:
+    return [line for line in err.splitlines() if line.startswith("warning:")]
+
+
+def test_n_to_align_without_align_is_warned_of(tmp_path, capsys):
+    from longslam.io.trajectory_files import write_tum
+    from longslam.trajectory import Trajectory
+
+    angle = np.linspace(0.0, 3.0, 30)
+    poses = np.tile(np.eye(4), (30, 1, 1))
+    poses[:, 0, 3], poses[:, 1, 3] = np.cos(angle), np.sin(angle)  # an arc, which an alignment can fit
+    files = [str(tmp_path / "est.txt"), str(tmp_path / "gt.txt")]
+    for file, shift in zip(files, (0.1, 0.0)):
+        moved = poses.copy()
+        moved[:, 0, 3] += shift
+        write_tum(Path(file), Trajectory(0.1 * np.arange(30), moved))
+    assert main(["evaluate", *files, "--n-to-align", "5"]) == 0
+    assert _warnings(capsys.readouterr().err) == ["warning: --n-to-align 5 has no effect without --align (or -a, -s)"]
+    for align in (["--align"], ["-a"], ["-s"]):
+        assert main(["evaluate", *files, "--n-to-align", "5", *align]) == 0
+        assert _warnings(capsys.readouterr().err) == []
+
+
+def _odometry_bag(path: Path, trajectory, child: str) -> None:
+    """A ROS 1 bag of one nav_msgs/Odometry topic, /odom, whose poses are of `child`."""
+    from rosbags.rosbag1 import Writer
+    from scipy.spatial.transform import Rotation
+
+    from longslam.io.rosbag.messages import MessageBuilder
+
+    builder = MessageBuilder("ros1")
+    types, msgtype = builder.types, "nav_msgs/msg/Odometry"
+    writer = Writer(path)
+    writer.open()
+    connection = writer.add_connection("/odom", msgtype, typestore=builder.store)
+    zero = types["geometry_msgs/msg/Vector3"](x=0, y=0, z=0)
+    for t, pose in zip(trajectory.timestamps, trajectory.poses):
+        ns = int(round(t * 1e9))
+        qx, qy, qz, qw = Rotation.from_matrix(pose[:3, :3]).as_quat()
+        geometry = types["geometry_msgs/msg/Pose"](
+            position=types["geometry_msgs/msg/Point"](x=pose[0, 3], y=pose[1, 3], z=pose[2, 3]),
+            orientation=types["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw))
+        message = types[msgtype](
+            header=builder.header(ns, "odom"), child_frame_id=child,
+            pose=types["geometry_msgs/msg/PoseWithCovariance"](pose=geometry, covariance=np.zeros(36)),
+            twist=types["geometry_msgs/msg/TwistWithCovariance"](
+                twist=types["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)))
+        writer.write(connection, ns, builder.serialize(message, msgtype))
+    writer.close()
+
+
+@pytest.mark.parametrize("child, warned", [("base_link", True), ("camera_color_optical_frame", False)])
+def test_a_bags_base_link_scored_against_camera_poses_is_warned_of(tmp_path, capsys, child, warned):
+    pytest.importorskip("rosbags")
+    path, truth, odometry = write_tiny_sequence(tmp_path / "seq", n=30)
+    bag = tmp_path / "odom.bag"
+    _odometry_bag(bag, odometry, child)
+    assert main(["evaluate", str(bag), str(path)]) == 0
+    found = _warnings(capsys.readouterr().err)
+    if warned:
+        assert len(found) == 1 and "/odom in" in found[0] and "poses of base_link" in found[0] \
+            and "groundtruth.txt of camera poses" in found[0], found
+    else:
+        assert found == []
