@@ -82,3 +82,16 @@ def test_a_bags_base_link_scored_against_camera_poses_is_warned_of(tmp_path, cap
             and "groundtruth.txt of camera poses" in found[0], found
     else:
         assert found == []
+
+
+def test_diagnose_against_a_shorter_sequence_is_warned_of(tmp_path, capsys):
+    long_seq = write_tiny_sequence(tmp_path / "long", n=40)[0]
+    short = write_tiny_sequence(tmp_path / "short", n=10)[0]
+    run = tmp_path / "run"
+    assert main(["run", "--method", "odometry", str(long_seq), "--out", str(run)]) == 0
+    capsys.readouterr()
+    assert main(["diagnose", str(run), str(short)]) == 0
+    found = _warnings(capsys.readouterr().err)
+    assert any("only 10 of 40 poses" in w and "cover that part only" in w for w in found), found
+    assert main(["diagnose", str(run), str(long_seq)]) == 0
+    assert _warnings(capsys.readouterr().err) == []

@@ -90,6 +90,20 @@ def coverage(truth: Trajectory, estimate: Trajectory, max_diff: float, by_index:
     }
 
 
+def coverage_warnings(shares: dict[str, Any], poses: int, est_file: str, ref_file: str, max_diff: float) -> list[str]:
+    """What `coverage` (of an estimate of `poses` poses) leaves doubtful, one warning each:
+    evaluate's and diagnose's (a run diagnosed against a shorter sequence) check."""
+    found = []
+    if shares["matched_share_estimate"] < COVERAGE_WARNING:
+        found.append(f"only {shares['matched_poses']} of {poses} poses of {est_file} "
+                     f"({shares['matched_share_estimate']:.0%}) have a ground-truth pose within {max_diff} s; "
+                     "the scores cover that part only")
+    if shares["matched_share_groundtruth_span"] < COVERAGE_WARNING:
+        found.append(f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
+                     f"of {ref_file}; the scores cover that part of the route only")
+    return found
+
+
 def _run_sequence_of(estimate: Path) -> str | None:
     """The sequence a run folder's stats.json says it ran on, if it says."""
     import json
@@ -202,13 +216,7 @@ def score_files_full(estimate: str | Path, truth: str | Path, align: str | bool 
     shares = coverage(ref, est, max_diff, by_index, offset)
     evaluation.scores.update(shares)
     if warnings is not None:
-        if shares["matched_share_estimate"] < COVERAGE_WARNING:
-            warnings.append(f"only {shares['matched_poses']} of {len(est)} poses of {est_file} "
-                            f"({shares['matched_share_estimate']:.0%}) have a ground-truth pose within {max_diff} s; "
-                            "the scores cover that part only")
-        if shares["matched_share_groundtruth_span"] < COVERAGE_WARNING:
-            warnings.append(f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
-                            f"of {ref_file}; the scores cover that part of the route only")
+        warnings += coverage_warnings(shares, len(est), est_file, ref_file, max_diff)
         body = body_frame_warning(est_frames, est_format, est_file, ref_frames, ref_format, ref_file)
         if body is not None:
             warnings.append(body)
