@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import one_line_error
+from conftest import TINY_VOCABULARY, one_line_error
 from longslam.cli import main
 
 STUDY = 'name = "s"\nroutes = ["demo"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = [0]\n'
@@ -19,3 +19,20 @@ def test_a_study_camera_deeper_than_a_sequence_stores_creates_no_folder(tmp_path
     assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
     one_line_error(capsys, str(study), "max_depth", "at most 13.107", "got 20")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_damaged_cached_default_vocabulary_is_built_again(vocabulary_cache, caplog):
+    from longslam.vocabulary import default
+
+    built = vocabulary_cache
+    path = default.default_vocabulary_path()
+    path.parent.mkdir(parents=True)
+    path.write_text("10 5 0 0\n0 0 garbage\n")  # cut short by a crash or a full disk
+    with caplog.at_level("WARNING", logger="longslam"):
+        assert default.default_vocabulary(progress=False)[0] == path
+    assert built == [path] and path.read_text() == TINY_VOCABULARY
+    assert any("the cached default vocabulary" in r.getMessage() and "building it again" in r.getMessage()
+               for r in caplog.records)
+    assert default.default_vocabulary(progress=False)[0] == path and len(built) == 1  # whole now: used
+    path.write_text(TINY_VOCABULARY.replace("7", "8"))  # still a sound tree, but not the one built
+    assert default.default_vocabulary(progress=False)[0] == path and len(built) == 2

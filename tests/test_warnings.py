@@ -95,3 +95,27 @@ def test_diagnose_against_a_shorter_sequence_is_warned_of(tmp_path, capsys):
     assert any("only 10 of 40 poses" in w and "cover that part only" in w for w in found), found
     assert main(["diagnose", str(run), str(long_seq)]) == 0
     assert _warnings(capsys.readouterr().err) == []
+
+
+def test_waiting_for_another_build_of_the_default_vocabulary_says_so(vocabulary_cache, monkeypatch, caplog):
+    import fcntl
+    import threading
+
+    from longslam.vocabulary import default
+
+    monkeypatch.setattr(default, "WAIT_NOTE_S", 0.2)
+    path = default.default_vocabulary_path()
+    path.parent.mkdir(parents=True)
+    with open(path.with_suffix(".lock"), "w") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)  # another process's build
+        waiter = threading.Thread(target=default.default_vocabulary, kwargs={"progress": False})
+        with caplog.at_level("WARNING", logger="longslam"):
+            waiter.start()
+            waiter.join(1.0)
+            assert waiter.is_alive()
+            fcntl.flock(held, fcntl.LOCK_UN)
+            waiter.join(10.0)
+    notes = [r.getMessage() for r in caplog.records]
+    assert any("another process is building the default vocabulary" in n and str(path) in n for n in notes), notes
+    assert any("still waiting for the default vocabulary" in n for n in notes), notes
+    assert vocabulary_cache == [path]
