@@ -187,7 +187,7 @@ def cmd_run(args: argparse.Namespace) -> None:
     method, sequence, params = _run_inputs(args)
     log.info("run: method %s on %s into %s, parameters %s", method, sequence, args.out, params or "the defaults")
     measurements = run_sequence(method, sequence, args.out, params, overwrite=args.overwrite,
-                                intrinsics=args.intrinsics, viz=args.viz)
+                                intrinsics=args.intrinsics, viz=args.viz, prepare=True)
     from longslam.run.speed import describe_real_time_factor
 
     print(

@@ -186,10 +186,15 @@ def run_sequence(
     progress: bool = True,
     intrinsics: str | tuple[float, float, float, float] | None = None,
     viz: str | None = None,
+    prepare: bool = False,
 ) -> dict[str, Any]:
     """Run a method over a sequence on disk and write the run folder `out`. Returns the measurements.
 
     `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one.
+    `prepare`: first do the method's once-per-machine work (ORB-SLAM3's default vocabulary, say) in
+    a process of its own, once the inputs are checked, so that it is in neither the run's time nor
+    its peak memory (this process's peak is part of the run's); a study or the demo prepares once
+    for all its runs instead.
     `viz`: "viewer" streams the run to a rerun viewer, a path ending in .rrd records it there
     (`longslam.viz.live`, the optional extra `longslam[viz]`)."""
     out = check_output_folder(out, "run folder")
@@ -199,6 +204,17 @@ def run_sequence(
     if viz is not None and viz != "viewer":
         check_not_an_input(viz, {"input sequence": sequence, "run folder": out}, "--viz")
     reader = SequenceReader(sequence, intrinsics=intrinsics)
+    if prepare:
+        spec = get_spec(method_name)
+        spec.config(params)  # a bad parameter is refused here, not in the other process
+        if spec.prepare is not None:
+            import logging
+
+            from longslam import progress as bars
+            from longslam.run.isolate import prepare_method, run_isolated
+
+            run_isolated(prepare_method, spec, params, bars.setting() if progress else False,
+                         logging.getLogger("longslam").getEffectiveLevel())
     if viz is not None:
         from longslam.viz.live import LiveView  # rerun is imported only when a view is asked for
 
