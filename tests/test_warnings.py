@@ -131,9 +131,9 @@ def test_a_long_route_plans_each_leg_once_and_says_it_takes_a_while(monkeypatch,
     plan = NavigationGrid.shortest_path
     monkeypatch.setattr(NavigationGrid, "shortest_path", lambda self, a, b: planned.append((a, b)) or plan(self, a, b))
     monkeypatch.setattr(drive, "LONG_ROUTE_LEGS", 10)
-    route = get_route("demo-x3")  # demo's 6 legs 3 times over, 18 in all; demo-x1000 was silent for 8 minutes
+    route = get_route("demo-x3")  # demo's legs 3 times over, joined: 20 legs; demo-x1000 was silent for 8 minutes
     with caplog.at_level("WARNING", logger="longslam"):
         driven = drive.drive_route(load_world(route.world), route)
     assert len(planned) == len(set(map(str, planned))) <= 7
-    assert len(driven.waypoint_frames) == 19
-    assert [r.getMessage() for r in caplog.records] == ["note: route demo-x3: planning and driving its 18 legs takes a while"]
+    assert len(driven.waypoint_frames) == len(route.waypoints) == 21
+    assert [r.getMessage() for r in caplog.records] == ["note: route demo-x3: planning and driving its 20 legs takes a while"]
