@@ -137,3 +137,34 @@ def test_a_long_route_plans_each_leg_once_and_says_it_takes_a_while(monkeypatch,
     assert len(planned) == len(set(map(str, planned))) <= 7
     assert len(driven.waypoint_frames) == len(route.waypoints) == 21
     assert [r.getMessage() for r in caplog.records] == ["note: route demo-x3: planning and driving its 20 legs takes a while"]
+
+
+def test_a_one_frame_run_has_no_real_time_factor(tmp_path, capsys):
+    import json
+
+    seq = write_tiny_sequence(tmp_path / "seq", n=1)[0]
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run")]) == 0
+    out = capsys.readouterr().out
+    assert "real-time factor unknown (the sequence spans no time)" in out and "slower than real time" not in out
+    assert json.loads((tmp_path / "run" / "stats.json").read_text())["real_time_factor"] is None
+
+
+def _count_with_a_bar() -> int:
+    from longslam.progress import bar
+
+    return sum(1 for _ in bar(range(50), desc="counting", mininterval=0))
+
+
+def test_demo_draws_no_bars_when_stderr_is_not_a_terminal(tmp_path, capfd, monkeypatch):
+    from longslam import demo, progress
+    from longslam.run.isolate import run_isolated
+
+    given = {}
+    monkeypatch.setattr(demo, "run_demo", lambda *a, **k: given.update(k) or ([], tmp_path / "trajectories.png"))
+    monkeypatch.setattr(demo, "format_table", lambda rows: "")
+    assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
+    assert given["progress"] is False  # stderr is pytest's capture, not a terminal
+    # a run of the demo is in a process of its own, which must not draw them either
+    assert not progress.enabled()
+    assert run_isolated(_count_with_a_bar) == 50
+    assert "counting" not in capfd.readouterr().err

@@ -392,8 +392,11 @@ def cmd_demo(args: argparse.Namespace) -> None:
         from longslam.viz.live import check_target
 
         check_target(args.viz, args.overwrite)
+    from longslam import progress
+
+    # bars only where the command draws them: on a terminal, without --quiet or --no-progress
     rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz,
-                          overwrite=args.overwrite)
+                          overwrite=args.overwrite, progress=progress.enabled())
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")

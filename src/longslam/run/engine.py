@@ -155,7 +155,9 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
         # The mean step over each tenth of the frames: whether the per-frame cost grows with the route.
         "step_time_mean_s_by_tenth": [float(part.mean()) for part in np.array_split(steps, 10) if len(part)],
         # Simulated seconds per second of the method's own processing (reading frames excluded).
-        "real_time_factor": duration / method_time if method_time > 0 else float("inf"),
+        # A sequence that spans no time (one frame) has no pace to compare: None, not 0 ("slower than
+        # real time" of a run that took a millisecond).
+        "real_time_factor": None if duration <= 0 else duration / method_time if method_time > 0 else float("inf"),
         # The CPU the run was denied: how long its threads (and any child processes') were ready to run
         # but waited for a core (run/process_tree.py), and that wait's share of wait plus CPU time.
         "cpu_wait_s": usage.cpu_wait_s,

@@ -17,7 +17,10 @@ from longslam.run.folder import TRAJECTORY
 from longslam.run.score import score
 
 
-def _child(queue: mp.Queue, function: Callable[..., Any], args: tuple, kwargs: dict) -> None:
+def _child(queue: mp.Queue, function: Callable[..., Any], args: tuple, kwargs: dict, bars: bool | None = None) -> None:
+    from longslam import progress
+
+    progress.set_enabled(bars)  # a spawned process starts with tqdm's default: bars into a log file
     try:
         queue.put(("ok", function(*args, **kwargs)))
     except LongslamError as err:  # bad input: the parent raises it as its own one-line error
@@ -48,7 +51,9 @@ def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any
     `function` must be importable by name (a module-level function)."""
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    proc = ctx.Process(target=_child, args=(queue, function, args, kwargs))
+    from longslam import progress
+
+    proc = ctx.Process(target=_child, args=(queue, function, args, kwargs, progress.setting()))
     proc.start()
     # Poll rather than block: a child killed outright (out of memory, a signal) never reports.
     while True:
