@@ -36,3 +36,27 @@ def test_a_damaged_cached_default_vocabulary_is_built_again(vocabulary_cache, ca
     assert default.default_vocabulary(progress=False)[0] == path and len(built) == 1  # whole now: used
     path.write_text(TINY_VOCABULARY.replace("7", "8"))  # still a sound tree, but not the one built
     assert default.default_vocabulary(progress=False)[0] == path and len(built) == 2
+
+
+def test_a_study_sensor_is_suggested_and_a_plugin_that_cannot_load_stops_the_study(tmp_path, capsys, monkeypatch):
+    site = tmp_path / "site"
+    dist = site / "longslam_broken_sensor-0.1.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: longslam-broken-sensor\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[longslam.sensors]\nmissing = longslam_no_such_sensor_module:Model\n")
+    monkeypatch.syspath_prepend(str(site))
+    study = tmp_path / "study.toml"
+    for sensors, needles in (('["kinect-v2"]', ["sensors[0]", "unknown sensor 'kinect-v2' (did you mean 'kinect-v1'?)"]),
+                             ('["ideal", "missing"]', ["sensors[1]", "sensor 'missing'", "cannot be loaded",
+                                                       "longslam_no_such_sensor_module"])):
+        study.write_text(STUDY + f"sensors = {sensors}\n")
+        assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
+        one_line_error(capsys, str(study), *needles)
+        assert not (tmp_path / "out").exists()
+
+
+def test_a_study_method_variant_is_suggested(tmp_path, capsys):
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY + '[variants.fast]\nmethod = "keyfram"\n')
+    assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
+    one_line_error(capsys, "variants.fast.method", "unknown method 'keyfram' (did you mean 'keyframe'?)")
