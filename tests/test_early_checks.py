@@ -60,3 +60,16 @@ def test_a_study_method_variant_is_suggested(tmp_path, capsys):
     study.write_text(STUDY + '[variants.fast]\nmethod = "keyfram"\n')
     assert main(["study", str(study), "--out", str(tmp_path / "out")]) == 2
     one_line_error(capsys, "variants.fast.method", "unknown method 'keyfram' (did you mean 'keyframe'?)")
+
+
+@pytest.mark.parametrize("ran, failed, code", [(3, 3, 2), (3, 2, 0), (0, 0, 0)])
+def test_a_study_all_of_whose_runs_failed_exits_with_an_error(tmp_path, capsys, monkeypatch, ran, failed, code):
+    from longslam.study import driver
+
+    summary = driver.StudySummary(3, 3 - ran, ran, failed, 1.0, tmp_path / "out" / "results.sqlite", None)
+    monkeypatch.setattr(driver, "run_study", lambda *a, **k: summary)
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY)
+    assert main(["study", str(study), "--out", str(tmp_path / "out")]) == code
+    err = capsys.readouterr().err
+    assert ("error: every run of the study failed (3 of 3)" in err) == (code == 2), err

@@ -472,6 +472,10 @@ def cmd_study(args: argparse.Namespace) -> None:
     )
     if summary.report is not None:
         print(f"report: {summary.report} and {summary.report.with_suffix('.md')}")
+    if summary.ran and summary.failed == summary.ran:
+        # a study none of whose runs worked is a failure of the command, for a script or CI to see
+        raise LongslamError(f"every run of the study failed ({summary.failed} of {summary.ran}); why is in the "
+                            f"report's failures and each run's log under {args.out}")
 
 
 def cmd_report(args: argparse.Namespace) -> None:
