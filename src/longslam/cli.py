@@ -184,6 +184,10 @@ def cmd_run(args: argparse.Namespace) -> None:
         from longslam.viz.live import check_target
 
         check_target(args.viz, args.overwrite)
+    if args.config is not None:  # --overwrite would delete the config it reads: RUN/config.toml --out RUN
+        from longslam.io.outputs import check_not_an_input
+
+        check_not_an_input(args.out, {"--config": args.config}, "run folder")
     method, sequence, params = _run_inputs(args)
     log.info("run: method %s on %s into %s, parameters %s", method, sequence, args.out, params or "the defaults")
     measurements = run_sequence(method, sequence, args.out, params, overwrite=args.overwrite,
@@ -495,10 +499,11 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
 
     check_tree_size(args.k, args.levels)  # all before a route is rendered
     check_features(args.features)
-    check_output(args.out, args.overwrite)
     from longslam.io.outputs import check_not_an_input
 
+    # an input first: that is the better reason to refuse a file of the input sequence
     check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")
+    check_output(args.out, args.overwrite)
     from longslam.simulate import check_seed
 
     check_seed(args.seed, "--seed")  # the same range wherever a seed enters

@@ -197,6 +197,9 @@ def check_target(target: str, overwrite: bool = False) -> None:
                          "replaces only regular files; choose another path")
     if (path.exists() or path.is_symlink()) and not overwrite:
         raise InputError(f"--viz {target} exists already; choose another file or pass --overwrite")
+    from longslam.io.outputs import check_output_file_free
+
+    check_output_file_free(path, overwrite, "--viz")  # an existing file only if it is a recording
 
 
 class LiveView:
