@@ -73,3 +73,18 @@ def test_a_study_all_of_whose_runs_failed_exits_with_an_error(tmp_path, capsys, 
     assert main(["study", str(study), "--out", str(tmp_path / "out")]) == code
     err = capsys.readouterr().err
     assert ("error: every run of the study failed (3 of 3)" in err) == (code == 2), err
+
+
+@pytest.mark.parametrize("method, param, needle", [
+    ("submap", "frontend.scan_information_scale=-1", "scan_information_scale must be >= 0 and finite, got -1.0"),
+    ("keyframe", "frontend.max_correction=-0.5", "max_correction must be >= 0 and finite, got -0.5"),
+    ("submap", "frontend.visual_sigma_yaw=0", "visual_sigma_yaw must be > 0 and finite, got 0.0"),
+    ("keyframe", "frontend.scan_anchor_lag=0", "scan_anchor_lag must be at least 1"),
+])
+def test_nonsense_front_end_parameters_are_refused_before_the_run(tmp_path, capsys, method, param, needle):
+    from conftest import write_tiny_sequence
+
+    seq = write_tiny_sequence(tmp_path / "seq", n=5)[0]
+    assert main(["run", "--method", method, str(seq), "--out", str(tmp_path / "run"), "--param", param]) == 2
+    one_line_error(capsys, "front end", needle)
+    assert not (tmp_path / "run").exists()
