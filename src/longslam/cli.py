@@ -379,10 +379,11 @@ def cmd_import(args: argparse.Namespace) -> None:
     bar, update = _progress_bar("import")
     with bar:
         summary = import_bag(args.bag, args.out, topics, max_diff=args.max_diff, max_depth=args.max_depth,
-                             groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite, progress=update)
+                             groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite, progress=update,
+                             intrinsics=args.intrinsics)
     t = summary.topics
     print(f"wrote sequence {summary.path}: {summary.frames} frames from {t.rgb} ({summary.rgb_messages} messages) "
-          f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info}; "
+          f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info or '--intrinsics'}; "
           f"odometry {'from ' + t.odom if summary.odometry else 'none'}; "
           f"ground truth {'from ' + t.groundtruth if summary.groundtruth else 'none'}")
     for text in summary.notes:
@@ -667,6 +668,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the frame a PoseStamped ground truth is the pose of (default: the odometry's child frame)")
     p.add_argument("--max-diff", type=float, default=0.02, help="colour-depth pairing tolerance in seconds (default 0.02)")
     p.add_argument("--max-depth", type=float, help="depth range in metres; farther is 'no return' (default 13.107, the 16-bit limit)")
+    p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
+                   help="the colour camera's intrinsics in pixels, for a bag without CameraInfo (instead of --camera-info)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     p.set_defaults(func=cmd_import)
 
