@@ -153,3 +153,24 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.module.__name__.rsplit(".", 1)[-1] in SLOW_MODULES or item.originalname in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+
+
+TINY_VOCABULARY = "2 1 0 0\n" + ("0 1 " + " ".join(["7"] * 32) + " 1.0\n") * 2  # k 2, L 1: a root and 2 words
+
+
+@pytest.fixture()
+def vocabulary_cache(tmp_path, monkeypatch):
+    """A cache of its own whose default vocabulary 'build' writes TINY_VOCABULARY at once; the
+    list of builds it made."""
+    from longslam.vocabulary import build
+
+    monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
+    built: list[Path] = []
+
+    def fake_build(sequence, out, **kwargs):
+        Path(out).write_text(TINY_VOCABULARY)
+        built.append(Path(out))
+
+    monkeypatch.setattr(build, "rendered_route", lambda *a, **k: tmp_path)
+    monkeypatch.setattr(build, "build_vocabulary_file", fake_build)
+    return built

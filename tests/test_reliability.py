@@ -133,12 +133,13 @@ def test_the_final_rename_keeps_a_folder_that_became_the_users(seq, tmp_path, mo
 
 def test_world_out_refuses_an_existing_file_without_overwrite(tmp_path, capsys):
     plan = tmp_path / "plan.png"
-    plan.write_bytes(b"keep")
+    keep = b"\x89PNG\r\n\x1a\nkeep"  # an image: --overwrite replaces only one (test_overwrite_kinds.py)
+    plan.write_bytes(keep)
     assert main(["world", "--out", str(plan)]) == 2
     one_line_error(capsys, str(plan), "exists already", "--overwrite")
-    assert plan.read_bytes() == b"keep"
+    assert plan.read_bytes() == keep
     assert main(["world", "--out", str(plan), "--overwrite"]) == 0
-    assert plan.read_bytes() != b"keep"
+    assert plan.read_bytes() != keep
 
 
 def test_viz_file_refused_without_overwrite(seq, tmp_path, capsys):

@@ -143,7 +143,7 @@ def _pose(ts, pose):
                                        orientation=T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3]))
 
 
-def write_robot_bag(path: Path, depth_shift_s: float = 0.004, with_static_tf: bool = True):
+def write_robot_bag(path: Path, depth_shift_s: float = 0.004, with_static_tf: bool = True, with_camera_info: bool = True):
     """A ROS 1 bag as a wheeled robot with a Kinect-like camera records it: bgr8 colour at 10 Hz,
     16UC1 depth 4 ms later, CameraInfo, wheel odometry at 50 Hz (odom -> base_footprint), the
     camera two static links up (base_footprint -> camera_link -> camera_rgb_optical_frame), and
@@ -168,7 +168,8 @@ def write_robot_bag(path: Path, depth_shift_s: float = 0.004, with_static_tf: bo
     with Writer1(path) as bag:
         c_rgb = bag.add_connection("/camera/rgb/image_color", "sensor_msgs/msg/Image", typestore=ts)
         c_depth = bag.add_connection("/camera/depth_registered/image_raw", "sensor_msgs/msg/Image", typestore=ts)
-        c_info = bag.add_connection("/camera/rgb/camera_info", "sensor_msgs/msg/CameraInfo", typestore=ts)
+        c_info = (bag.add_connection("/camera/rgb/camera_info", "sensor_msgs/msg/CameraInfo", typestore=ts)
+                  if with_camera_info else None)
         c_odom = bag.add_connection("/wheel_odom", "nav_msgs/msg/Odometry", typestore=ts)
         c_gt = bag.add_connection("/mocap/pose", "geometry_msgs/msg/PoseStamped", typestore=ts)
         c_static = bag.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=ts, latching=1)
@@ -204,7 +205,8 @@ def write_robot_bag(path: Path, depth_shift_s: float = 0.004, with_static_tf: bo
                 header=_header(ts, t_ns, "camera_rgb_optical_frame"), height=H, width=W, distortion_model="plumb_bob",
                 D=np.zeros(5), K=np.array([FX, 0, CX, 0, FY, CY, 0, 0, 1.0]), R=np.eye(3).reshape(-1),
                 P=np.array([FX, 0, CX, 0, 0, FY, CY, 0, 0, 0, 1.0, 0]), binning_x=0, binning_y=0, roi=roi)
-            bag.write(c_info, t_ns, ts.serialize_ros1(info, "sensor_msgs/msg/CameraInfo"))
+            if c_info is not None:
+                bag.write(c_info, t_ns, ts.serialize_ros1(info, "sensor_msgs/msg/CameraInfo"))
             gt = T["geometry_msgs/msg/PoseStamped"](header=_header(ts, t_ns + 1_000_000, "world"),
                                                     pose=_pose(ts, planar_poses(robot(t_ns + 1_000_000)[None])[0]))
             bag.write(c_gt, t_ns + 1_000_000, ts.serialize_ros1(gt, "geometry_msgs/msg/PoseStamped"))
@@ -298,3 +300,18 @@ def test_tf_buffer_chains_and_interpolates():
         tf.lookup("odom", "camera", 5 * 10**9)
     with pytest.raises(InputError, match="more than one parent"):
         tf.add("map", "base", mount, 0, static=True)
+
+
+def test_import_of_a_bag_without_camera_info_takes_the_intrinsics_given(tmp_path, capsys):
+    write_robot_bag(tmp_path / "robot.bag", with_camera_info=False)
+    out = tmp_path / "seq"
+    assert main(["import", str(tmp_path / "robot.bag"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "no sensor_msgs/CameraInfo topic" in err and "--intrinsics fx,fy,cx,cy" in err and not out.exists()
+    assert main(["import", str(tmp_path / "robot.bag"), "--out", str(out), "--intrinsics", f"{FX},{FY},{CX},{CY}"]) == 0
+    assert "camera from --intrinsics" in capsys.readouterr().out
+    seq = SequenceReader(out)
+    assert (seq.intrinsics.width, seq.intrinsics.height, seq.intrinsics.fx, seq.intrinsics.cy) == (W, H, FX, CY)
+    for bad, needle in (("1,2,3", "expected fx,fy,cx,cy"), ("-1,2,3,4", "fx and fy positive")):
+        assert main(["import", str(tmp_path / "robot.bag"), "--out", str(tmp_path / "bad"), "--intrinsics", bad]) == 2
+        assert needle in capsys.readouterr().err and not (tmp_path / "bad").exists()

@@ -61,7 +61,7 @@ def test_the_ideal_sensor_is_the_runs_of_a_study_without_sensors(tmp_path):
 
 
 @pytest.mark.parametrize("sensors, key, needle", [
-    ('sensors = ["ideal", "kinect"]', "sensors[1]", "unknown sensor 'kinect'; valid values: ideal, kinect-v1, realsense-d435"),
+    ('sensors = ["ideal", "kinect"]', "sensors[1]", "unknown sensor 'kinect' (did you mean 'kinect-v1'?); valid values: ideal, kinect-v1, realsense-d435"),
     ('sensors = ["kinect-v1", "kinect-v1"]', "sensors[1]", "'kinect-v1' is listed twice"),
     ("sensors = []", "sensors", "expected a non-empty list of sensor"),
     ("sensors = [1]", "sensors[0]", "expected a sensor (a string)"),

@@ -33,6 +33,12 @@ def noise_levels(**_: Any) -> list[str]:
     return list(NOISE_LEVELS)
 
 
+def sensor_names(**_: Any) -> list[str]:
+    from longslam.sim.sensors import sensor_names as names
+
+    return names()  # plugins' too
+
+
 def world_names(prefix: str = "", **kwargs: Any) -> list[str]:
     from longslam.world import WORLDS
 
@@ -55,7 +61,8 @@ def method_params(parsed_args: argparse.Namespace | None = None, **_: Any) -> li
 
 
 COMPLETERS = {"method": method_names, "route": route_names, "noise": noise_levels, "odom_noise": noise_levels,
-              "world": world_names, "param": method_params, "params_of": method_names}
+              "world": world_names, "param": method_params, "params_of": method_names,
+             "sensor": sensor_names}
 
 
 def attach_completers(parser: argparse.ArgumentParser) -> None:

@@ -29,8 +29,8 @@ def describe_failure(err: BaseException, out: str | None = None) -> str:
         if err.filename is not None:
             other = f" -> {err.filename2}" if err.filename2 is not None else ""
             return f"{err.filename}{other}: {what}"
-        return f"writing under {out}: {what}" if out else what
-    return f"{err}" + (f" (writing under {out})" if out else "")
+        return f"writing {out}: {what}" if out else what
+    return f"{err}" + (f" (writing {out})" if out else "")
 
 
 def quiet_broken_pipe() -> int:

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import os
+import re
 import sys
 import traceback
 
@@ -17,7 +19,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from longslam.cli.errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe
 from longslam.cli.output import configure, note
 from longslam.cli.parser import Parser, add_common_options
-from longslam.core.errors import LongslamError, MethodError
+from longslam.core.errors import InputError, LongslamError, MethodError
 
 log = logging.getLogger("longslam.cli.main")
 
@@ -44,7 +46,18 @@ def _camera(args: argparse.Namespace):
     from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 
     given = {field: getattr(args, f"camera_{key}") for key, field in CAMERA_KEYS.items()}
-    return from_mapping(CameraSettings, {k: v for k, v in given.items() if v is not None}, "camera")
+    try:
+        return from_mapping(CameraSettings, {k: v for k, v in given.items() if v is not None}, "camera")
+    except InputError as err:  # named as the user gave it: --fov, not the field hfov_deg
+        keys = {**{key: key for key in CAMERA_KEYS}, **{field: key for key, field in CAMERA_KEYS.items()}}
+        bad = re.match(r"camera(?: setting |: parameter )(\w+)(?: \(\w+\))?(=\S+:| must be)", str(err))
+        if bad is None or bad[1] not in keys:
+            raise
+        option = "--" + keys[bad[1]].replace("_", "-")
+        rest = str(err)[bad.end():].strip()
+        if bad[2] == " must be":
+            raise InputError(f"{option} must be {rest}") from None
+        raise InputError(f"{option} {getattr(args, 'camera_' + keys[bad[1]])}: {rest}") from None
 
 
 def _params(pairs: list[str]) -> dict:
@@ -177,10 +190,14 @@ def cmd_run(args: argparse.Namespace) -> None:
         from longslam.viz.live import check_target
 
         check_target(args.viz, args.overwrite)
+    if args.config is not None:  # --overwrite would delete the config it reads: RUN/config.toml --out RUN
+        from longslam.io.outputs import check_not_an_input
+
+        check_not_an_input(args.out, {"--config": args.config}, "run folder")
     method, sequence, params = _run_inputs(args)
     log.info("run: method %s on %s into %s, parameters %s", method, sequence, args.out, params or "the defaults")
     measurements = run_sequence(method, sequence, args.out, params, overwrite=args.overwrite,
-                                intrinsics=args.intrinsics, viz=args.viz)
+                                intrinsics=args.intrinsics, viz=args.viz, prepare=True)
     from longslam.run.speed import describe_real_time_factor
 
     print(
@@ -194,9 +211,45 @@ def cmd_run(args: argparse.Namespace) -> None:
         note(f"{method}: {text}")
 
 
+# evaluate's library fields -> its options, for the checks that can only run on the poses
+EVALUATE_OPTIONS = {"n_to_align": "--n-to-align", "max_diff": "--t-max-diff", "min_step": "--min-step",
+                    "rpe_delta": "--delta", "delta_tol": "--delta-tol"}
+
+
+def _as_options(message: str) -> str:
+    message = message.replace("align='none'", "--align none")
+    return re.sub(r"\b(" + "|".join(EVALUATE_OPTIONS) + r")\b", lambda m: EVALUATE_OPTIONS[m[1]], message)
+
+
+def _check_evaluate_options(args: argparse.Namespace) -> list[str]:
+    """The evaluate options' values, checked before any file is read and named as options (the
+    library's checks name its fields); returns warnings for options that will have no effect."""
+    numbers = (("--delta", args.delta, lambda v: v > 0, "a number > 0 (in --delta-unit)"),
+               ("--delta-tol", args.delta_tol, lambda v: v >= 0, "a share of --delta >= 0"),
+               ("--t-max-diff", args.t_max_diff, lambda v: v >= 0, "a time difference >= 0 s"),
+               ("--t-offset", args.t_offset, lambda v: True, "a number of seconds"),
+               ("--min-step", args.min_step, lambda v: v > 0, "a length > 0 m"))
+    for option, value, ok, expected in numbers:
+        if not (math.isfinite(value) and ok(value)):
+            raise InputError(f"{option} {value:g}: expected a finite {expected.removeprefix('a ')}")
+    if args.n_to_align != -1 and args.n_to_align < 3:
+        raise InputError(f"--n-to-align {args.n_to_align}: expected -1 (all poses) or a whole number >= 3")
+    same = [p for p in (args.save_results, args.save_rpe_results) if p]
+    if len(same) == 2 and os.path.abspath(same[0]) == os.path.abspath(same[1]):
+        raise InputError(f"--save-results and --save-rpe-results both name {same[0]}; give each its own file")
+    warnings = []
+    if args.n_to_align != -1 and args.align == "none" and not args.align_flag and not args.correct_scale:
+        # only an alignment is fitted on the first N poses; without one the option changes nothing
+        warnings.append(f"--n-to-align {args.n_to_align} has no effect without --align (or -a, -s)")
+    return warnings
+
+
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from longslam.eval.evaluate_output import format_text, scores_json
     from longslam.run.score import score_files_full
+
+    for warning in _check_evaluate_options(args):
+        print(f"warning: {warning}", file=sys.stderr)
 
     for option, path, suffix in (("--save-plot", args.save_plot, None), ("--save-results", args.save_results, ".zip"),
                                  ("--save-rpe-results", args.save_rpe_results, ".zip")):
@@ -213,13 +266,16 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     warnings: list[str] = []
     # -a is --align's se3; --align sim3 beside it asks for more, and wins.
     align = "se3" if args.align_flag and args.align == "none" else args.align
-    evaluation = score_files_full(
-        args.estimate, args.groundtruth, align=align, max_diff=args.t_max_diff, min_step=args.min_step,
-        warnings=warnings, offset=args.t_offset, estimate_topic=args.est_topic, truth_topic=args.ref_topic,
-        delta=args.delta, delta_unit=args.delta_unit, all_pairs=args.all_pairs, delta_tol=args.delta_tol,
-        pairs_from_reference=args.pairs_from_reference, pose_relation=args.pose_relation,
-        correct_scale=args.correct_scale, align_origin=args.align_origin, n_to_align=args.n_to_align,
-    )
+    try:
+        evaluation = score_files_full(
+            args.estimate, args.groundtruth, align=align, max_diff=args.t_max_diff, min_step=args.min_step,
+            warnings=warnings, offset=args.t_offset, estimate_topic=args.est_topic, truth_topic=args.ref_topic,
+            delta=args.delta, delta_unit=args.delta_unit, all_pairs=args.all_pairs, delta_tol=args.delta_tol,
+            pairs_from_reference=args.pairs_from_reference, pose_relation=args.pose_relation,
+            correct_scale=args.correct_scale, align_origin=args.align_origin, n_to_align=args.n_to_align,
+        )
+    except InputError as err:  # the checks that need the poses name the library's fields
+        raise InputError(_as_options(str(err))) from None
     for warning in warnings:
         print(f"warning: {warning}", file=sys.stderr)
     names = (str(args.groundtruth), str(args.estimate))
@@ -329,10 +385,11 @@ def cmd_import(args: argparse.Namespace) -> None:
     bar, update = _progress_bar("import")
     with bar:
         summary = import_bag(args.bag, args.out, topics, max_diff=args.max_diff, max_depth=args.max_depth,
-                             groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite, progress=update)
+                             groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite, progress=update,
+                             intrinsics=args.intrinsics)
     t = summary.topics
     print(f"wrote sequence {summary.path}: {summary.frames} frames from {t.rgb} ({summary.rgb_messages} messages) "
-          f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info}; "
+          f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info or '--intrinsics'}; "
           f"odometry {'from ' + t.odom if summary.odometry else 'none'}; "
           f"ground truth {'from ' + t.groundtruth if summary.groundtruth else 'none'}")
     for text in summary.notes:
@@ -346,8 +403,11 @@ def cmd_demo(args: argparse.Namespace) -> None:
         from longslam.viz.live import check_target
 
         check_target(args.viz, args.overwrite)
+    from longslam.core import progress
+
+    # bars only where the command draws them: on a terminal, without --quiet or --no-progress
     rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz,
-                          overwrite=args.overwrite)
+                          overwrite=args.overwrite, progress=progress.enabled())
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")
@@ -426,6 +486,10 @@ def cmd_study(args: argparse.Namespace) -> None:
     )
     if summary.report is not None:
         print(f"report: {summary.report} and {summary.report.with_suffix('.md')}")
+    if summary.ran and summary.failed == summary.ran:
+        # a study none of whose runs worked is a failure of the command, for a script or CI to see
+        raise LongslamError(f"every run of the study failed ({summary.failed} of {summary.ran}); why is in the "
+                            f"report's failures and each run's log under {args.out}")
 
 
 def cmd_report(args: argparse.Namespace) -> None:
@@ -445,10 +509,11 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
 
     check_tree_size(args.k, args.levels)  # all before a route is rendered
     check_features(args.features)
-    check_output(args.out, args.overwrite)
     from longslam.io.outputs import check_not_an_input
 
+    # an input first: that is the better reason to refuse a file of the input sequence
     check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")
+    check_output(args.out, args.overwrite)
     from longslam.sim.simulate import check_seed
 
     check_seed(args.seed, "--seed")  # the same range wherever a seed enters
@@ -615,6 +680,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the frame a PoseStamped ground truth is the pose of (default: the odometry's child frame)")
     p.add_argument("--max-diff", type=float, default=0.02, help="colour-depth pairing tolerance in seconds (default 0.02)")
     p.add_argument("--max-depth", type=float, help="depth range in metres; farther is 'no return' (default 13.107, the 16-bit limit)")
+    p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
+                   help="the colour camera's intrinsics in pixels, for a bag without CameraInfo (instead of --camera-info)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     p.set_defaults(func=cmd_import)
 
@@ -736,6 +803,16 @@ def _glue_negative_values(argv: list[str], options: set[str]) -> list[str]:
     return out
 
 
+# The options that name what a command writes: a failure with no file of its own (a full disk
+# met inside a library's write) is said to be writing these.
+OUTPUT_OPTIONS = ("out", "save_plot", "save_results", "save_rpe_results")
+
+
+def _outputs(args: argparse.Namespace) -> str | None:
+    given = [str(getattr(args, name)) for name in OUTPUT_OPTIONS if getattr(args, name, None) not in (None, False, "")]
+    return " or ".join(given) or None
+
+
 def main(argv: list[str] | None = None) -> int:
     _tolerant_output()
     parser = build_parser()
@@ -756,7 +833,7 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(err, MethodError) and err.__cause__ is not None:
             # A method's bug: its author needs the traceback; the line below says whose it is.
             traceback.print_exception(err.__cause__, file=sys.stderr)
-        print(f"longslam {args.command}: error: {describe_failure(err, getattr(args, 'out', None))}", file=sys.stderr)
+        print(f"longslam {args.command}: error: {describe_failure(err, _outputs(args))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"longslam {args.command}: interrupted", file=sys.stderr)

@@ -16,14 +16,16 @@ class InputError(LongslamError, ValueError):
 class UnknownNameError(InputError, KeyError):
     """A name (route, noise level, method, world...) that is not registered."""
 
-    def __init__(self, kind: str, name: str, valid: Iterable[str]):
+    def __init__(self, kind: str, name: str, valid: Iterable[str], hint: str = "", close: Iterable[str] = ()):
+        """`hint` is appended (how other spellings work); `close` are more names to suggest from
+        (spellings that are valid but not registered, such as a long route's)."""
         self.kind = kind
         self.name = name
         self.valid = sorted(valid)
         from longslam.core.suggest import did_you_mean
 
-        super().__init__(f"unknown {kind} {name!r}{did_you_mean(name, self.valid)}; "
-                         f"valid {kind} names: {', '.join(self.valid)}")
+        super().__init__(f"unknown {kind} {name!r}{did_you_mean(name, [*self.valid, *close])}; "
+                         f"valid {kind} names: {', '.join(self.valid)}" + (f"; {hint}" if hint else ""))
 
     def __str__(self) -> str:  # KeyError would otherwise quote the message
         return self.args[0]

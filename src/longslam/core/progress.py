@@ -33,6 +33,11 @@ def for_terminal(stream: Any = None, wanted: bool = True) -> bool:
         return False
 
 
+def setting() -> bool | None:
+    """What `set_enabled` was last given (None: never), to hand on to another process."""
+    return _enabled
+
+
 def enabled() -> bool:
     return _enabled is not False
 

@@ -44,13 +44,15 @@ def check_not_an_input(out: str | Path, inputs: Mapping[str, str | Path | None],
         if given is None:
             continue
         source = _real(given)
+        # a label that names its path already ("input seq160") is not followed by it again
+        named = label if label.endswith(f" {given}") else f"{label} {given}"
         if target == source:
-            raise InputError(f"{what} {out} is the {label} {given} itself; choose another --out")
+            raise InputError(f"{what} {out} is the {named} itself; choose another --out")
         if target in source.parents:
-            raise InputError(f"{what} {out} holds the {label} {given}; writing there would delete it; "
+            raise InputError(f"{what} {out} holds the {named}; writing there would delete it; "
                              "choose another --out")
         if inside and source in target.parents:
-            raise InputError(f"{what} {out} is inside the {label} {given}; write beside the input, not into it")
+            raise InputError(f"{what} {out} is inside the {named}; write beside the input, not into it")
 
 
 def _entries(path: Path) -> list[str]:
@@ -134,15 +136,61 @@ def replace_guard(kind: str, what: str | None = None):
     return guard
 
 
-def check_output_file_free(path: str | Path, overwrite: bool, what: str = "output file") -> None:
-    """An existing file is replaced only with `overwrite`; a folder, a FIFO or a device never (as
+# The first bytes of each kind of output file longslam writes, by suffix: --overwrite replaces an
+# existing file of that kind only, not the user's notes saved as plan.png.
+FILE_SIGNATURES: dict[str, tuple[str, tuple[bytes, ...]]] = {
+    ".png": ("a PNG image", (b"\x89PNG\r\n\x1a\n",)),
+    ".jpg": ("a JPEG image", (b"\xff\xd8\xff",)),
+    ".jpeg": ("a JPEG image", (b"\xff\xd8\xff",)),
+    ".pdf": ("a PDF file", (b"%PDF-",)),
+    ".svg": ("an SVG image", (b"<?xml", b"<svg")),
+    ".rrd": ("a rerun recording", (b"RRF",)),
+}
+VOCABULARY = "vocabulary"
+
+
+def _looks_like_vocabulary(path: Path) -> bool:
+    """A DBoW2 text vocabulary's header: 'k L scoring weighting', four whole numbers."""
+    with open(path, "rb") as handle:
+        header = handle.readline(200).split()
+    return len(header) == 4 and all(h.lstrip(b"-").isdigit() for h in header)
+
+
+def replaced_file_problem(path: Path, kind: str | None = None) -> str | None:
+    """Why an existing regular file at `path` is not an output of the kind --overwrite replaces
+    (`kind` VOCABULARY, or by its suffix, see FILE_SIGNATURES), or None if it is one (or of a kind
+    not recognised by content)."""
+    try:
+        if kind == VOCABULARY:
+            return None if _looks_like_vocabulary(path) else \
+                "not a vocabulary (its first line is not 'k L scoring weighting')"
+        signature = FILE_SIGNATURES.get(path.suffix.lower())
+        if signature is None:
+            return None
+        label, starts = signature
+        with open(path, "rb") as handle:
+            head = handle.read(64).lstrip() if path.suffix.lower() == ".svg" else handle.read(64)
+    except OSError as err:
+        return f"it cannot be read ({err.strerror})"
+    if path.stat().st_size == 0 or head.startswith(starts):  # an empty file holds nothing to lose
+        return None
+    return f"not {label}"
+
+
+def check_output_file_free(path: str | Path, overwrite: bool, what: str = "output file", kind: str | None = None) -> None:
+    """An existing file is replaced only with `overwrite`, and only if it is a file of the kind
+    the command writes (see `replaced_file_problem`); a folder, a FIFO or a device never (as
     root, replacing /dev/null would leave a regular file in its place)."""
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{what} {path} is a folder; expected a file path")
-    kind = special_file_kind(path)
-    if kind is not None:
-        raise InputError(f"{what} {path} is {kind}, not a regular file; longslam writes and --overwrite replaces "
+    special = special_file_kind(path)
+    if special is not None:
+        raise InputError(f"{what} {path} is {special}, not a regular file; longslam writes and --overwrite replaces "
                          "only regular files; choose another path")
     if (path.exists() or path.is_symlink()) and not overwrite:
         raise InputError(f"{what} {path} exists already; choose another path or pass --overwrite")
+    problem = replaced_file_problem(path, kind) if path.is_file() else None
+    if problem is not None:
+        raise InputError(f"{what} {path} exists and --overwrite replaces only a file of the kind it writes: this one "
+                         f"is {problem}; nothing was replaced")

@@ -16,7 +16,7 @@ from longslam.eval.diagnose import (ErrorParts, LoopError, Stretch, error_parts,
 from longslam.core.geometry import planar_from_camera_poses
 from longslam.io.trajectory_files import read_trajectory
 from longslam.run.folder import EVENTS, TRAJECTORY, read_events, read_table
-from longslam.run.score import other_sequence_warning
+from longslam.run.score import coverage_warnings, other_sequence_warning
 from longslam.slam.api import Event
 from longslam.core.timestamps import one_to_one_nearest
 from longslam.world import load_world
@@ -140,8 +140,15 @@ def diagnose_run(run: str | Path, sequence: str | Path, stretch_m: float = 50.0,
     placed = [(e, str(regions[position_of[e.first_frame]]) if regions is not None and e.first_frame in position_of else "")
               for e in events]
     other = other_sequence_warning(run, sequence)  # evaluate's check: 71 m and +106 deg went by unremarked
+    # evaluate's coverage check too: against a shorter sequence, the diagnosis covers its part only
+    truth_span = float(truth.timestamps[-1] - truth.timestamps[0]) if len(truth) > 1 else 0.0
+    matched = truth.timestamps[np.asarray(ref_idx)]
+    matched_span = float(matched.max() - matched.min())
+    shares = {"matched_poses": len(est_idx), "matched_share_estimate": len(est_idx) / len(estimate),
+              "matched_share_groundtruth_span": matched_span / truth_span if truth_span > 0 else 1.0}
+    warned = coverage_warnings(shares, len(estimate), str(run / TRAJECTORY), str(sequence / "groundtruth.txt"), max_diff)
     return Diagnosis(str(run), str(sequence), parts, truth_planar[:, :2], est_planar[:, :2], np.asarray(est_idx),
-                     found, loops, table is not None, world, placed, [other] if other else [])
+                     found, loops, table is not None, world, placed, ([other] if other else []) + warned)
 
 
 def diagnosis_text(d: Diagnosis) -> str:

@@ -152,7 +152,9 @@ def _measurements(method_name: str, spec: Any, config: Any, params: dict[str, An
         step_time_p95_s=float(np.percentile(steps, 95)),
         step_time_max_s=float(steps.max()),
         step_time_mean_s_by_tenth=[float(part.mean()) for part in np.array_split(steps, 10) if len(part)],
-        real_time_factor=duration / method_time if method_time > 0 else float("inf"),
+        # A sequence that spans no time (one frame) has no pace to compare: None, not 0 ("slower than
+        # real time" of a run that took a millisecond).
+        real_time_factor=None if duration <= 0 else duration / method_time if method_time > 0 else float("inf"),
         cpu_wait_s=usage.cpu_wait_s,
         cpu_wait_share=usage.cpu_wait_share,
         starved=usage.starved,
@@ -207,10 +209,15 @@ def run_sequence(
     progress: bool = True,
     intrinsics: str | tuple[float, float, float, float] | None = None,
     viz: str | None = None,
+    prepare: bool = False,
 ) -> RunMeasurements:
     """Run a method over a sequence on disk and write the run folder `out`. Returns the measurements.
 
     `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one.
+    `prepare`: first do the method's once-per-machine work (ORB-SLAM3's default vocabulary, say) in
+    a process of its own, once the inputs are checked, so that it is in neither the run's time nor
+    its peak memory (this process's peak is part of the run's); a study or the demo prepares once
+    for all its runs instead.
     `viz`: "viewer" streams the run to a rerun viewer, a path ending in .rrd records it there
     (`longslam.viz.live`, the optional extra `longslam[viz]`)."""
     out = check_output_folder(out, "run folder")
@@ -220,6 +227,17 @@ def run_sequence(
     if viz is not None and viz != "viewer":
         check_not_an_input(viz, {"input sequence": sequence, "run folder": out}, "--viz")
     reader = SequenceReader(sequence, intrinsics=intrinsics)
+    if prepare:
+        spec = get_spec(method_name)
+        spec.config(params)  # a bad parameter is refused here, not in the other process
+        if spec.prepare is not None:
+            import logging
+
+            from longslam.core import progress as bars
+            from longslam.run.isolate import prepare_method, run_isolated
+
+            run_isolated(prepare_method, spec, params, bars.setting() if progress else False,
+                         logging.getLogger("longslam").getEffectiveLevel())
     if viz is not None:
         from longslam.viz.live import LiveView  # rerun is imported only when a view is asked for
 

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import logging
 import multiprocessing as mp
 from collections.abc import Callable
 from pathlib import Path
 from queue import Empty
 from typing import Any
 
-from longslam.core.errors import InputError
+from longslam.core.errors import InputError, LongslamError
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
 from longslam.run.engine import run_sequence
@@ -17,11 +18,33 @@ from longslam.run.measurements import RunMeasurements
 from longslam.run.score import score
 
 
-def _child(queue: mp.Queue, function: Callable[..., Any], args: tuple, kwargs: dict) -> None:
+def _child(queue: mp.Queue, function: Callable[..., Any], args: tuple, kwargs: dict, bars: bool | None = None) -> None:
+    from longslam.core import progress
+
+    progress.set_enabled(bars)  # a spawned process starts with tqdm's default: bars into a log file
     try:
         queue.put(("ok", function(*args, **kwargs)))
+    except LongslamError as err:  # bad input: the parent raises it as its own one-line error
+        queue.put(("input" if isinstance(err, InputError) else "longslam", str(err)))
     except BaseException as err:  # reported to the parent, which re-raises
         queue.put(("error", f"{type(err).__name__}: {err}"))
+
+
+def prepare_method(spec: Any, params: dict[str, Any] | None, bars: bool | None = None,
+                   log_level: int = logging.WARNING) -> None:
+    """A method's once-per-machine work (see `MethodSpec.prepare`), for `run_isolated`. A spawned
+    process starts with no settings of its parent's: `bars` and `log_level` carry the command's
+    --no-progress / --quiet / -v to it."""
+    from longslam.core import progress
+
+    progress.set_enabled(bars)
+    logger = logging.getLogger("longslam")
+    logger.setLevel(log_level)
+    if not logger.handlers:
+        handler = logging.StreamHandler()
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        logger.addHandler(handler)
+    spec.prepare_for(params)
 
 
 def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
@@ -29,7 +52,9 @@ def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any
     `function` must be importable by name (a module-level function)."""
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    proc = ctx.Process(target=_child, args=(queue, function, args, kwargs))
+    from longslam.core import progress
+
+    proc = ctx.Process(target=_child, args=(queue, function, args, kwargs, progress.setting()))
     proc.start()
     # Poll rather than block: a child killed outright (out of memory, a signal) never reports.
     while True:
@@ -46,6 +71,10 @@ def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any
                 proc.join()
                 raise RuntimeError(f"run failed in its process: it died with exit code {proc.exitcode} before reporting") from None
     proc.join()
+    if status == "input":
+        raise InputError(payload)
+    if status == "longslam":
+        raise LongslamError(payload)
     if status != "ok":
         raise RuntimeError(f"run failed in its process: {payload}")
     return payload

@@ -35,7 +35,7 @@ class RunMeasurements:
     # The mean step over each tenth of the frames: whether the per-frame cost grows with the route.
     step_time_mean_s_by_tenth: list[float]
     # Simulated seconds per second of the method's own processing (reading frames excluded).
-    real_time_factor: float
+    real_time_factor: float | None  # None for a sequence that spans no time (one frame)
     # The CPU the run was denied: how long its threads (and any child processes') were ready to run
     # but waited for a core (run/process_tree.py), and that wait's share of wait plus CPU time.
     cpu_wait_s: float

@@ -14,6 +14,7 @@ from typing import Any
 
 from longslam.core.errors import InputError
 from longslam.core.textfile import read_text
+from longslam.core.suggest import did_you_mean
 
 TABLES = ("run", "params")
 
@@ -28,14 +29,22 @@ class RunConfig:
 def read_run_config(path: str | Path) -> RunConfig:
     """The method, sequence and parameters of a run's config.toml; errors name the file."""
     path = Path(path)
+    if path.is_dir():  # a run folder given for its config.toml
+        inside = f"; did you mean {path / 'config.toml'}?" if (path / "config.toml").is_file() else ""
+        raise InputError(f"run config {path} is a folder; expected a run folder's config.toml{inside}")
     text = read_text(path, "run config", hint="a run folder's config.toml")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise InputError(f"run config {path} is not valid TOML: {err}") from None
     unknown = sorted(set(data) - set(TABLES))
+    keys = [k for k in unknown if not isinstance(data[k], dict)]
+    if keys:  # a key outside any table: method = ... above [run], say
+        raise InputError(f"run config {path}: key(s) {', '.join(keys)} outside a table; expected them under "
+                         "[run] (method, sequence) or [params]")
     if unknown:
-        raise InputError(f"run config {path}: unknown table(s) {', '.join(unknown)}; expected [run] and [params]")
+        raise InputError(f"run config {path}: unknown table(s) {', '.join(f'[{k}]' for k in unknown)}"
+                         f"{did_you_mean(unknown[0], TABLES)}; expected [run] and [params]")
     run, params = data.get("run", {}), data.get("params", {})
     if not isinstance(run, dict) or not isinstance(run.get("method"), str) or not run["method"]:
         raise InputError(f"run config {path}: expected [run] with method = \"NAME\"")

@@ -90,6 +90,20 @@ def coverage(truth: Trajectory, estimate: Trajectory, max_diff: float, by_index:
     }
 
 
+def coverage_warnings(shares: dict[str, Any], poses: int, est_file: str, ref_file: str, max_diff: float) -> list[str]:
+    """What `coverage` (of an estimate of `poses` poses) leaves doubtful, one warning each:
+    evaluate's and diagnose's (a run diagnosed against a shorter sequence) check."""
+    found = []
+    if shares["matched_share_estimate"] < COVERAGE_WARNING:
+        found.append(f"only {shares['matched_poses']} of {poses} poses of {est_file} "
+                     f"({shares['matched_share_estimate']:.0%}) have a ground-truth pose within {max_diff} s; "
+                     "the scores cover that part only")
+    if shares["matched_share_groundtruth_span"] < COVERAGE_WARNING:
+        found.append(f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
+                     f"of {ref_file}; the scores cover that part of the route only")
+    return found
+
+
 def _run_sequence_of(estimate: Path) -> str | None:
     """The sequence a run folder's stats.json says it ran on, if it says."""
     import json
@@ -119,10 +133,33 @@ def other_sequence_warning(run: str | Path, sequence: str | Path) -> str | None:
 STDIN = "-"  # a trajectory file name that means: TUM (or KITTI) text on standard input
 
 
+def _is_camera_frame(frame: str) -> bool:
+    return "cam" in frame.lower() or "optical" in frame.lower()
+
+
+def body_frame_warning(est_frames: dict[str, str], est_format: str, est_file: str,
+                       ref_frames: dict[str, str], ref_format: str, ref_file: str) -> str | None:
+    """A bag topic of a robot's body frame (an /odom of base_link) scored against camera poses
+    (a TUM or KITTI file, longslam's, or a camera frame's topic): the fixed body-to-camera
+    transform then enters every error, which reads as drift of the method."""
+    sides = [(est_frames.get("child"), est_format, est_file), (ref_frames.get("child"), ref_format, ref_file)]
+    for (frame, _, name), (other_frame, other_format, other_name) in (sides, sides[::-1]):
+        if frame is None or _is_camera_frame(frame):
+            continue
+        camera = _is_camera_frame(other_frame) if other_frame is not None else other_format != BAG
+        if camera:
+            what = f"the camera frame {other_frame}" if other_frame else "camera poses"
+            return (f"{name} holds poses of {frame} (its child_frame_id), {other_name} of {what}: the fixed transform "
+                    "between the two enters every error; score a topic of the camera's poses, or both of one frame")
+    return None
+
+
 def read_source(source: str | Path, names: tuple[str, ...], topic: str | None = None,
-                topic_option: str = "--topic", stdin_text: str | None = None) -> tuple[Trajectory, str, str]:
+                topic_option: str = "--topic", stdin_text: str | None = None,
+                frames: dict[str, str] | None = None) -> tuple[Trajectory, str, str]:
     """A trajectory, its format (tum, kitti or bag) and a name for messages, from a file, a run
-    or sequence folder, a ROS bag's topic, or `-` (stdin, given as `stdin_text` or read here)."""
+    or sequence folder, a ROS bag's topic, or `-` (stdin, given as `stdin_text` or read here).
+    `frames` is told a bag topic's pose frame (see `read_bag_trajectory`)."""
     if str(source) == STDIN:
         if topic is not None:
             raise InputError(f"{topic_option} names a bag topic, but the trajectory comes from stdin (-)")
@@ -137,7 +174,7 @@ def read_source(source: str | Path, names: tuple[str, ...], topic: str | None = 
     if is_bag(source):
         from longslam.io.rosbag.trajectory import read_bag_trajectory
 
-        trajectory = read_bag_trajectory(source, topic, topic_option)
+        trajectory = read_bag_trajectory(source, topic, topic_option, frames)
         return trajectory, BAG, trajectory.source
     if topic is not None:
         raise InputError(f"{topic_option} {topic}: {source} is not a ROS bag (a .bag or .mcap file, "
@@ -166,8 +203,10 @@ def score_files_full(estimate: str | Path, truth: str | Path, align: str | bool 
     `options` are `evaluate`'s keyword options (pose_relation, delta, delta_unit...)."""
     if str(estimate) == STDIN and str(truth) == STDIN:
         raise InputError("only one of the estimate and the ground truth can come from stdin (-)")
-    est, est_format, est_file = read_source(estimate, (TRAJECTORY,), estimate_topic, "--est-topic")
-    ref, ref_format, ref_file = read_source(truth, ("groundtruth.txt",), truth_topic, "--ref-topic")
+    est_frames: dict[str, str] = {}
+    ref_frames: dict[str, str] = {}
+    est, est_format, est_file = read_source(estimate, (TRAJECTORY,), estimate_topic, "--est-topic", frames=est_frames)
+    ref, ref_format, ref_file = read_source(truth, ("groundtruth.txt",), truth_topic, "--ref-topic", frames=ref_frames)
     by_index = KITTI in (est_format, ref_format)
     if by_index and offset != 0.0:
         raise InputError(f"--t-offset {offset}: {est_file if est_format == KITTI else ref_file} is a KITTI file, "
@@ -177,13 +216,10 @@ def score_files_full(estimate: str | Path, truth: str | Path, align: str | bool 
     shares = coverage(ref, est, max_diff, by_index, offset)
     evaluation.scores.update(shares)
     if warnings is not None:
-        if shares["matched_share_estimate"] < COVERAGE_WARNING:
-            warnings.append(f"only {shares['matched_poses']} of {len(est)} poses of {est_file} "
-                            f"({shares['matched_share_estimate']:.0%}) have a ground-truth pose within {max_diff} s; "
-                            "the scores cover that part only")
-        if shares["matched_share_groundtruth_span"] < COVERAGE_WARNING:
-            warnings.append(f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
-                            f"of {ref_file}; the scores cover that part of the route only")
+        warnings += coverage_warnings(shares, len(est), est_file, ref_file, max_diff)
+        body = body_frame_warning(est_frames, est_format, est_file, ref_frames, ref_format, ref_file)
+        if body is not None:
+            warnings.append(body)
         if STDIN not in (str(estimate), str(truth)):
             other = other_sequence_warning(estimate, truth if Path(truth).is_dir() else ref_file)
             if other is not None:

@@ -17,6 +17,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
+from longslam.io.sequence.layout import DEPTH_SCALE
 from longslam.world.world_mesh import WorldMesh
 
 # A fixed sun-like light from above and to one side: walls of different orientations, the floor
@@ -28,6 +29,11 @@ _AMBIENT, _DIFFUSE, _HEADLIGHT = 0.4, 0.3, 0.3  # sum 1: the brightest surface s
 # The user-facing names of the camera settings (CLI options --width ... --camera-height, a study
 # file's [camera] keys) -> CameraSettings fields.
 CAMERA_KEYS = {"width": "width", "height": "height", "fov": "hfov_deg", "max_depth": "max_depth", "camera_height": "camera_height"}
+# Errors name a setting as the user gives it (fov), not by its field (hfov_deg).
+_KEY_OF_FIELD = {field: key if key == field else f"{key} ({field})" for key, field in CAMERA_KEYS.items()}
+# A sequence stores depth as 16-bit PNGs scaled by DEPTH_SCALE: a camera that sees farther could
+# render frames no sequence can hold, found only when the first frame is written.
+MAX_STORABLE_DEPTH = 65535 / DEPTH_SCALE
 
 
 # The renderer holds about 60 bytes a pixel (rays, directions, hits, images) and every frame is
@@ -48,7 +54,7 @@ class CameraSettings:
         for name in ("width", "height"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value <= 0:
-                raise InputError(f"camera setting {name} must be a positive integer, got {value!r}")
+                raise InputError(f"camera setting {_KEY_OF_FIELD[name]} must be a positive integer, got {value!r}")
             if value > MAX_SIDE:
                 raise InputError(f"camera setting {name} must be at most {MAX_SIDE} pixels, got {value!r}")
         if self.width * self.height > MAX_PIXELS:
@@ -57,14 +63,16 @@ class CameraSettings:
                              f"{self.width * self.height * 60 / 1e9:.1f} GB")
         checks = {
             "hfov_deg": (lambda v: 0.0 < v < 180.0, "a number in (0, 180) degrees"),
-            "max_depth": (lambda v: v > 0.0, "a positive number of metres"),
+            "max_depth": (lambda v: 0.0 < v <= MAX_STORABLE_DEPTH,
+                          f"a positive number of metres, at most {MAX_STORABLE_DEPTH:.3f} (the largest depth "
+                          f"16-bit depth images scaled by {DEPTH_SCALE:g} store)"),
             "camera_height": (lambda v: v > 0.0, "a positive number of metres"),
         }
         for name, (ok, expected) in checks.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
                     or not math.isfinite(value) or not ok(value):
-                raise InputError(f"camera setting {name} must be {expected}, got {value!r}")
+                raise InputError(f"camera setting {_KEY_OF_FIELD[name]} must be {expected}, got {value!r}")
 
     @property
     def intrinsics(self) -> Intrinsics:

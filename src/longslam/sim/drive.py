@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from longslam.core.geometry import camera_poses_from_planar
@@ -10,6 +12,11 @@ from longslam.sim.navigation import NavigationGrid
 from longslam.sim.routes import Route
 from longslam.core.trajectory import Trajectory
 from longslam.world.model import World
+
+log = logging.getLogger(__name__)
+# A route of more legs than this takes long enough to plan and drive (demo-x1000: some 7,000
+# legs, minutes) that it is announced and shown a bar, not left silent.
+LONG_ROUTE_LEGS = 200
 
 
 def drive_route(
@@ -26,8 +33,19 @@ def drive_route(
     for wp, label in zip(waypoints, labels):
         nav.check_waypoint(wp, label)
     nav.check_reachable(waypoints, labels)
-    paths = [nav.shortest_path(a, b) for a, b in zip(waypoints[:-1], waypoints[1:])]
-    return follow_paths(paths, follower)
+    legs = list(zip(waypoints[:-1], waypoints[1:]))
+    long_route = len(legs) > LONG_ROUTE_LEGS
+    if long_route:
+        log.warning(f"note: route {route.name}: planning and driving its {len(legs)} legs takes a while")
+    # A route driven N times over has its legs N times: each distinct leg is planned once.
+    planned: dict[tuple, np.ndarray] = {}
+    paths = []
+    for a, b in legs:
+        key = (tuple(map(float, a)), tuple(map(float, b)))
+        if key not in planned:
+            planned[key] = nav.shortest_path(a, b)
+        paths.append(planned[key])
+    return follow_paths(paths, follower, progress=long_route)
 
 
 def camera_trajectory(timestamps: np.ndarray, xyyaw: np.ndarray, camera_height: float, floor_z: float = 0.0, source: str = "") -> Trajectory:

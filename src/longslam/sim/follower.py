@@ -71,8 +71,10 @@ class _Polyline:
         return max(s_from, float(self.cum[lo + k] + f[k] * self.seg_len[lo + k]))
 
 
-def follow_paths(paths: list[np.ndarray], settings: FollowerSettings = FollowerSettings(), max_frames: int = 10_000_000) -> DrivenPath:
-    """Drive along consecutive polylines (each (N, 2) world metres), recording a pose per tick."""
+def follow_paths(paths: list[np.ndarray], settings: FollowerSettings = FollowerSettings(), max_frames: int = 10_000_000,
+                 progress: bool = False) -> DrivenPath:
+    """Drive along consecutive polylines (each (N, 2) world metres), recording a pose per tick;
+    `progress` shows a bar of the legs driven."""
     if not paths:
         raise InputError("a route needs at least two waypoints")
     dt = 1.0 / settings.rate_hz
@@ -86,7 +88,9 @@ def follow_paths(paths: list[np.ndarray], settings: FollowerSettings = FollowerS
     yaw = math.atan2(heading[1], heading[0]) if np.linalg.norm(heading) > 0 else 0.0
     poses = [(x, y, yaw)]
     reached = [0]
-    for path in paths:
+    from longslam.core.progress import bar
+
+    for path in bar(paths, desc="driving the route", unit="leg", disable=not progress, leave=False):
         path = np.asarray(path, dtype=np.float64)
         if _already_there(path, (x, y), settings.goal_tolerance):  # a repeated waypoint, or one a few cm on
             reached.append(len(poses) - 1)

@@ -8,15 +8,17 @@ corridor and the hall several times, which gives the loop closures the paper dep
 from __future__ import annotations
 
 import math
+import os
+import re
 
 import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from longslam.core.errors import InputError
+from longslam.core.errors import InputError, UnknownNameError
 from longslam.core.textfile import read_text
 from longslam.core.registry import Registry
-from longslam.sim.tours import REPEAT, TOUR, repeated, tour_length_m, tour_waypoints
+from longslam.sim.tours import MAX_REPEAT, REPEAT, TOUR, repeated, tour_length_m, tour_waypoints
 from longslam.world.reference import is_mesh_ref, load_world, places_label, same_world, world_key, world_label, world_ref
 
 Waypoint = tuple[float, float] | str
@@ -155,6 +157,23 @@ def is_route_name(name: str) -> bool:
     return repeat is not None and is_route_name(repeat["base"])
 
 
+LONG_FORMS = ("a long route is NAME-xN (a route N times over, N from 1 to "
+              f"{MAX_REPEAT}, e.g. paper-1km-x3) or tour-<L>km / tour-<L>m[-seed<S>] (e.g. tour-3km)")
+
+
+def _unknown_route(name: str) -> InputError:
+    """Why `name` is no route: a route file that does not exist is said to be missing, and a
+    misspelt long route is shown its forms (`tour-1KM`, `demo-x-1`)."""
+    path = Path(name)
+    if path.suffix and not TOUR.fullmatch(name.lower()) or os.sep in name:
+        repeat = re.fullmatch(r"(?P<stem>.+)-x(?P<times>\d+)", path.stem)
+        how = (f"; a route file driven N times over is FILE-xN, e.g. {repeat['stem']}{path.suffix}-x{repeat['times']}"
+               if repeat else "")
+        return InputError(f"route file {name}: no such file (a route is a route name or an existing route file){how}")
+    close = [name.lower()] if TOUR.fullmatch(name.lower()) else []
+    return UnknownNameError("route", name, ROUTES.names(), hint=LONG_FORMS, close=close)
+
+
 def get_route(name_or_path: str, world: str | None = None) -> Route:
     """A registered route by name, a long route spelled from one (`paper-1km-x3`, `tour-10km`,
     `tour-2500m-seed4`: see `longslam.sim.tours`), or a route file if the argument is an
@@ -173,6 +192,8 @@ def get_route(name_or_path: str, world: str | None = None) -> Route:
         return Route(name_or_path, ref, _tour(ref, tour_length_m(tour), int(tour["seed"] or 0)))
     if name_or_path not in ROUTES and Path(name_or_path).suffix and Path(name_or_path).exists():
         return load_route_file(name_or_path, world)
+    if name_or_path not in ROUTES:
+        raise _unknown_route(name_or_path)
     route = ROUTES.get(name_or_path)
     if world is not None and not same_world(route.world, world):
         raise InputError(

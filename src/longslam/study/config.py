@@ -55,6 +55,7 @@ from typing import Any
 from longslam.core.errors import InputError, UnknownNameError
 from longslam.eval.align import ALIGN_MODES
 from longslam.core.settings import from_mapping
+from longslam.core.suggest import did_you_mean
 from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.core.odometry_noise import NOISE_LEVELS
@@ -223,7 +224,8 @@ class _Reader:
         listed = f"; valid values: {_valid(valid)}" if valid else ""
         for i, (_, item) in enumerate(self.strings(data, key, what, valid=listed)):
             if valid is not None and item not in valid:
-                raise self.error(f"{key}[{i}]", f"unknown {what} {item!r}; valid values: {_valid(valid)}")
+                raise self.error(f"{key}[{i}]", f"unknown {what} {item!r}{did_you_mean(item, valid)}; "
+                                                f"valid values: {_valid(valid)}")
             if item in out:
                 raise self.error(f"{key}[{i}]", f"{item!r} is listed twice")
             out.append(item)
@@ -355,9 +357,15 @@ def _cameras(r: _Reader, data: dict) -> list[CameraEntry]:
 def _sensors(r: _Reader, data: dict) -> list[str]:
     from longslam.sim.sensors import sensor_names
 
+    from longslam.sim.sensors import get_sensor
+
     names = sensor_names()
     sensors = r.string_list(data, "sensors", names, "sensor")
     for i, name in enumerate(sensors):
+        try:  # a plugin whose module is missing or whose model cannot be made: before the study starts
+            get_sensor(name)
+        except InputError as err:
+            raise r.error(f"sensors[{i}]", str(err)) from None
         if not CAMERA_NAME.fullmatch(name):  # a sensor's name is a folder of the study too
             raise r.error(f"sensors[{i}]", f"sensor {name!r} cannot be a folder name: 1 to 64 letters, digits, '_', '.' "
                                            "or '-', starting with a letter or digit")
@@ -476,7 +484,8 @@ def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
                 raise r.error(f"{key}.{sub}", _unknown_key(sub, VARIANT_KEYS))
         method = variant.get("method")
         if method not in available:
-            raise r.error(f"{key}.method", f"unknown method {method!r}; valid values: {_valid(available)}")
+            raise r.error(f"{key}.method", f"unknown method {method!r}{did_you_mean(str(method), available)}; "
+                                           f"valid values: {_valid(available)}")
         if label in names or any(e.label == label for e in entries):
             raise r.error(key, f"label {label!r} is already a method of this study; choose another label")
         overrides = variant.get("params", {})

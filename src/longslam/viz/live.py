@@ -189,7 +189,7 @@ def check_target(target: str, overwrite: bool = False) -> None:
         raise InputError(f"--viz {target}: the folder {parent} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"--viz {target}: the folder {parent} is not writable")
-    check_output_file_free(path, overwrite, "--viz")
+    check_output_file_free(path, overwrite, "--viz")  # an existing file only if it is a recording
 
 
 class LiveView:

@@ -157,14 +157,14 @@ def rendered_route(route: Route, camera: CameraSettings = CameraSettings(), prog
 
 def check_output(out: str | Path, overwrite: bool = False) -> Path:
     """Refuse, before any work, an --out that cannot be written or would be replaced unasked."""
-    from longslam.io.outputs import check_output_file_free
+    from longslam.io.outputs import VOCABULARY, check_output_file_free
 
     out = Path(out)
     if out.is_dir():
         raise InputError(f"--out {out} is a folder; expected a file path (e.g. voc.txt)")
     if not out.absolute().parent.is_dir():
         raise InputError(f"--out {out}: the folder {out.absolute().parent} does not exist")
-    check_output_file_free(out, overwrite, "--out")  # a FIFO or a device is never replaced
+    check_output_file_free(out, overwrite, "--out", VOCABULARY)  # nor a FIFO, a device or the user's file
     return out
 
 

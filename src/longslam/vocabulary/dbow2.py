@@ -107,8 +107,19 @@ def write_vocabulary(vocabulary: Vocabulary, path: str | Path, overwrite: bool =
 
 
 def _prefix(raw: bytes) -> str:
-    """A short, printable picture of a line that is not what was expected."""
-    return repr(raw[:40]) + (" ..." if len(raw) > 40 else "")
+    """A short, printable picture of a line that is not what was expected. A line that is not
+    text (a binary file given as a vocabulary) is called so, with only its first 4 bytes, which
+    name most formats (ELF, PNG, a zip's PK), not echoed as 40 escaped bytes."""
+    binary = f"{raw[:4]!r}... (binary data, not text)"
+    try:
+        text = raw[:200].decode("utf-8")
+    except UnicodeDecodeError as err:
+        if err.start < 200 - 4:  # not a character cut at the end of the slice
+            return binary
+        text = raw[:err.start].decode("utf-8")
+    if any(not c.isprintable() and c not in "\t\r" for c in text):
+        return binary
+    return repr(text[:40]) + (" ..." if len(raw) > 40 else "")
 
 
 def _node_chunks(handle, where: str):

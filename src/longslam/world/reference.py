@@ -145,7 +145,9 @@ def read_places(path: Path) -> dict[str, tuple[float, float]]:
         data = json.loads(text)
     except json.JSONDecodeError as err:
         raise InputError(f"places file {path}: not valid JSON ({err})") from None
-    if not isinstance(data, dict) or not data:
+    if isinstance(data, dict) and not data:  # a tour or a named waypoint needs a place to stand on
+        raise InputError(f'places file {path}: has no places; expected at least one, {{"name": [x, y], ...}} in metres')
+    if not isinstance(data, dict):
         raise InputError(f'places file {path}: expected an object {{"name": [x, y], ...}}, got {text[:60]!r}')
     places = {}
     for name, xy in data.items():

@@ -132,7 +132,7 @@ def _longslam_meta(bag: _Bag) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _choose_topics(bag: _Bag, given: Topics, meta: dict) -> Topics:
+def _choose_topics(bag: _Bag, given: Topics, meta: dict, camera_given: bool = False) -> Topics:
     """Each role's topic: given, else the longslam bag's own, else the one of its type."""
     named = meta.get("topics", {}) if isinstance(meta.get("topics"), dict) else {}
     named = {role: topic for role, topic in named.items() if topic in bag.types}  # a filtered copy may lack some
@@ -155,15 +155,17 @@ def _choose_topics(bag: _Bag, given: Topics, meta: dict) -> Topics:
     if depth is None:
         raise InputError(f"{bag.path} has no depth image topic (sensor_msgs/Image 32FC1 or 16UC1); "
                          f"its topics: {bag.listing()}")
-    if given.camera_info:
+    if camera_given:  # --intrinsics: no CameraInfo is read
+        info = None
+    elif given.camera_info:
         info = bag.check(given.camera_info, "--camera-info", (CAMERA_INFO,))
     else:
         sibling = rgb.rsplit("/", 1)[0] + "/camera_info"  # image_transport's convention
         infos = [t for t, m in bag.types.items() if m == CAMERA_INFO]
         info = named.get("camera_info") or (sibling if sibling in infos else bag.one_of(infos, "--camera-info", "CameraInfo"))
-    if info is None:
+    if info is None and not camera_given:
         raise InputError(f"{bag.path} has no sensor_msgs/CameraInfo topic for the colour camera; give one with "
-                         f"--camera-info (its topics: {bag.listing()})")
+                         f"--camera-info, or the intrinsics with --intrinsics fx,fy,cx,cy (its topics: {bag.listing()})")
     if given.odom:
         odom = bag.check(given.odom, "--odom", (ODOMETRY,))
     elif named:  # a longslam bag says whether it has odometry
@@ -196,8 +198,12 @@ def import_bag(
     groundtruth_frame: str | None = None,
     overwrite: bool = False,
     progress: Callable[[int, int], None] | None = None,
+    intrinsics: str | tuple[float, float, float, float] | None = None,
 ) -> ImportSummary:
-    """Write the bag's frames as a sequence folder at `out`. Returns what was imported."""
+    """Write the bag's frames as a sequence folder at `out`. Returns what was imported.
+
+    `intrinsics` (fx, fy, cx, cy in pixels, or their 'fx,fy,cx,cy' text) stand in for the bag's
+    CameraInfo, for a bag recorded without one (the image size is the colour images')."""
     require_rosbags()
     bag, out = Path(bag), check_output_folder(out, "sequence folder")
     # --overwrite replaces a sequence, never the bag or a folder holding it (or the user's files).
@@ -207,17 +213,25 @@ def import_bag(
         raise InputError(f"--max-diff must be a positive number of seconds, got {max_diff!r}")
     if max_depth is not None:
         _max_depth(max_depth, {})  # before the bag's first pass, which reads every message but the images
+    given_k = None
+    if intrinsics is not None:  # checked before the bag is read
+        from longslam.io.camera_guess import parse_intrinsics
+
+        given_k = parse_intrinsics(intrinsics if isinstance(intrinsics, str) else ",".join(map(str, intrinsics)))
+        if topics.camera_info is not None:
+            raise InputError(f"--intrinsics and --camera-info {topics.camera_info} both give the camera; give one")
     reader = _Bag(bag)
     try:
-        return _import(reader, out, topics, float(max_diff), max_depth, groundtruth_frame, overwrite, progress)
+        return _import(reader, out, topics, float(max_diff), max_depth, groundtruth_frame, overwrite, progress, given_k)
     finally:
         reader.close()
 
 
 def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: float | None,
-            groundtruth_frame: str | None, overwrite: bool, progress: Callable[[int, int], None] | None) -> ImportSummary:
+            groundtruth_frame: str | None, overwrite: bool, progress: Callable[[int, int], None] | None,
+            given_k: tuple[float, float, float, float] | None = None) -> ImportSummary:
     meta = _longslam_meta(bag)
-    chosen = _choose_topics(bag, given, meta)
+    chosen = _choose_topics(bag, given, meta, camera_given=given_k is not None)
     _check_one_role_each(chosen)
     offset_ns = int(meta.get("clock_offset_s", 0)) * 1_000_000_000
     gap_ns = int(MAX_GAP_S * 1e9)
@@ -259,9 +273,13 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         raise InputError(f"{chosen.rgb} in {bag.path} holds no messages")
     if not depth_stamps:
         raise InputError(f"{chosen.depth} in {bag.path} holds no messages")
-    if info is None:
+    if given_k is not None:
+        first = read_rgb(bag.first(chosen.rgb), f"{chosen.rgb} message 0")
+        intrinsics, distortion = Intrinsics(first.shape[1], first.shape[0], *given_k), []
+    elif info is None:
         raise InputError(f"{chosen.camera_info} in {bag.path} holds no messages")
-    intrinsics, distortion = _intrinsics(info, chosen.camera_info)
+    else:
+        intrinsics, distortion = _intrinsics(info, chosen.camera_info)
     if any(abs(d) > 0 for d in distortion):
         notes.append(f"{chosen.camera_info} gives distortion {distortion}; the images are used as they are "
                      f"(record rectified images, e.g. image_rect_color, for an undistorted sequence)")

@@ -42,9 +42,11 @@ def _pose(message, msgtype: str, where: str) -> np.ndarray:
     return pose_matrix(pose.position, pose.orientation, where)
 
 
-def read_bag_trajectory(bag: str | Path, topic: str | None, option: str) -> Trajectory:
+def read_bag_trajectory(bag: str | Path, topic: str | None, option: str, frames: dict[str, str] | None = None) -> Trajectory:
     """The poses on `topic` of `bag` (the bag's only pose topic if None); `option` names the
-    command-line option that chooses the topic, for the error messages."""
+    command-line option that chooses the topic, for the error messages. `frames`, if given, is
+    told the frame the poses are of (an Odometry's or TransformStamped's child_frame_id), so that
+    a robot's base_link scored against camera poses can be warned of."""
     require_rosbags()
     from longslam.io.rosbag.import_ import _Bag
     from longslam.io.rosbag.messages import stamp_of
@@ -72,6 +74,9 @@ def read_bag_trajectory(bag: str | Path, topic: str | None, option: str) -> Traj
                 offset_ns = 0
         stamps, poses = [], []
         for _, message in opened.messages([topic]):
+            if frames is not None and not stamps and getattr(message, "child_frame_id", ""):
+                frames["child"] = message.child_frame_id.lstrip("/")
+                frames["topic"] = topic
             stamps.append(stamp_of(message) - offset_ns)
             poses.append(_pose(message, msgtype, f"{topic} in {path}"))
     finally:

@@ -18,10 +18,11 @@ Modes:
 
 from __future__ import annotations
 
+import math
 import time
 from array import array
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
 import numpy as np
@@ -117,6 +118,17 @@ class FrontEndConfig:
             raise InputError(f"front end: camera_height must be positive (or none: inferred), got {self.camera_height}")
         if not self.default_camera_height > 0:
             raise InputError(f"front end: default_camera_height must be positive, got {self.default_camera_height}")
+        # The other numbers are lengths, angles, counts, scales and sigmas: none is negative, NaN or
+        # infinite (scan_information_scale = -1 ran, turning scan factors into repulsion), and a
+        # sigma of 0 would be infinite information.
+        for f in fields(self):
+            value = getattr(self, f.name)
+            values = value if isinstance(value, tuple) else (value,)
+            if f.name == "camera_height" or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+                continue
+            positive = "sigma" in f.name
+            if not all(math.isfinite(v) and (v > 0 if positive else v >= 0) for v in values):
+                raise InputError(f"front end: {f.name} must be {'> 0' if positive else '>= 0'} and finite, got {value!r}")
 
 
 class FrontEnd:

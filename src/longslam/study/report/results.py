@@ -141,6 +141,9 @@ def _ordered(first: list[str], seen: list[str]) -> list[str]:
 def load_results(out: str | Path) -> StudyResults:
     out = Path(out)
     path = out / DB_NAME
+    if out.is_file():  # the study file given in place of the folder its study wrote
+        raise InputError(f"{out} is a file, not a study folder; give the folder a study wrote "
+                         f"(`longslam study {out} --out FOLDER`, then `longslam report FOLDER`)")
     if not path.is_file():
         raise InputError(f"{out} holds no study results ({DB_NAME} is missing); run `longslam study FILE --out {out}` first")
     check_results_tables(path)
