@@ -154,6 +154,7 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
 
     steps = np.array(step_times)
     method_time = float(steps.sum() + finish_time)
+    assert first_t is not None and last_t is not None  # a sequence without frames stopped above
     duration = float(last_t - first_t) + (float(last_t - first_t) / max(count - 1, 1))
     measurements = {
         **provenance(),

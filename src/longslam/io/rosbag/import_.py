@@ -156,7 +156,7 @@ def _choose_topics(bag: _Bag, given: Topics, meta: dict) -> Topics:
         raise InputError(f"{bag.path} has no depth image topic (sensor_msgs/Image 32FC1 or 16UC1); "
                          f"its topics: {bag.listing()}")
     if given.camera_info:
-        info = bag.check(given.camera_info, "--camera-info", (CAMERA_INFO,))
+        info: str | None = bag.check(given.camera_info, "--camera-info", (CAMERA_INFO,))
     else:
         sibling = rgb.rsplit("/", 1)[0] + "/camera_info"  # image_transport's convention
         infos = [t for t, m in bag.types.items() if m == CAMERA_INFO]
@@ -165,13 +165,13 @@ def _choose_topics(bag: _Bag, given: Topics, meta: dict) -> Topics:
         raise InputError(f"{bag.path} has no sensor_msgs/CameraInfo topic for the colour camera; give one with "
                          f"--camera-info (its topics: {bag.listing()})")
     if given.odom:
-        odom = bag.check(given.odom, "--odom", (ODOMETRY,))
+        odom: str | None = bag.check(given.odom, "--odom", (ODOMETRY,))
     elif named:  # a longslam bag says whether it has odometry
         odom = named.get("odom")
     else:
         odom = bag.one_of([t for t, m in bag.types.items() if m == ODOMETRY], "--odom", "nav_msgs/Odometry")
     if given.groundtruth:
-        groundtruth = bag.check(given.groundtruth, "--groundtruth", (ODOMETRY, POSE_STAMPED))
+        groundtruth: str | None = bag.check(given.groundtruth, "--groundtruth", (ODOMETRY, POSE_STAMPED))
     else:
         groundtruth = named.get("groundtruth")  # never guessed: it would look like the odometry
     return Topics(rgb, depth, info, odom, groundtruth)
@@ -218,6 +218,7 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
             groundtruth_frame: str | None, overwrite: bool, progress: Callable[[int, int], None] | None) -> ImportSummary:
     meta = _longslam_meta(bag)
     chosen = _choose_topics(bag, given, meta)
+    assert chosen.rgb is not None and chosen.depth is not None and chosen.camera_info is not None  # or it raised
     _check_one_role_each(chosen)
     offset_ns = int(meta.get("clock_offset_s", 0)) * 1_000_000_000
     gap_ns = int(MAX_GAP_S * 1e9)
@@ -261,6 +262,7 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         raise InputError(f"{chosen.depth} in {bag.path} holds no messages")
     if info is None:
         raise InputError(f"{chosen.camera_info} in {bag.path} holds no messages")
+    assert camera_frame is not None  # set with the first colour image
     intrinsics, distortion = _intrinsics(info, chosen.camera_info)
     if any(abs(d) > 0 for d in distortion):
         notes.append(f"{chosen.camera_info} gives distortion {distortion}; the images are used as they are "
@@ -313,7 +315,7 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
     rgb_index = {i: k for k, (i, _) in enumerate(kept)}
     depth_index = {j: k for k, (_, j) in enumerate(kept)}
     pending: dict[int, dict[str, np.ndarray]] = {}
-    source_meta = meta.get("meta") if isinstance(meta.get("meta"), dict) else {}
+    source_meta = meta["meta"] if isinstance(meta.get("meta"), dict) else {}
     seq_meta = {**source_meta, "imported_from": str(bag.path.resolve()), "import_topics": vars(chosen).copy(),
                 "import_notes": notes}
     next_frame = 0
