@@ -92,7 +92,7 @@ class KeyframeMemory:
     def transfer(self, node_id: int, count: bool = True) -> None:
         """Working memory -> long-term memory: the node's data go to the database and leave RAM."""
         node = self.nodes[node_id]
-        assert node.features is not None and node.grid is not None  # in working memory: its data are in RAM
+        assert node.features is not None and node.grid is not None  # in working or short-term memory: its data are in RAM
         arrays = {
             "keypoints": node.features.keypoints, "descriptors": node.features.descriptors,
             "points3d": node.features.points, "grid_obstacles": node.grid.obstacles,
