@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import overload
 
 import numpy as np
 
@@ -45,6 +46,10 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+@overload
+def _viz_target(viz: str, method: str) -> str: ...
+@overload
+def _viz_target(viz: str | None, method: str) -> str | None: ...
 def _viz_target(viz: str | None, method: str) -> str | None:
     if viz is None or viz == "viewer":
         return viz
@@ -81,6 +86,7 @@ def run_demo(
     if not sequence.exists():
         simulate(route, noise, seed, sequence, camera=camera, progress=progress)
     truth = SequenceReader(sequence).ground_truth
+    assert truth is not None, "a simulated sequence always has ground truth"
     for name in methods:  # once-per-machine work (a vocabulary) outside the runs' figures
         get_spec(name).prepare_for()
     rows, paths, curves, ates = [], {"ground truth": truth.positions[:, :2]}, {}, {}

@@ -10,6 +10,7 @@ import os
 import re
 import sys
 import traceback
+from typing import Any
 
 # One OpenBLAS thread per process unless the user sets it: a run's matrices are small, a study
 # runs one method per core, and OpenBLAS's spinning threads cost a keyframe run on paper-300m
@@ -335,7 +336,7 @@ class _LazyBar:
 
     def __init__(self, desc: str):
         self.desc = desc
-        self.bar = None
+        self.bar: Any = None  # a tqdm bar once the first report comes
 
     def update(self, done: int, total: int) -> None:
         if self.bar is None:
@@ -390,8 +391,8 @@ def cmd_import(args: argparse.Namespace) -> None:
     t = summary.topics
     print(f"wrote sequence {summary.path}: {summary.frames} frames from {t.rgb} ({summary.rgb_messages} messages) "
           f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info or '--intrinsics'}; "
-          f"odometry {'from ' + t.odom if summary.odometry else 'none'}; "
-          f"ground truth {'from ' + t.groundtruth if summary.groundtruth else 'none'}")
+          f"odometry {'from ' + str(t.odom) if summary.odometry else 'none'}; "
+          f"ground truth {'from ' + str(t.groundtruth) if summary.groundtruth else 'none'}")
     for text in summary.notes:
         note(text)
 

@@ -41,7 +41,7 @@ class Parser(argparse.ArgumentParser):
             hint = did_you_mean(value, [str(c) for c in action.choices])
             raise argparse.ArgumentError(action, f"invalid choice: {value!r}{hint}; choose from {choices}")
 
-    def parse_known_args(self, args: Any = None, namespace: Any = None) -> tuple[argparse.Namespace, list[str]]:
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> tuple[Any, list[str]]:  # Any: the namespace given, or a new one
         # Kept for `error`: argparse checks required options before it reports unknown ones.
         self._given = list(args) if args is not None else []
         return super().parse_known_args(args, namespace)
@@ -117,4 +117,5 @@ def add_common_options(parser: argparse.ArgumentParser) -> None:
             for flags, options in COMMON_OPTIONS:
                 if any(flag in p._option_string_actions for flag in flags):
                     continue
-                p.add_argument(*flags, **options, **({} if top else {"default": argparse.SUPPRESS}))
+                below: dict[str, Any] = {} if top else {"default": argparse.SUPPRESS}
+                p.add_argument(*flags, **options, **below)

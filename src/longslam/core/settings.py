@@ -17,17 +17,20 @@ import math
 import types
 import typing
 from collections.abc import Mapping
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from longslam.core.errors import InputError
 
-C = TypeVar("C")
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+C = TypeVar("C", bound="DataclassInstance")
 
 TRUE_WORDS = ("1", "true", "yes", "on")
 FALSE_WORDS = ("0", "false", "no", "off")
 
 
-def _field_type(cls: type, name: str) -> tuple[Any, bool]:
+def _field_type(cls: type, name: str) -> tuple[type, bool]:
     """The field's base type and whether it may be None."""
     kind = typing.get_type_hints(cls)[name]
     if typing.get_origin(kind) in (typing.Union, types.UnionType) and type(None) in typing.get_args(kind):

@@ -29,7 +29,7 @@ ALIGN_MODES = ("none", "se3", "sim3", "scale", "origin")
 def alignment_mode(align: str | bool = "none", correct_scale: bool = False, align_origin: bool = False) -> str:
     """One of ALIGN_MODES from evo's switches: `align` (a mode name, or True for se3),
     `correct_scale` (se3 -> sim3, none -> scale) and `align_origin`."""
-    mode = {True: "se3", False: "none"}.get(align, align) if isinstance(align, bool) else align
+    mode = {True: "se3", False: "none"}[align] if isinstance(align, bool) else align
     if mode not in ALIGN_MODES:
         raise UnknownNameError("alignment mode", str(mode), ALIGN_MODES)
     if align_origin:

@@ -149,16 +149,17 @@ def stretches(parts: ErrorParts, length_m: float, regions: list[str] | None = No
         if regions is not None:
             names, counts = np.unique(np.asarray(regions[a:b + 1], dtype=object).astype(str), return_counts=True)
             region = str(names[np.argmax(counts)]) if len(names) else ""
-        shares = [None] * 4
+        shares: tuple[float | None, float | None, float | None, float | None] = (None, None, None, None)
         if frame_table is not None:
             scan = frame_table["scan"][frames]
-            shares = [float(np.mean(scan > 0)), float(np.mean(scan < 0)),
-                      float(np.mean(frame_table["visual"][frames] > 0)), float(np.sum(frame_table["scan_shift_m"][frames]))]
+            shares = (float(np.mean(scan > 0)), float(np.mean(scan < 0)),
+                      float(np.mean(frame_table["visual"][frames] > 0)), float(np.sum(frame_table["scan_shift_m"][frames])))
         here = [lp for lp in (loops or []) if a <= lp.frame_i <= b or a <= lp.frame_j <= b]
         dominant = ""
         if here:
             dominant = "loops"
         elif frame_table is not None:
+            assert shares[0] is not None and shares[2] is not None  # set from the front-end table above
             dominant = "scans" if shares[0] >= 0.5 else "visual" if shares[2] >= 0.5 else "wheels"
         out.append(Stretch(
             float(start), float(end), region,

@@ -97,7 +97,7 @@ def evaluate_full(
     chooser = reference if pairs_from_reference else aligned
     first, second = rpe_pairs(chooser, delta, letter, all_pairs, delta_tol)
     rpe_values = rpe_ids = None
-    relative_pose: dict[str, float] = {}
+    relative_pose: dict[str, float | None] = {}
     if len(first):
         rpe_values, rpe_ids = rpe_relation_errors(reference, aligned, first, second, pose_relation)
         trans, rot = rpe_errors(reference, aligned, first, second)
@@ -161,4 +161,4 @@ def evaluate(reference: Trajectory, estimate: Trajectory, *args: Any, **options:
 
 
 # The same parameters as evaluate_full, for help() and for the CLI test that holds them together.
-evaluate.__signature__ = inspect.signature(evaluate_full).replace(return_annotation=dict)
+evaluate.__signature__ = inspect.signature(evaluate_full).replace(return_annotation=dict)  # type: ignore[attr-defined]  # a function's attribute help() reads

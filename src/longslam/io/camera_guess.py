@@ -39,7 +39,7 @@ def parse_intrinsics(text: str, what: str = "--intrinsics") -> tuple[float, floa
 
 
 def intrinsics_without_camera_json(
-    folder: Path, width: int, height: int, given: Sequence[float] | None = None
+    folder: Path, width: int, height: int, given: Sequence[float] | str | None = None
 ) -> tuple[Intrinsics, str]:
     """The intrinsics of a folder whose camera.json is missing, and where they came from."""
     if given is not None:

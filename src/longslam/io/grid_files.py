@@ -25,7 +25,7 @@ def read_grid(path: str | Path) -> GridMap:
     path = Path(path)
     try:
         with np.load(path) as npz:
-            return GridMap(npz["data"].astype(np.int8), float(npz["resolution"]), tuple(map(float, npz["origin"])))
+            return GridMap(npz["data"].astype(np.int8), float(npz["resolution"]), (float(npz["origin"][0]), float(npz["origin"][1])))
     except FileNotFoundError:
         raise InputError(f"grid map file {path} does not exist") from None
     except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile) as err:  # a truncated or foreign file

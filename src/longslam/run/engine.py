@@ -137,8 +137,10 @@ def _measurements(method_name: str, spec: Any, config: Any, params: dict[str, An
     steps = meter.steps()
     method_time = float(steps.sum() + meter.finish_time)
     duration = meter.sequence_duration()
+    source = provenance()
     return RunMeasurements(
-        **provenance(),
+        longslam_version=str(source["longslam_version"]),
+        longslam_commit=source["longslam_commit"],
         method=method_name,
         params=dict(params or {}),
         config=to_mapping(config) if spec.config_type is not None else dict(config),
@@ -180,7 +182,7 @@ def run_into_folder(
     progress: bool = False,
     observer: RunObserver | None = None,
     overwrite: bool = False,
-    may_replace: Callable[[Path], str | None] | None = None,
+    may_replace: Callable[[Path], None] | None = None,
     before_rename: Callable[[Path, Result, RunMeasurements], None] | None = None,
 ) -> tuple[Result, RunMeasurements]:
     """Run `method_name` over `frames` (of the sequence `reader` reads) into the run folder `out`,

@@ -37,7 +37,7 @@ def _read(path: str) -> str | None:
 
 def _thread_schedstat(pid: int) -> dict[int, tuple[int, int]]:
     """tid -> (ns on a CPU, ns waiting on a run queue) for every thread of `pid`."""
-    found = {}
+    found: dict[int, tuple[int, int]] = {}
     try:
         tids = os.listdir(f"/proc/{pid}/task")
     except OSError:

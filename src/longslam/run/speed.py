@@ -27,6 +27,7 @@ def describe_real_time_factor(value: float | None) -> str:
     shown = format_real_time_factor(value)
     if shown == "–":
         return "real-time factor unknown (the sequence spans no time)" if value is None else "real-time factor unknown"
+    assert value is not None  # "–" is shown for None
     if value >= CEILING:
         return f"real-time factor {shown} (the method's own work per frame is negligible)"
     pace = "faster than" if value >= 1 else "slower than"

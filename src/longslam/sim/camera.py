@@ -120,6 +120,7 @@ class RGBDCamera:
         self._light = np.append(_AMBIENT + _DIFFUSE * np.abs(normals @ _LIGHT), 0.0).astype(np.float32)
         n_tri = len(mesh.triangles)
         if mesh.is_textured:
+            assert mesh.texture is not None and mesh.triangle_uvs is not None  # what is_textured means
             h, w = mesh.texture.shape[:2]
             # Clamped to the texture at the corners, so that every interpolated position is
             # inside it (uvs outside [0, 1] in an external mesh are clamped, not tiled).

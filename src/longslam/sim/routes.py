@@ -44,7 +44,7 @@ class Route:
 
     def resolve(self, places: dict[str, tuple[float, float]]) -> list[tuple[float, float]]:
         """Waypoints as (x, y), place names looked up in the world's places."""
-        out = []
+        out: list[tuple[float, float]] = []
         for i, wp in enumerate(self.waypoints):
             if isinstance(wp, str):
                 if wp not in places:
@@ -53,7 +53,7 @@ class Route:
                         f"route {self.name!r}: waypoint {i} names place {wp!r}, which world {world_label(self.world)!r} "
                         f"does not have; places: {', '.join(sorted(places)) or '(none)'}{hint}"
                     )
-                out.append(tuple(map(float, places[wp])))
+                out.append((float(places[wp][0]), float(places[wp][1])))
             else:
                 x, y = float(wp[0]), float(wp[1])
                 if not (math.isfinite(x) and math.isfinite(y)):

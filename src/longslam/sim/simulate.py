@@ -228,6 +228,7 @@ def write_sensed_sequence(reader: SequenceReader, out: Path, sensor: SensorModel
     (every pose: a dropped frame is the camera's loss, not the wheels'), into `out`."""
     truth = reader.ground_truth
     assert truth is not None, "a rendered sequence always has ground truth"
+    assert reader.max_depth is not None, "a rendered sequence always has a depth range"
     motions = camera_motions(truth)
     frames = sensed_frames(reader, sensor, seed, motions)
     if perturbations:

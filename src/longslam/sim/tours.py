@@ -78,7 +78,7 @@ def tour_waypoints(world: World, length_m: float, seed: int, places: str | None 
             found = {n: float(d) for n, d in zip(others, lengths) if np.isfinite(d)}
             legs[here] = {n: d for n, d in found.items() if d >= MIN_LEG_M}
             if not legs[here] and found:
-                near = min(found, key=found.get)
+                near = min(found, key=found.__getitem__)
                 pair = " and ".join(repr(n) for n in sorted((here, near)))
                 raise InputError(f"{places}: places {pair} are {found[near]:.2f} m apart, and no "
                                  f"other place can be reached from {here!r}; a tour goes between places at least "

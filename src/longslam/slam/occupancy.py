@@ -291,6 +291,7 @@ class GridVotes:
         data = np.full(odds.shape, UNKNOWN, dtype=np.int8)
         data[seen[r0:r1, c0:c1]] = FREE
         data[odds > 0] = OCCUPIED  # NaN compares False: unseen stays unknown
+        assert self._lo is not None  # cells seen: `_cover` or `reserve` placed the array
         origin = (float((self._lo[0] + c0) * self.cell), float((self._lo[1] + r0) * self.cell))
         return GridMap(data, self.cell, origin)
 

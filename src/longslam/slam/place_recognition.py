@@ -207,7 +207,7 @@ class Vocabulary:
             new = descriptors[far]
             d = hamming_matrix(new, new)
             label = np.full(len(new), -1, np.int64)
-            leaders = []
+            leaders: list[int] = []
             for i in range(len(new)):  # greedy leader clustering; n <= max_words_per_image
                 if label[i] >= 0:
                     continue
@@ -339,7 +339,7 @@ def match_descriptors(a: np.ndarray, b: np.ndarray, ratio: float = 0.8) -> np.nd
     if len(a) == 0 or len(b) < 2:
         return np.zeros((0, 2), np.int64)
     knn = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(a, b, k=2)
-    pairs = [(m[0].queryIdx, m[0].trainIdx) for m in knn if len(m) == 2 and m[0].distance < ratio * m[1].distance]
+    pairs: list[tuple[int, int]] | np.ndarray = [(m[0].queryIdx, m[0].trainIdx) for m in knn if len(m) == 2 and m[0].distance < ratio * m[1].distance]
     if not pairs:
         return np.zeros((0, 2), np.int64)
     pairs = np.array(pairs, np.int64)

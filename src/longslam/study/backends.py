@@ -17,7 +17,7 @@ import sys
 from dataclasses import dataclass
 from multiprocessing.connection import wait as wait_for
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 from longslam.core.errors import LongslamError
 from longslam.study.record import RunRecord
@@ -47,7 +47,7 @@ class Executor(Protocol):
 
     def submit(self, task: Task) -> None: ...
 
-    def wait(self, timeout: float) -> list[tuple[Task, dict]]: ...
+    def wait(self, timeout: float) -> list[tuple[Task, RunRecord]]: ...
 
     def close(self) -> None: ...
 
@@ -155,7 +155,7 @@ class LocalExecutor:
         if not self._running:
             return []
         done = []
-        for sentinel in wait_for(list(self._running), timeout=timeout):
+        for sentinel in cast("list[int]", wait_for(list(self._running), timeout=timeout)):  # the sentinels given
             task, process, result_path = self._running.pop(sentinel)
             process.join()
             try:

@@ -63,7 +63,7 @@ def plan_text(config: StudyConfig) -> str:
 
 
 def runs_to_do(specs: list[RunSpec], finished: dict[str, tuple[str, str]], retry_failed: bool = False,
-               again: set[str] = frozenset()) -> list[RunSpec]:
+               again: set[str] | frozenset[str] = frozenset()) -> list[RunSpec]:
     """The planned runs that are not yet in the database with the same configuration (or whose
     keys are in `again`)."""
     todo = []

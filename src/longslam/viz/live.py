@@ -39,7 +39,7 @@ import sys
 import threading
 import uuid
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -242,7 +242,7 @@ class LiveView:
     def __enter__(self) -> "LiveView":
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> bool:
+    def __exit__(self, exc_type, exc, tb) -> Literal[False]:
         if self.target == VIEWER:
             self._close_viewer_stream()
         else:  # a file takes everything, however long

@@ -214,7 +214,7 @@ def _wall_textures(plan: FloorPlan, seed: int, panels: list[_Panel], images: lis
         b0, _, bc0, _ = _zone_span(b_rect, seg.axis)
         # The same place relative to the original zone.
         fixed, s0, s1 = seg.fixed - bc0 + ac0, p.start - b0 + a0, p.end - b0 + a0
-        match = next((o for o in originals if o.zone[0] == p.zone[0] and o.segment.axis == seg.axis
+        match = next((o for o in originals if o.zone is not None and o.zone[0] == p.zone[0] and o.segment.axis == seg.axis
                       and o.segment.normal_sign == seg.normal_sign and abs(o.segment.fixed - fixed) < 1e-3
                       and o.start - 1e-3 <= s0 and s1 <= o.end + 1e-3 and o.image >= 0), None)
         if match is None:  # the original zone has an opening here: nothing to copy

@@ -102,6 +102,7 @@ def _combine(parts: list[_Part], path: Path) -> WorldMesh:
     images, corner_uvs = [], []
     for p in parts:
         if p.image is not None:
+            assert p.uv is not None  # `_part` gives an image only with its uvs
             h, w = p.image.shape[:2]
             uv = p.uv[p.faces]  # (F, 3, 2)
             # Tiled textures (glTF's default wrap): move each triangle into the first tile.
@@ -109,6 +110,7 @@ def _combine(parts: list[_Part], path: Path) -> WorldMesh:
             corner_uvs.append(np.stack([uv[..., 0] * w, (1.0 - uv[..., 1]) * h], axis=-1))
             images.append(p.image)
         else:
+            assert p.colors is not None  # `_part` gives colours to every part without an image
             face_colours = p.colors[p.faces].mean(axis=1).round().astype(np.uint8)
             palette, which = np.unique(face_colours, axis=0, return_inverse=True)
             images.append(palette[None, :, :])

@@ -32,7 +32,8 @@ def texels(metres: float, ppm: float = PX_PER_M) -> int:
 
 
 def _colour(rng: np.random.Generator, lo: int = 0, hi: int = 256) -> tuple[int, int, int]:
-    return tuple(int(c) for c in rng.integers(lo, hi, 3))
+    c = rng.integers(lo, hi, 3)
+    return int(c[0]), int(c[1]), int(c[2])
 
 
 def _vivid(rng: np.random.Generator) -> tuple[int, int, int]:
@@ -41,7 +42,7 @@ def _vivid(rng: np.random.Generator) -> tuple[int, int, int]:
     order = rng.permutation(3)
     c[order[0]] = rng.integers(170, 256)
     c[order[1]] = rng.integers(0, 80)
-    return tuple(int(v) for v in c)
+    return int(c[0]), int(c[1]), int(c[2])
 
 
 def _noisy_fill(rng: np.random.Generator, h: int, w: int, colour, grain: float = 4.0, blotch: float = 5.0) -> np.ndarray:

@@ -17,7 +17,7 @@ import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -101,7 +101,7 @@ class _Bag:
         self.writer.open()
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> bool:
+    def __exit__(self, exc_type, exc, tb) -> Literal[False]:
         if exc_type is None:
             self.writer.close()
         else:
@@ -267,6 +267,7 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
     zero_cov = np.zeros((6, 6))
 
     def write_truth(k: int) -> None:
+        assert gt is not None  # called only for the ground truth's own poses
         ns = stamp_ns(float(gt.timestamps[k]), offset)
         base = gt.poses[k] @ base_in_camera
         bag.write(gt_c, ns, b.odometry(base, ns, MAP_FRAME, BASE_FRAME, zero_cov, np.zeros(3), np.zeros(3), zero_cov))

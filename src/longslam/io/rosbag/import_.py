@@ -156,7 +156,7 @@ def _choose_topics(bag: _Bag, given: Topics, meta: dict, camera_given: bool = Fa
         raise InputError(f"{bag.path} has no depth image topic (sensor_msgs/Image 32FC1 or 16UC1); "
                          f"its topics: {bag.listing()}")
     if camera_given:  # --intrinsics: no CameraInfo is read
-        info = None
+        info: str | None = None
     elif given.camera_info:
         info = bag.check(given.camera_info, "--camera-info", (CAMERA_INFO,))
     else:
@@ -167,13 +167,13 @@ def _choose_topics(bag: _Bag, given: Topics, meta: dict, camera_given: bool = Fa
         raise InputError(f"{bag.path} has no sensor_msgs/CameraInfo topic for the colour camera; give one with "
                          f"--camera-info, or the intrinsics with --intrinsics fx,fy,cx,cy (its topics: {bag.listing()})")
     if given.odom:
-        odom = bag.check(given.odom, "--odom", (ODOMETRY,))
+        odom: str | None = bag.check(given.odom, "--odom", (ODOMETRY,))
     elif named:  # a longslam bag says whether it has odometry
         odom = named.get("odom")
     else:
         odom = bag.one_of([t for t, m in bag.types.items() if m == ODOMETRY], "--odom", "nav_msgs/Odometry")
     if given.groundtruth:
-        groundtruth = bag.check(given.groundtruth, "--groundtruth", (ODOMETRY, POSE_STAMPED))
+        groundtruth: str | None = bag.check(given.groundtruth, "--groundtruth", (ODOMETRY, POSE_STAMPED))
     else:
         groundtruth = named.get("groundtruth")  # never guessed: it would look like the odometry
     return Topics(rgb, depth, info, odom, groundtruth)
@@ -232,6 +232,7 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
             given_k: tuple[float, float, float, float] | None = None) -> ImportSummary:
     meta = _longslam_meta(bag)
     chosen = _choose_topics(bag, given, meta, camera_given=given_k is not None)
+    assert chosen.rgb is not None and chosen.depth is not None  # or it raised
     _check_one_role_each(chosen)
     offset_ns = int(meta.get("clock_offset_s", 0)) * 1_000_000_000
     gap_ns = int(MAX_GAP_S * 1e9)
@@ -247,7 +248,8 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
     truth: list[tuple[int, np.ndarray]] = []
     truth_frames: set[tuple[str, str]] = set()
     tf_topics = [t for t, m in bag.types.items() if m == TF_MESSAGE and t.lstrip("/") in ("tf", "tf_static")]
-    wanted = [chosen.rgb, chosen.depth, chosen.camera_info, *tf_topics]
+    # No camera_info topic when --intrinsics gives the camera.
+    wanted = [t for t in (chosen.rgb, chosen.depth, chosen.camera_info) if t] + tf_topics
     wanted += [t for t in (chosen.odom, chosen.groundtruth) if t]
     for topic, message in bag.messages(wanted):
         if topic == chosen.rgb:
@@ -273,12 +275,15 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         raise InputError(f"{chosen.rgb} in {bag.path} holds no messages")
     if not depth_stamps:
         raise InputError(f"{chosen.depth} in {bag.path} holds no messages")
+    assert camera_frame is not None  # set with the first colour image
+    distortion: list[float]
     if given_k is not None:
         first = read_rgb(bag.first(chosen.rgb), f"{chosen.rgb} message 0")
         intrinsics, distortion = Intrinsics(first.shape[1], first.shape[0], *given_k), []
     elif info is None:
         raise InputError(f"{chosen.camera_info} in {bag.path} holds no messages")
     else:
+        assert chosen.camera_info is not None  # info was read from it
         intrinsics, distortion = _intrinsics(info, chosen.camera_info)
     if any(abs(d) > 0 for d in distortion):
         notes.append(f"{chosen.camera_info} gives distortion {distortion}; the images are used as they are "
@@ -331,7 +336,7 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
     rgb_index = {i: k for k, (i, _) in enumerate(kept)}
     depth_index = {j: k for k, (_, j) in enumerate(kept)}
     pending: dict[int, dict[str, np.ndarray]] = {}
-    source_meta = meta.get("meta") if isinstance(meta.get("meta"), dict) else {}
+    source_meta = meta["meta"] if isinstance(meta.get("meta"), dict) else {}
     seq_meta = {**source_meta, "imported_from": str(bag.path.resolve()), "import_topics": vars(chosen).copy(),
                 "import_notes": notes}
     next_frame = 0

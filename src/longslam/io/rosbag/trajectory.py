@@ -72,9 +72,11 @@ def read_bag_trajectory(bag: str | Path, topic: str | None, option: str, frames:
                 offset_ns = int(json.loads(meta.data).get("clock_offset_s", 0)) * 1_000_000_000
             except (TypeError, ValueError, AttributeError):
                 offset_ns = 0
-        stamps, poses = [], []
+        stamps: list[int] = []
+        poses: list[np.ndarray] = []
         for _, message in opened.messages([topic]):
-            if frames is not None and not stamps and getattr(message, "child_frame_id", ""):
+            child: str = getattr(message, "child_frame_id", "")
+            if frames is not None and not stamps and child:
                 frames["child"] = message.child_frame_id.lstrip("/")
                 frames["topic"] = topic
             stamps.append(stamp_of(message) - offset_ns)

@@ -298,6 +298,7 @@ class SequenceReader:
         i = int(i) % n
         odometry = None
         if self.odometry is not None:
+            assert self._odometry_index is not None  # matched when odometry.txt was read
             odometry = self.odometry.poses[self._odometry_index[i]].copy()
         return Frame(
             index=i,

@@ -10,6 +10,7 @@ import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -152,8 +153,9 @@ class SequenceWriter:
         (self._tmp / DEPTH_DIR).mkdir()
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> bool:
+    def __exit__(self, exc_type, exc, tb) -> Literal[False]:
         tmp, self._tmp = self._tmp, None
+        assert tmp is not None  # entered: `__enter__` made the folder
         self._done = True
         block = self._folder_block
         if exc_type is None:

@@ -58,7 +58,8 @@ class SensorModel:
 
     def describe(self) -> dict:
         """The model's name and constants, for meta.json and a run's record."""
-        fields = dataclasses.asdict(self) if dataclasses.is_dataclass(self) else {}
+        # Subclasses are dataclasses; mypy does not narrow a plain class to the dataclass protocol.
+        fields: dict[str, object] = dataclasses.asdict(self) if dataclasses.is_dataclass(self) else {}  # type: ignore[call-overload]
         return {"name": self.name, **fields}
 
 

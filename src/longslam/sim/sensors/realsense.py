@@ -49,7 +49,7 @@ class RealSenseD435(SensorModel):
     speckle_seed: float = 0.04  # probability a low-texture pixel seeds a 3 x 3 hole
     colour: ColourNoise = field(default_factory=ColourNoise)
 
-    def sigma(self, z: np.ndarray | float) -> np.ndarray | float:
+    def sigma(self, z: np.ndarray | float) -> np.ndarray:
         """RMS depth error (m) at depth z (m)."""
         return self.relative_rms_at_2m * 2.0 * (np.asarray(z) / 2.0) ** 2
 

@@ -289,6 +289,7 @@ class CommandMethod:
         }
         if self.config.frame == "robot" or not uses_odometry:
             method_stats[stats.CAMERA_HEIGHT] = height
+        assert self._start is not None  # `step` placed it at the first frame; `finish` refuses no frames
         online = np.repeat(self._start[None], count, axis=0)
         return Result(
             trajectory=Trajectory(stamps, final, source=METHOD),

@@ -178,6 +178,7 @@ class FrontEnd:
             raise InputError(f"frame {frame.index}: odometry present in some frames and not in others")
         wheel = self._wheel_step(frame) if self._has_wheels else None
         if self.config.mode == "wheel":
+            assert self._odom is not None  # mode "wheel" has odometry in every frame: `_wheel_step` set it
             pose = self._odom.copy()
             self._visual_used = False
             self._smoother.add_frame(pose, wheel, self._wheel_sigmas(wheel), None, None, None)
@@ -237,6 +238,7 @@ class FrontEnd:
 
     def _wheel_step(self, frame: Frame) -> WheelStep | None:
         previous = self._odom
+        assert self._wheels is not None and self._filter is not None  # `_start` made them: the frames have odometry
         self._odom = self._wheels.update(np.asarray(frame.odometry, dtype=np.float64))
         self.counts["odometry_jumps"] = self._wheels.jumps
         if previous is None:
@@ -270,6 +272,7 @@ class FrontEnd:
             clean = frame
             frame = Frame(clean.index, clean.timestamp, lambda: clean.rgb, self._depth, clean.odometry, clean.intrinsics)
         flt = self._filter
+        assert flt is not None and self._gates is not None and self._extract is not None  # `_start` made them
         cv_step = None
         visual = None
         vis_sigmas = np.array([cfg.visual_sigma_forward, cfg.visual_sigma_lateral, cfg.visual_sigma_yaw])
@@ -324,6 +327,7 @@ class FrontEnd:
             sigma = float(np.radians(cfg.wall_axes.sigma_deg))
             for frame_k, heading, direction in self._axes.measure(k, float(pose[2]), scan, float(np.sqrt(flt.cov[2, 2]))):
                 self.counts["wall_headings"] += 1
+                assert self._axes.axes is not None  # measurements come once the axes have settled
                 self._smoother.axes_initial = float(self._axes.axes)
                 self._smoother.add_wall(frame_k, direction, sigma)
                 if frame_k == k:  # online too, so the next measurement is gated against a held heading
@@ -379,6 +383,7 @@ class FrontEnd:
 
     def camera_poses(self, xyyaw: np.ndarray) -> np.ndarray:
         """(N, 3) planar poses -> (N, 4, 4) camera-in-world poses (after the first frame)."""
+        assert self.mount is not None  # placed at the first frame
         return self.mount.to_camera(np.asarray(xyyaw).reshape(-1, 3))
 
     def frame_table(self) -> Table:

@@ -98,7 +98,7 @@ class VisualGates:
             self.counts["visual_failed"] += 1
         return res
 
-    def _refused(self) -> None:
+    def _refused(self) -> np.ndarray | None:  # always None (no step): the gates return it as their answer
         self.counts["visual_refused"] += 1
         return None
 

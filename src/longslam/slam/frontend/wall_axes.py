@@ -75,7 +75,7 @@ def wall_direction(scan_xy: np.ndarray, config: WallAxesConfig = WallAxesConfig(
     straight = small <= config.straightness * np.maximum(big, 1e-12)
     if straight.sum() < config.min_points:
         return None
-    along = fold(0.5 * np.arctan2(2.0 * cxy[straight], (cxx - cyy)[straight]))
+    along: np.ndarray = fold(0.5 * np.arctan2(2.0 * cxy[straight], (cxx - cyy)[straight]))
     # The peak of a 1-degree histogram (wrapping at +-45), then the points within peak_width of
     # it, averaged on the circle of 4 x angle (where 90 degrees apart is the same direction).
     bins = np.floor((np.degrees(along) + 45.0)).astype(int) % 90
@@ -134,6 +134,7 @@ class WallAxes:
     def _factor(self, frame: int, yaw: float, direction: float, yaw_std: float) -> tuple[int, float, float] | None:
         cfg = self.config
         gate = min(math.radians(cfg.gate_deg) + cfg.gate_sigmas * yaw_std, math.radians(cfg.max_gate_deg))
+        assert self.axes is not None  # `measure` settles the axes before it asks for factors
         off = float(fold(yaw + direction - self.axes))
         if abs(off) > gate:
             self.gated += 1

@@ -99,7 +99,7 @@ def _sigmas(values, what: str) -> tuple[float, float, float]:
     arr = np.asarray(values, dtype=np.float64).reshape(-1)
     if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
         raise InputError(f"{what}: sigmas must be three positive finite numbers (x, y, yaw), got {values!r}")
-    return tuple(float(v) for v in arr)
+    return float(arr[0]), float(arr[1]), float(arr[2])
 
 
 def _information(values, what: str) -> np.ndarray:

@@ -90,6 +90,8 @@ class LoopCloser:
                     break
         if cfg.proximity:
             for cand in self.proximity_candidates(node, exclude=tried):
+                if not self.memory.nodes[cand].in_ram:  # an earlier link's retrieval moved it to long-term memory
+                    continue
                 self.counts[f"{PROXIMITY}_hypotheses"] += 1
                 self.try_link(node, cand, PROXIMITY)
         if cfg.scan_proximity_on:
@@ -191,6 +193,8 @@ class LoopCloser:
         """Verify a hypothesis, add it to the graph, keep it only if the optimised graph agrees."""
         cfg = self.config
         candidate = self.memory.nodes[cand_id]
+        # The new node is not yet in working memory, so none of its links moves it out; the candidate is in it.
+        assert node.features is not None and candidate.features is not None
         delta = self.visual_link(node.features, candidate.features, min_support=cfg.loop_min_depth_support)
         if delta is None:
             self.counts[f"{source}_rejected_verification"] += 1

@@ -44,7 +44,7 @@ def assemble_maps(
             # base's pose on the floor, not with the camera's.
             base = pose_from_xyyaw(xyyaw, mount.floor_z)
             cloud.add((points @ base[:3, :3].T + base[:3, 3]).astype(np.float32))
-        grid = votes.grid()
+        fused = votes.grid()
         del votes  # the vote array goes before the cloud is filtered
-        return grid, cloud.result()
+        return fused, cloud.result()
 

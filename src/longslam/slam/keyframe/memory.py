@@ -92,6 +92,7 @@ class KeyframeMemory:
     def transfer(self, node_id: int, count: bool = True) -> None:
         """Working memory -> long-term memory: the node's data go to the database and leave RAM."""
         node = self.nodes[node_id]
+        assert node.features is not None and node.grid is not None  # in working or short-term memory: its data are in RAM
         arrays = {
             "keypoints": node.features.keypoints, "descriptors": node.features.descriptors,
             "points3d": node.features.points, "grid_obstacles": node.grid.obstacles,
@@ -119,6 +120,7 @@ class KeyframeMemory:
         """A node's local grid and points, from RAM or from the database."""
         node = self.nodes[node_id]
         if node.in_ram:
+            assert node.grid is not None  # in RAM with its features
             return node.grid, node.points
         # Only the arrays the maps need: decoding a node's features too took half the read.
         stored = self.db.get_arrays(node_id, (*GRID_ARRAYS, "cloud"))
@@ -176,9 +178,9 @@ class KeyframeMemory:
     def memory_bytes(self) -> dict[str, int]:
         in_ram = [n for n in self.nodes.values() if n.in_ram]
         return {
-            "features": sum(n.features.nbytes for n in in_ram),
-            "local_grids": sum(n.grid.nbytes for n in in_ram),
-            "node_points": sum(n.points.nbytes for n in in_ram),
+            "features": sum(n.features.nbytes for n in in_ram if n.features is not None),
+            "local_grids": sum(n.grid.nbytes for n in in_ram if n.grid is not None),
+            "node_points": sum(n.points.nbytes for n in in_ram if n.points is not None),
             "vocabulary": int(self.vocabulary.nbytes),
             "database_on_disk": self.db.size_bytes(),
         }

@@ -78,6 +78,7 @@ class KeyframeMethod:
 
     def _node_camera_poses(self, node_id: int) -> tuple[np.ndarray, np.ndarray]:
         """A node's estimated and odometry camera poses (what the long-term memory stores)."""
+        assert self._mount is not None  # placed at the first frame
         both = np.array([self.graph.estimate(node_id), self.nodes[node_id].odom])
         pose, odom = self._mount.to_camera(both)
         return pose, odom
@@ -92,6 +93,7 @@ class KeyframeMethod:
             self._add_node(frame, odom)
             self._node_seconds.append(time.perf_counter() - started)
         node = self._last_node
+        assert node is not None and self._mount is not None  # the first frame made a node and placed the mount
         xyyaw = compose_xyyaw(self.graph.estimate(node.id), relative_xyyaw(node.odom, odom))
         self._frame_stamps.append(frame.timestamp)
         self._online.append(xyyaw)
@@ -101,6 +103,7 @@ class KeyframeMethod:
         """The front end's online pose of this frame, used as the node's "odometry"."""
         pose = self.frontend.step(frame)
         if self._mount is None:
+            assert self.frontend.mount is not None  # its first step placed it
             self._start(self.frontend.mount)
         self.counts[stats.ODOMETRY_JUMPS] = self.frontend.counts["odometry_jumps"]
         return pose
@@ -157,6 +160,7 @@ class KeyframeMethod:
         # One dictionary search per node: the words serve the query and then the index.
         words = self.memory.vocabulary.quantise(features.descriptors, grow=True)
         if features.valid.sum() >= cfg.min_inliers:
+            assert self.loops is not None  # made at the first frame, before its node
             self.loops.detect(node, words)
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
         self.memory.admit(node_id, words)
@@ -166,6 +170,7 @@ class KeyframeMethod:
         the visual transform when PnP verifies it and it stays near the odometry, so that the
         odometry's scale and heading bias is corrected on first visits too, not only at loops."""
         cfg = self.config
+        assert self.loops is not None and node.features is not None  # made at the first frame; a new node has its features
         if previous.features is None or len(previous.features) == 0 or len(node.features) == 0:
             return delta, sigmas
         visual = self.loops.visual_link(node.features, previous.features)
@@ -228,6 +233,7 @@ class KeyframeMethod:
         self.memory.release_search()
         release_free_memory()
         final = self._frontend_final()
+        assert self._mount is not None  # frames were given
         poses = self._mount.to_camera(final)
         stamps = self._frame_stamps.array()
         trajectory = Trajectory(stamps, poses, source="keyframe")
@@ -240,7 +246,7 @@ class KeyframeMethod:
         # The database ends holding every node at its optimised pose, so a user can reopen it.
         self.db.update_poses({i: self._node_camera_poses(i)[0] for i in self.nodes})
         counts = self.counts
-        run_stats = dict(counts)
+        run_stats: dict[str, object] = dict(counts)
         run_stats.update({
             stats.LOOP_HYPOTHESES: sum(counts[f"{p}_hypotheses"] for p in SOURCES),
             stats.LOOPS_ACCEPTED: sum(counts[f"{p}_accepted"] for p in SOURCES),

@@ -45,7 +45,7 @@ class ScanLink:
     information: np.ndarray  # (3, 3) in GTSAM's Pose2 tangent of the new node
     correction: float  # m the registration moved the new node's estimate
     matches: int
-    held: tuple[int, int] = (0, 0)  # matched cells facing the weaker and the stronger direction
+    held: tuple[int, ...] = (0, 0)  # matched cells facing the weaker and the stronger direction
     freed: int = 0  # directions left free (too few cells face them)
 
 
@@ -74,6 +74,7 @@ def scan_link(node: Node, node_pose: np.ndarray, candidates: list[tuple[Node, np
         return None
     local = LocalMap(LocalMapConfig(max_scans=len(near) + 1, radius=2.0 * settings.radius + 8.0))
     for c, pose in near:
+        assert c.grid is not None  # `near` holds only nodes with a grid
         local.insert(pose, c.grid.obstacle_points())
     local.rebuild(node_pose[:2])
     scan = node.grid.obstacle_points()
@@ -128,6 +129,7 @@ def facing_cells(scan_xy: np.ndarray, pose: np.ndarray, local: LocalMap, directi
     et al.'s localizability in X-ICP, 2023)."""
     c, s = np.cos(pose[2]), np.sin(pose[2])
     world = scan_xy @ np.array([[c, s], [-s, c]]) + pose[:2]
+    assert local.tree is not None  # built: the registration searched it
     dist, idx = local.tree.query(world, k=1, distance_upper_bound=max_distance)
     hit = np.isfinite(dist)
     n = local.normals[idx[hit]]

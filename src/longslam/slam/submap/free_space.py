@@ -55,6 +55,7 @@ class SubmapFreeSpace:
         """Keep only the cells the votes decided (occupied or free), as a `LocalGrid` in the
         submap's frame: a few bytes per cell instead of the votes' dense array."""
         if self.cells is None:
+            assert self._votes is not None  # dropped only once the cells are decided
             self.cells = grid_cells(self._votes.grid())
             self._votes = None
         return self.cells
@@ -63,6 +64,7 @@ class SubmapFreeSpace:
     def nbytes(self) -> int:
         if self.cells is not None:
             return self.cells.nbytes
+        assert self._votes is not None  # dropped only once the cells are decided
         return self._votes.nbytes
 
 

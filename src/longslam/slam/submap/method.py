@@ -137,6 +137,7 @@ class SubmapMethod:
 
     # --- geometry helpers --------------------------------------------------------------------
     def _origin_pose(self, xyyaw: np.ndarray) -> np.ndarray:
+        assert self._mount is not None  # the front end's, from the first frame on
         return pose_from_xyyaw(xyyaw, self._mount.floor_z)
 
     def _world_pose(self, submap: int, in_submap: np.ndarray) -> np.ndarray:
@@ -146,6 +147,7 @@ class SubmapMethod:
     def step(self, frame: Frame) -> np.ndarray:
         odometry = self.frontend.camera_poses(self.frontend.step(frame)[None])[0]
         self._mount = self.frontend.mount
+        assert self._mount is not None  # the front end placed it at the first frame
         active = self.submaps[-1] if self.submaps else None
         if active is None:
             base = self._mount.to_planar(odometry[None])[0]
@@ -164,6 +166,7 @@ class SubmapMethod:
         # Integrated only where the frame's depth noise allows (the front end's rule).
         depth = self.frontend.trusted_depth(frame, depth) if depth.ndim == 2 else depth
         updates = 0
+        assert active.tsdf is not None  # the active submap holds its TSDF
         if depth.ndim == 2 and depth.shape == (frame.intrinsics.height, frame.intrinsics.width):
             updates = active.tsdf.integrate_depth(
                 depth, frame.intrinsics, in_submap, self._max_depth, self.config.integration_stride
@@ -212,7 +215,9 @@ class SubmapMethod:
         if submap.finished:
             return
         c = self.config
+        assert submap.tsdf is not None  # not finished: the TSDF is still the submap's
         points, normals = submap.tsdf.surface_points()
+        assert normals is not None  # asked for (with_normals)
         bounds = submap.tsdf.bounds()
         submap.tsdf.compact()
         self.store.put(submap.index, submap.tsdf)
@@ -252,9 +257,11 @@ class SubmapMethod:
         for reference in self.submaps:
             if reference.index == reading.index or not reference.finished or reference.box is None:
                 continue
+            assert reference.points is not None  # a finished submap's sample
             if len(reference.points) < self.config.registration_min_points:
                 continue
             other = self._world_box(reference)
+            assert other is not None  # its box is known
             overlap = np.minimum(box[1], other[1]) - np.maximum(box[0], other[0])
             if np.any(overlap <= 0) or overlap.prod() < self.config.registration_min_overlap_area:
                 continue
@@ -287,6 +294,7 @@ class SubmapMethod:
         from longslam.slam.place_recognition import depth_held_transform, planar_link, verify
 
         c = self.config
+        assert self._vocabulary is not None and self._mount is not None  # loops are on; called from `step`
         feats = feature_module.extract(frame.rgb, depth, frame.intrinsics, max_features=c.loop_max_features)
         if len(feats) == 0:
             return
@@ -354,6 +362,7 @@ class SubmapMethod:
         check = self.graph.try_loop(candidate.submap, active.index, delta, information=info, max_error=c.loop_max_error, check="edge")
         if check.accepted:
             self.counts.loops_accepted += 1
+            assert check.edge_id is not None  # an accepted loop's edge is kept
             self._frame_loops[check.edge_id] = (candidate.frame, len(self._stamps), link)
         else:
             self.counts.loops_rejected += 1
@@ -365,7 +374,7 @@ class SubmapMethod:
         out = {
             "submap_tsdfs_finished": self.store.cached_bytes,  # those in memory
             "submap_tsdfs_on_disk": self.store.stored_bytes,
-            "submap_tsdf_active": int(sum(s.tsdf.nbytes for s in active)),
+            "submap_tsdf_active": int(sum(s.tsdf.nbytes for s in active if s.tsdf is not None)),
             "registration_points": int(sum(s.points.nbytes for s in finished if s.points is not None)),
             "frame_poses": int(self._stamps.nbytes + self._online.nbytes),
         }
@@ -390,6 +399,7 @@ class SubmapMethod:
         release_free_memory()
         stamps = self._stamps.array()
         final = self._frontend_final()
+        assert self._mount is not None  # frames were given
         poses = self._mount.to_camera(final)
         # Each submap's origin is the robot's pose at its first frame: the map moves with the
         # final trajectory.
@@ -406,7 +416,8 @@ class SubmapMethod:
         grid = grid_from_tsdf(fused, cloud, self._mount.floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)
         if c.grid_free_space:
             # The submaps' rays at their final origins, as the TSDF's voxels were fused.
-            free = fuse_free_space(((s.free_space.finish(), final[self._submap_frame[s.index]]) for s in self.submaps),
+            free = fuse_free_space(((s.free_space.finish(), final[self._submap_frame[s.index]]) for s in self.submaps
+                                    if s.free_space is not None),
                                    c.grid_resolution)
             grid = carve(grid, free, c.grid_free_space_margin)
         mesh_path = None

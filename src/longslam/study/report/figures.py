@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from longslam.core.errors import InputError
-from longslam.study.report.results import StudyResults, on_camera
+from longslam.study.report.results import RowGroup, StudyResults, on_camera
 from longslam.io.grid_files import read_grid
 
 FIGURES_DIR = "report_files"
@@ -27,7 +27,7 @@ class Figure:
     interactive: Any = None  # a plotly figure that report.html shows instead of the PNG
 
 
-def _seed_runs(results: StudyResults, route: str, noise: str, camera: str | None = None) -> dict[str, list[dict]]:
+def _seed_runs(results: StudyResults, route: str, noise: str, camera: RowGroup | str | None = None) -> dict[str, list[dict]]:
     """method -> its successful runs of (route, noise, camera), by seed."""
     chosen: dict[str, list[dict]] = defaultdict(list)
     for run in sorted(results.ok, key=lambda r: r["seed"]):
@@ -36,7 +36,7 @@ def _seed_runs(results: StudyResults, route: str, noise: str, camera: str | None
     return {m: chosen[m] for m in results.methods if m in chosen}
 
 
-def _first_seed_runs(results: StudyResults, route: str, noise: str, camera: object | None = None) -> dict[str, dict]:
+def _first_seed_runs(results: StudyResults, route: str, noise: str, camera: RowGroup | str | None = None) -> dict[str, dict]:
     chosen: dict[str, dict] = {}
     for run in sorted(results.ok, key=lambda r: r["seed"]):
         if (run["route"], run["noise"]) == (route, noise) and on_camera(run, camera) and run["method"] not in chosen:
@@ -72,7 +72,7 @@ def make_figures(results: StudyResults, left_out: list[str] | None = None) -> li
     return figures
 
 
-def _route_figures(results: StudyResults, route: str, camera: object | None, truth_grid,
+def _route_figures(results: StudyResults, route: str, camera: RowGroup | str | None, truth_grid,
                    left_out: list[str]) -> list[Figure]:
     """The figures of one route: of one row group's runs (a camera, a sensor and/or a
     perturbation), or of all (camera None: one of each)."""
@@ -132,7 +132,7 @@ def _route_figures(results: StudyResults, route: str, camera: object | None, tru
         ("error_curve", "position error [m]", 1.0, "ATE (position error, no alignment)"),
         ("memory_curve", "resident memory [MB]", 1e-6, "Resident memory of the run's process"),
     ):
-        panels: dict[str, dict[str, list[np.ndarray]]] = {}
+        curve_panels: dict[str, dict[str, list[np.ndarray]]] = {}
         by_seed: dict[str, dict[str, dict[int, np.ndarray]]] = {}
         for noise in noises:
             curves: dict[str, list[np.ndarray]] = defaultdict(list)
@@ -143,12 +143,12 @@ def _route_figures(results: StudyResults, route: str, camera: object | None, tru
                     curve[:, 1] *= scale
                     curves[run["method"]].append(curve)
                     seeded[run["method"]][run["seed"]] = curve
-            panels[f"noise {noise}"] = {m: curves[m] for m in results.methods if m in curves}
+            curve_panels[f"noise {noise}"] = {m: curves[m] for m in results.methods if m in curves}
             by_seed[f"noise {noise}"] = {m: seeded[m] for m in results.methods if m in seeded}
-        if any(panels.values()):
+        if any(curve_panels.values()):
             kind = "ate" if column == "error_curve" else "memory"
             name = Path(FIGURES_DIR) / f"{kind}-{tag}.png"
-            plot_curves_by_distance(panels, out / name, ylabel, title=where)
+            plot_curves_by_distance(curve_panels, out / name, ylabel, title=where)
             interactive = curves_figure(by_seed, ylabel, title=f"{what}, {where}: each run")
             figures.append(Figure(name, f"{what} against distance travelled, {where}: mean over the seeds, band from the "
                                         "lowest to the highest run (on the page: each run's own line).", interactive))

@@ -75,9 +75,9 @@ class StudyResults:
         [None] for all runs at once."""
         if not self._split:
             return [None]
-        cameras = list(self.cameras) if self.by_camera else [None]
-        sensors = list(self.sensors) if self.by_sensor else [None]
-        perturbations = list(self.perturbations) if self.by_perturbation else [None]
+        cameras: list[str | None] = list(self.cameras) if self.by_camera else [None]
+        sensors: list[str | None] = list(self.sensors) if self.by_sensor else [None]
+        perturbations: list[str | None] = list(self.perturbations) if self.by_perturbation else [None]
         return [RowGroup(c, s, p) for c in cameras for s in sensors for p in perturbations]
 
     @property

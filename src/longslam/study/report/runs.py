@@ -158,9 +158,9 @@ def every_run_table(results: StudyResults) -> RunsTable:
             status = "ok, starved"
         table.rows.append(RunRow(
             key=run["key"], status=status, ok=ok,
-            identity=([run["route"]] + ([group.camera or ""] if results.by_camera else [])
-                      + ([group.sensor or ""] if results.by_sensor else [])
-                      + ([group.perturbation or ""] if results.by_perturbation else []) + [run["noise"], run["method"], str(run["seed"])]
+            identity=([run["route"]] + ([group.camera or ""] if results.by_camera and group is not None else [])
+                      + ([group.sensor or ""] if results.by_sensor and group is not None else [])
+                      + ([group.perturbation or ""] if results.by_perturbation and group is not None else []) + [run["noise"], run["method"], str(run["seed"])]
                       + ([str(run.get("repeat") or 0)] if repeats else [])),
             cells=[_value(run, column, scale) for column, _, scale in columns],
             links=_links(out, run),

@@ -13,7 +13,7 @@ from longslam.run.speed import format_real_time_factor
 from longslam.study.paper import (
     ACCURACY_METRICS, CITATION, PAPER_METHODS, PAPER_NOISE, PAPER_ROUTES, paper_accuracy, paper_memory_gb, paper_route,
 )
-from longslam.study.report.results import StudyResults, on_camera, runs_anchor
+from longslam.study.report.results import RowGroup, StudyResults, on_camera, runs_anchor
 
 METRIC_LABELS = {"e_trans": "E_trans", "e_rot": "E_rot [deg/m]", "ate": "ATE [m]"}
 
@@ -89,7 +89,7 @@ class Table:
             higher = higher_is_better != (metric in reversed_metrics)
             indices = [i for i, label in enumerate(self.row_labels) if label[1] == metric]
             for c in range(len(self.columns)):
-                values = [(self.rows[i][c].value, i) for i in indices if self.rows[i][c].value is not None]
+                values = [(v, i) for i in indices if (v := self.rows[i][c].value) is not None]
                 if len(values) < 2:
                     continue
                 best = max(values)[0] if higher else min(values)[0]
@@ -101,7 +101,7 @@ def _paper_columns(columns: list[tuple[str, str]]) -> bool:
     return any(paper_route(route) and noise in PAPER_NOISE for route, noise in columns)
 
 
-def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0, camera: object | None = None) -> list[Cell]:
+def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0, camera: RowGroup | str | None = None) -> list[Cell]:
     """A method's mean ± std of one database column (of one camera's runs if `camera` is given),
     per (route, noise) column of the table."""
     cells = []
@@ -145,7 +145,7 @@ def _comparison_table(results: StudyResults, title: str, caption: str, metrics: 
     return table
 
 
-def _has_runs(results: StudyResults, method: str, camera: object | None) -> bool:
+def _has_runs(results: StudyResults, method: str, camera: RowGroup | str | None) -> bool:
     """A method has rows for every camera it ran with (a camera it never ran with, none)."""
     return camera is None or any(r["method"] == method and on_camera(r, camera) for r in results.runs)
 
