@@ -8,7 +8,6 @@ from pathlib import Path
 import pytest
 
 from longslam.study.config import StudyConfigError, check_method_params, load_study
-from longslam.study.driver import plan_text
 from longslam.study.spec import plan_runs
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -135,8 +134,8 @@ def test_named_cameras_are_an_axis_of_the_study(tmp_path):
     assert {r.key.split("/")[1] for r in runs} == {"small", "large"}
     assert {(r.camera_name, r.camera["width"]) for r in runs} == {("small", 64), ("large", 96)}
     assert len({r.config_hash for r in runs}) == len(runs)
-    assert plan_text(config) == "2 routes x 2 cameras x 2 noise levels x 2 methods x 2 seeds"
-    assert plan_text(load_study(_write(tmp_path, GOOD))) == "2 routes x 2 noise levels x 2 methods x 2 seeds"
+    assert config.grid_text().startswith("2 routes x 2 cameras x 2 noise levels x 2 methods x 2 seeds = ")
+    assert load_study(_write(tmp_path, GOOD)).grid_text().startswith("2 routes x 2 noise levels x 2 methods x 2 seeds = ")
 
 
 # Computed with longslam's code before cameras could be named (commit c517f78): a [camera] study's

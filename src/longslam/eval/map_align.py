@@ -38,16 +38,6 @@ class PlanarAlignment:
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         return xy @ np.array([[c, -s], [s, c]]).T + (self.x, self.y)
 
-    @property
-    def rotation3(self) -> np.ndarray:
-        """The yaw as a 3x3 rotation about z (for `map_quality.transform_points`)."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-    @property
-    def translation3(self) -> np.ndarray:
-        return np.array([self.x, self.y, 0.0])
-
 
 IDENTITY = PlanarAlignment(0.0, 0.0, 0.0, 0.0)
 

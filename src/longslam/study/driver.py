@@ -57,11 +57,6 @@ def _task(out: Path, spec: RunSpec, cores: int = 1) -> Task:
     )
 
 
-def plan_text(config: StudyConfig) -> str:
-    """The study's grid, axis by axis: '2 routes x 2 cameras x 4 noise levels x 3 methods x 3 seeds'."""
-    return config.grid_text().rsplit(" = ", 1)[0]
-
-
 def runs_to_do(specs: list[RunSpec], finished: dict[str, tuple[str, str]], retry_failed: bool = False,
                again: set[str] | frozenset[str] = frozenset()) -> list[RunSpec]:
     """The planned runs that are not yet in the database with the same configuration (or whose

@@ -72,9 +72,3 @@ def test_not_a_database_is_a_clear_error(tmp_path):
     bad.write_text("this is not sqlite " * 100)
     with pytest.raises(InputError, match="notes.db is not a longslam memory database"):
         MemoryDatabase(bad)
-
-
-def test_the_readme_path_opens_the_same_database():
-    from longslam.slam.memory_db import MemoryDatabase as documented
-
-    assert documented is MemoryDatabase

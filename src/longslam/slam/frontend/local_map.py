@@ -40,10 +40,6 @@ class LocalMap:
     def __len__(self) -> int:
         return len(self.points)
 
-    @property
-    def n_scans(self) -> int:
-        return len(self._scans)
-
     def insert(self, pose: np.ndarray, scan_xy: np.ndarray) -> None:
         """Add a base-frame scan taken at planar `pose` (x, y, yaw)."""
         c, s = np.cos(pose[2]), np.sin(pose[2])
