@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from longslam.sim.simulate import simulate
-from longslam.run.isolate import run_and_score  # noqa: F401 (the benchmarks import it from here)
+from longslam.run.scored_run import run_and_score  # noqa: F401 (the benchmarks import it from here)
 from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import get_route
 

@@ -106,7 +106,7 @@ def test_an_atomic_write_never_replaces_a_fifo_that_appeared_meanwhile(tmp_path)
 
 def test_a_device_node_is_refused_before_anything_is_opened(seq, tmp_path, capsys, nothing_under_dev):
     assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
-    from longslam.io.outputs import check_output_file_free
+    from longslam.io.overwrite_policy import check_output_file_free
 
     assert main(["vocabulary", "build", "--sequence", str(seq), "--out", "/dev/null", "--overwrite"]) == 2
     one_line_error(capsys, "/dev/null", "is a character device, not a regular file")

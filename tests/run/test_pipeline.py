@@ -10,7 +10,7 @@ from longslam.core.errors import InputError, UnknownNameError
 from longslam.core.frame import Frame, Intrinsics
 from longslam.io.trajectory_files import read_tum, write_kitti, write_tum
 from longslam.run.engine import run_sequence
-from longslam.run.isolate import run_sequence_isolated
+from longslam.run.scored_run import run_sequence_isolated
 from longslam.slam.api import Method, MethodContext
 from longslam.slam.catalog import create_method, method_names
 from conftest import write_tiny_sequence

@@ -13,7 +13,7 @@ from longslam.eval.sync import associate
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
 from longslam.run.folder import TRAJECTORY
-from longslam.run.isolate import run_and_score
+from longslam.run.scored_run import run_and_score
 from longslam.run.speed import format_real_time_factor
 from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings

@@ -108,7 +108,7 @@ def _given_files(paths: list[str | None]) -> dict[str, str]:
 
 def _check_out_file(args: argparse.Namespace, out: str, what: str, inputs: list[str | None]) -> None:
     """An output file replaces an existing one only with --overwrite, and never an input."""
-    from longslam.io.outputs import check_not_an_input, check_output_file_free
+    from longslam.io.overwrite_policy import check_not_an_input, check_output_file_free
 
     check_not_an_input(out, _given_files(inputs), what, inside=False)
     check_output_file_free(out, args.overwrite, what)
@@ -145,7 +145,7 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.sim.simulate import simulate
     from longslam.world import world_label
 
-    from longslam.io.outputs import check_not_an_input
+    from longslam.io.overwrite_policy import check_not_an_input
 
     check_not_an_input(args.out, _given_files([args.route, args.world, args.places]), "sequence folder")
     route = get_route(args.route, _world(args, args.world))
@@ -192,7 +192,7 @@ def cmd_run(args: argparse.Namespace) -> None:
 
         check_target(args.viz, args.overwrite)
     if args.config is not None:  # --overwrite would delete the config it reads: RUN/config.toml --out RUN
-        from longslam.io.outputs import check_not_an_input
+        from longslam.io.overwrite_policy import check_not_an_input
 
         check_not_an_input(args.out, {"--config": args.config}, "run folder")
     method, sequence, params = _run_inputs(args)
@@ -310,7 +310,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
 def cmd_diagnose(args: argparse.Namespace) -> None:
     from longslam.io.atomic import write_text_atomic
-    from longslam.io.outputs import check_output_file_free
+    from longslam.io.overwrite_policy import check_output_file_free
     from longslam.run.diagnose import diagnose_run, diagnosis_text
 
     for out in (args.plot, args.json):
@@ -510,7 +510,7 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
 
     check_tree_size(args.k, args.levels)  # all before a route is rendered
     check_features(args.features)
-    from longslam.io.outputs import check_not_an_input
+    from longslam.io.overwrite_policy import check_not_an_input
 
     # an input first: that is the better reason to refuse a file of the input sequence
     check_not_an_input(args.out, _given_files([args.sequence, args.route, args.world, args.places]), "--out")

@@ -31,7 +31,7 @@ def atomic_path(path: str | Path, overwrite: bool = True,
     With `overwrite=False` an existing `path` is never replaced, even one that another process
     wrote while this one worked: the rename fails, this output is discarded, InputError is raised.
     With `overwrite=True`, `may_replace(path)` (if given) is called on an existing `path` just
-    before it is replaced, and may raise to keep it (see `longslam.io.outputs`).
+    before it is replaced, and may raise to keep it (see `longslam.io.overwrite_policy`).
     """
     path = Path(path)
     tmp = partial_path(path)

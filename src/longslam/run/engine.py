@@ -8,6 +8,7 @@ study's runs through `study/worker.py` (frames with odometry drawn on the fly).
 from __future__ import annotations
 
 import contextlib
+import logging
 import dataclasses
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -19,14 +20,16 @@ from longslam.core.errors import InputError, LongslamError, MethodError
 from longslam.core.frame import Frame
 from longslam.io.atomic import atomic_path
 from longslam.io.partials import clean_stale_partials
-from longslam.io.outputs import RUN, check_not_an_input, check_replaceable, replace_guard
+from longslam.io.overwrite_policy import RUN, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
 from longslam.core.memory_release import map_large_blocks
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
+from longslam.core import progress as bars
 from longslam.core.progress import bar
 from longslam.run.observer import RunObserver
+from longslam.run.isolate import prepare_method, run_isolated
 from longslam.run.measurements import RunMeasurements
 from longslam.run.meter import RunMeter
 from longslam.run.process_tree import TreeUsage
@@ -34,7 +37,7 @@ from longslam.run.provenance import provenance
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes
 from longslam.core.settings import to_mapping
-from longslam.slam.api import Closable, MethodContext, Result, images_every_frame
+from longslam.slam.api import Closable, MethodContext, Result, wanted_images
 from longslam.slam.catalog import get_spec
 
 def run_frames(
@@ -99,7 +102,7 @@ def _method_code(method_name: str, call: str) -> Iterator[None]:
 def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterable[Frame], context: MethodContext,
           params: dict[str, Any] | None, total: int | None, progress: bool, observer: RunObserver | None,
           baseline_rss: int) -> tuple[Result, RunMeasurements]:
-    wanted = set(images_every_frame(method)) | set(getattr(observer, "images_every_frame", ()))
+    wanted = set(wanted_images(method)) | set(getattr(observer, "images_every_frame", ()))
     images = tuple(name for name in IMAGES if name in wanted)
     if images:
         frames = read_ahead(frames, images)
@@ -233,11 +236,6 @@ def run_sequence(
         spec = get_spec(method_name)
         spec.config(params)  # a bad parameter is refused here, not in the other process
         if spec.prepare is not None:
-            import logging
-
-            from longslam.core import progress as bars
-            from longslam.run.isolate import prepare_method, run_isolated
-
             run_isolated(prepare_method, spec, params, bars.setting() if progress else False,
                          logging.getLogger("longslam").getEffectiveLevel())
     if viz is not None:

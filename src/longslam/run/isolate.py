@@ -1,26 +1,18 @@
-"""A run in a process of its own, so that its peak memory is the run's alone."""
+"""Work in a process of its own (a run, a method's preparation), so that its peak memory is its alone."""
 
 from __future__ import annotations
 
 import logging
 import multiprocessing as mp
 from collections.abc import Callable
-from pathlib import Path
 from queue import Empty
 from typing import Any
 
+from longslam.core import progress
 from longslam.core.errors import InputError, LongslamError
-from longslam.io.sequence import SequenceReader
-from longslam.io.trajectory_files import read_tum
-from longslam.run.engine import run_sequence
-from longslam.run.folder import TRAJECTORY
-from longslam.run.measurements import RunMeasurements
-from longslam.run.score import score
 
 
 def _child(queue: mp.Queue, function: Callable[..., Any], args: tuple, kwargs: dict, bars: bool | None = None) -> None:
-    from longslam.core import progress
-
     progress.set_enabled(bars)  # a spawned process starts with tqdm's default: bars into a log file
     try:
         queue.put(("ok", function(*args, **kwargs)))
@@ -35,8 +27,6 @@ def prepare_method(spec: Any, params: dict[str, Any] | None, bars: bool | None =
     """A method's once-per-machine work (see `MethodSpec.prepare`), for `run_isolated`. A spawned
     process starts with no settings of its parent's: `bars` and `log_level` carry the command's
     --no-progress / --quiet / -v to it."""
-    from longslam.core import progress
-
     progress.set_enabled(bars)
     logger = logging.getLogger("longslam")
     logger.setLevel(log_level)
@@ -52,8 +42,6 @@ def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any
     `function` must be importable by name (a module-level function)."""
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    from longslam.core import progress
-
     proc = ctx.Process(target=_child, args=(queue, function, args, kwargs, progress.setting()))
     proc.start()
     # Poll rather than block: a child killed outright (out of memory, a signal) never reports.
@@ -78,21 +66,3 @@ def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any
     if status != "ok":
         raise RuntimeError(f"run failed in its process: {payload}")
     return payload
-
-
-def run_sequence_isolated(*args: Any, **kwargs: Any) -> RunMeasurements:
-    """`run_sequence` in a fresh process, so its peak memory is the run's alone."""
-    return run_isolated(run_sequence, *args, **kwargs)
-
-
-def run_and_score(
-    method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None, progress: bool = False,
-    viz: str | None = None,
-) -> tuple[dict[str, Any], RunMeasurements]:
-    """Run a method over a sequence in its own process, then score its final trajectory against the
-    sequence's ground truth. Returns (scores, measurements): what the demo and benchmarks print."""
-    measurements = run_sequence_isolated(method, sequence, out, params, overwrite=True, progress=progress, viz=viz)
-    truth = SequenceReader(sequence).ground_truth
-    if truth is None:
-        raise InputError(f"sequence {sequence} has no groundtruth.txt to score against")
-    return score(truth, read_tum(Path(out) / TRAJECTORY)), measurements

@@ -24,7 +24,7 @@ import longslam
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.geometry import camera_poses_from_planar, planar_from_camera_poses
-from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
+from longslam.io.overwrite_policy import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
 from longslam.core.progress import bar

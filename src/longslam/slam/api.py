@@ -108,7 +108,7 @@ class Closable(Protocol):
         ...
 
 
-def images_every_frame(method: Method) -> tuple[str, ...]:
+def wanted_images(method: Method) -> tuple[str, ...]:
     """The images the method's `step` reads in every frame (see `Method`)."""
     return tuple(getattr(method, "images_every_frame", ()))
 

@@ -47,7 +47,7 @@ from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.jsonable import json_default
 from longslam.io.atomic import rename_no_replace, replace_file
-from longslam.io.outputs import check_output_file_free
+from longslam.io.overwrite_policy import check_output_file_free
 from longslam.io.partials import partial_path
 from longslam.slam.api import MethodContext, Result
 from longslam.slam.api import pose_graph

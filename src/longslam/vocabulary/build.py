@@ -157,7 +157,7 @@ def rendered_route(route: Route, camera: CameraSettings = CameraSettings(), prog
 
 def check_output(out: str | Path, overwrite: bool = False) -> Path:
     """Refuse, before any work, an --out that cannot be written or would be replaced unasked."""
-    from longslam.io.outputs import VOCABULARY, check_output_file_free
+    from longslam.io.overwrite_policy import VOCABULARY, check_output_file_free
 
     out = Path(out)
     if out.is_dir():
@@ -177,7 +177,7 @@ def build_vocabulary_file(
     check_tree_size(k, levels)
     check_features(features)
     out = check_output(out, overwrite)
-    from longslam.io.outputs import check_not_an_input
+    from longslam.io.overwrite_policy import check_not_an_input
 
     # --overwrite replaces a vocabulary file, never a file of the input sequence (its rgb.txt, say).
     check_not_an_input(out, {"input sequence": sequence}, "--out")

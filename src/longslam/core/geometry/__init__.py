@@ -11,7 +11,7 @@ from longslam.core.geometry.fit import rigid_transform, rigid_transform_2d, umey
 from longslam.core.geometry.planar import (
     R_BASE_CAMERA,
     CameraMount,
-    PlanarOdometry,
+    JumpFilteredOdometry,
     base_to_camera,
     camera_poses_from_planar,
     compose_xyyaw,
@@ -27,7 +27,7 @@ from longslam.core.geometry.planar import (
 from longslam.core.geometry.se3 import invert, poses_from_tum, rigidity_violation, tum_from_poses
 
 __all__ = [
-    "R_BASE_CAMERA", "CameraMount", "anchor", "PlanarOdometry", "base_to_camera", "camera_poses_from_planar",
+    "R_BASE_CAMERA", "CameraMount", "anchor", "JumpFilteredOdometry", "base_to_camera", "camera_poses_from_planar",
     "compose_xyyaw", "fold_quarter", "hold_last", "invert", "log_xyyaw", "planar_from_camera_poses", "planar_poses",
     "pose_from_xyyaw", "poses_from_tum", "relative_xyyaw", "rigid_transform", "rigid_transform_2d", "rigidity_violation",
     "tum_from_poses", "umeyama", "wrap_angle", "xyyaw_from_pose",

@@ -149,7 +149,7 @@ class CameraMount:
         return camera_poses_from_planar(xyyaw, self.camera_height, self.floor_z)
 
 
-class PlanarOdometry:
+class JumpFilteredOdometry:
     """Wheel odometry as planar poses, with jumps (a step no robot makes in one frame) replaced by
     no motion, so that one corrupt odometry line cannot throw the whole trajectory away.
 

@@ -27,7 +27,7 @@ from longslam.core.geometry import base_to_camera, invert
 from longslam.core.geometry.planar import xyyaw_from_pose
 from longslam.io.atomic import atomic_path
 from longslam.io.partials import clean_stale_partials
-from longslam.io.outputs import BAG, ROS1_BAG, check_not_an_input, check_replaceable, replace_guard
+from longslam.io.overwrite_policy import BAG, ROS1_BAG, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
 from longslam.io.rosbag.conventions import (

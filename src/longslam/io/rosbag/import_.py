@@ -21,7 +21,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
-from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable
+from longslam.io.overwrite_policy import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
 from longslam.io.rosbag.conventions import (

@@ -20,7 +20,7 @@ from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
 from longslam.io.atomic import atomic_path, write_bytes, write_text
 from longslam.io.partials import clean_stale_partials
-from longslam.io.outputs import SEQUENCE, check_not_an_input, check_replaceable, replace_guard
+from longslam.io.overwrite_policy import SEQUENCE, check_not_an_input, check_replaceable, replace_guard
 from longslam.io.sequence.layout import (
     CAMERA, DEFAULT_MAX_DIFF, DEPTH_DIR, DEPTH_LIST, DEPTH_SCALE, GROUND_TRUTH, META, ODOMETRY, RGB_DIR, RGB_LIST,
     STAMP_DECIMALS,

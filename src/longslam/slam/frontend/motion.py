@@ -29,7 +29,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame, Intrinsics
-from longslam.core.geometry import CameraMount, PlanarOdometry, relative_xyyaw, wrap_angle
+from longslam.core.geometry import CameraMount, JumpFilteredOdometry, relative_xyyaw, wrap_angle
 from longslam.core.memory_release import release_free_memory
 from longslam.slam.api import Table
 from longslam.slam.depth_trust import DepthTrust, measured_noise, range_for_noise, scan_weight, trusted_depth, trusted_range
@@ -146,7 +146,7 @@ class FrontEnd:
         # In "wheel" mode the smoother (used only when loops are added) trusts the wheels as given.
         self._smoother = FullSmoother(self.config.noise, self.config.smoother,
                                       use_bias=self.config.use_bias and self.config.mode == "fused")
-        self._wheels: PlanarOdometry | None = None
+        self._wheels: JumpFilteredOdometry | None = None
         self._odom: np.ndarray | None = None  # jump-corrected wheel odometry of the latest frame
         self._has_wheels: bool | None = None
         self._online = Rows((3,))  # every frame's online pose
@@ -215,7 +215,7 @@ class FrontEnd:
                              f"mode 'wheel' needs a sequence with odometry.txt (mode 'fused' runs without)")
         if frame.odometry is not None:
             self.mount = CameraMount.from_first_pose(np.asarray(frame.odometry, dtype=np.float64), cfg.camera_height)
-            self._wheels = PlanarOdometry(self.mount, cfg.jump_distance, cfg.jump_angle)
+            self._wheels = JumpFilteredOdometry(self.mount, cfg.jump_distance, cfg.jump_angle)
         else:
             self.mount = CameraMount(cfg.default_camera_height if cfg.camera_height is None else cfg.camera_height, 0.0)
             self._odom = np.zeros(3)  # a sequence without odometry starts at the origin
