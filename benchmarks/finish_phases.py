@@ -19,7 +19,7 @@ from pathlib import Path
 
 from longslam.core.gridmap import GridMap
 from longslam.run import folder
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.core.settings import parse_key_values
 from longslam.slam.frontend import FrontEnd
 from longslam.slam.keyframe import memory, memory_db, method
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> None:
     for owner, name, label in STEPS:
         _wrap(owner, name, label)
     params = parse_key_values(args.param)
-    measurements = run_sequence("keyframe", args.sequence, args.out, params=params or None, overwrite=True, progress=False)
+    measurements = run_named("keyframe", args.sequence, args.out, params=params or None, overwrite=True, progress=False)
     print(f"finish {measurements.finish_time_s:.1f} s; RSS (MiB) every 1,000 frames:",
           [(f, round(b / 2**20)) for f, b in measurements.rss_samples if f % 1000 == 0 or f == measurements.frames])
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.core.settings import parse_key_values
 
 # (module, owner in the module or "" for a module-level function, attribute, label)
@@ -141,7 +141,7 @@ def main() -> None:
     for module, owner, name, label in PHASES[args.method]:
         clock.wrap(_owner(module, owner), name, label)
         labels.append(label)
-    measurements = run_sequence(args.method, args.sequence, args.out, parse_key_values(args.param), overwrite=True,
+    measurements = run_named(args.method, args.sequence, args.out, parse_key_values(args.param), overwrite=True,
                                 progress=False)
     frames = measurements.frames
     print(f"{args.method} on {args.sequence}: {frames} frames, finish {measurements.finish_time_s:.1f} s")

@@ -78,7 +78,7 @@ def main(work: Path) -> dict:
     if "smoothed" not in catalog.METHODS:
         catalog.METHODS.register("smoothed", SPEC)
     context = MethodContext(reader.intrinsics, reader.max_depth)
-    result, measurements = run_frames("smoothed", reader, context, {"damping": 0.8}, progress=False)
+    result, measurements = run_frames(catalog.choose_method("smoothed", {"damping": 0.8}), reader, context, progress=False)
     scores = score(reader.ground_truth, result.trajectory)
     print(f"smoothed: ATE {scores['ate']:.3f} m over {measurements.frames} frames, "
           f"peak {measurements.peak_rss_bytes / 1e6:.0f} MB, CPU wait share {measurements.cpu_wait_share:.2f}")

@@ -262,8 +262,8 @@ def _captured_run(monkeypatch) -> dict:
 
     seen: dict = {}
 
-    def fake(method, sequence, out, params, **_):
-        seen.update(method=method, sequence=str(sequence), params=params)
+    def fake(method, sequence, out, **_):
+        seen.update(method=method.name, sequence=str(sequence), params=method.params)
         return SimpleNamespace(frames=1, real_time_factor=2.0, peak_rss_bytes=1e6, observer_time_s=None, about={},
                                method_stats={})
 

@@ -109,10 +109,10 @@ def test_the_final_rename_keeps_a_folder_that_became_the_users(seq, tmp_path, mo
     """A run checks --out again when it renames its output: a folder someone put there meanwhile stays."""
     from longslam.core.errors import InputError
     from longslam.run import engine
-    from longslam.run.engine import run_sequence
+    from longslam.run.scored_run import run_named
 
     out = tmp_path / "run"
-    run_sequence("odometry", seq, out, progress=False)
+    run_named("odometry", seq, out, progress=False)
     real = engine.run_frames
 
     def meanwhile(*args, **kwargs):
@@ -123,7 +123,7 @@ def test_the_final_rename_keeps_a_folder_that_became_the_users(seq, tmp_path, mo
 
     monkeypatch.setattr(engine, "run_frames", meanwhile)
     with pytest.raises(InputError, match="replaces only a run folder"):
-        run_sequence("odometry", seq, out, overwrite=True, progress=False)
+        run_named("odometry", seq, out, overwrite=True, progress=False)
     assert sorted(os.listdir(out)) == ["mine.txt"]
     assert not [p for p in tmp_path.iterdir() if ".partial-" in p.name]
 

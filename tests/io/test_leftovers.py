@@ -11,7 +11,7 @@ from longslam.core.frame import Intrinsics
 from longslam.core.geometry import camera_poses_from_planar
 from longslam.io.partials import clean_stale_partials
 from longslam.io.sequence import SequenceWriter
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.sim.simulate import simulate
 from longslam.sim.camera import CameraSettings
 from longslam.core.odometry_noise import get_noise
@@ -54,7 +54,7 @@ def test_a_run_cleans_partials_whose_process_is_gone(tmp_path):
     fresh = _leftovers(tmp_path / "shared", _dead_pid(), age=0.0)
     other = tmp_path / ".notes.txt"
     other.write_text("mine")
-    run_sequence("odometry", seq, tmp_path / "run", progress=False)
+    run_named("odometry", seq, tmp_path / "run", progress=False)
     assert not any(p.exists() for p in dead)
     assert all(p.exists() for p in alive) and other.exists()
     assert clean_stale_partials(tmp_path / "busy") == []  # this process is alive

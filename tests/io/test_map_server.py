@@ -13,7 +13,7 @@ from PIL import Image
 from conftest import write_tiny_sequence
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.io.map_server import write_map_server
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.io.grid_files import read_grid
 
 
@@ -51,7 +51,7 @@ def test_a_grid_as_map_server_reads_it(tmp_path):
 
 def test_a_run_folder_has_the_grid_for_map_server(tmp_path):
     sequence = write_tiny_sequence(tmp_path / "seq", n=20, turn=1.0)[0]
-    run_sequence("keyframe", sequence, tmp_path / "run", {"frontend.mode": "wheel"}, progress=False)
+    run_named("keyframe", sequence, tmp_path / "run", {"frontend.mode": "wheel"}, progress=False)
     grid = read_grid(tmp_path / "run" / "grid.npz")
     assert (grid.data == OCCUPIED).any() and (grid.data == FREE).any() and (grid.data == UNKNOWN).any()
     meta, cells = load_like_map_server(tmp_path / "run" / "grid.yaml")

@@ -24,7 +24,7 @@ from longslam.io.rosbag.import_ import Topics, import_bag  # noqa: E402
 from longslam.io.rosbag.messages import typestore_for  # noqa: E402
 from longslam.io.sequence import SequenceReader  # noqa: E402
 from longslam.io.trajectory_files import read_tum  # noqa: E402
-from longslam.run.engine import run_sequence  # noqa: E402
+from longslam.run.scored_run import run_named  # noqa: E402
 from longslam.run.folder import TRAJECTORY  # noqa: E402
 from longslam.run.score import score  # noqa: E402
 from longslam.core.odometry_noise import get_noise  # noqa: E402
@@ -56,7 +56,7 @@ def test_a_method_gives_the_same_metrics_after_the_round_trip(sequence, tmp_path
     import_bag(tmp_path / "bag", tmp_path / "back")
     scores = []
     for seq in (sequence, tmp_path / "back"):
-        run_sequence("keyframe", seq, tmp_path / f"run-{seq.name}", {"frontend.mode": "wheel"}, progress=False)
+        run_named("keyframe", seq, tmp_path / f"run-{seq.name}", {"frontend.mode": "wheel"}, progress=False)
         truth = SequenceReader(seq).ground_truth
         scores.append(score(truth, read_tum(tmp_path / f"run-{seq.name}" / TRAJECTORY)))
     assert scores[0] == scores[1]
@@ -234,7 +234,7 @@ def test_import_a_bag_written_by_hand(tmp_path):
     np.testing.assert_allclose(seq.ground_truth.timestamps, stamps + 0.001, atol=1e-6)
     np.testing.assert_allclose(seq.ground_truth.poses[0][:3, 3], odometry[0][:3, 3] + [0.0005, 0, 0], atol=1e-4)
     # and a method runs on it
-    measurements = run_sequence("odometry", tmp_path / "seq", tmp_path / "run", progress=False)
+    measurements = run_named("odometry", tmp_path / "seq", tmp_path / "run", progress=False)
     assert measurements.frames == 12
 
 

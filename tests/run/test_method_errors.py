@@ -15,6 +15,7 @@ from longslam.core.trajectory import Trajectory
 from longslam.io.sequence import SequenceReader
 from longslam.run.engine import run_frames
 from longslam.slam import catalog
+from longslam.slam.catalog import choose_method
 from longslam.slam.api import MethodContext, MethodSpec, Result
 
 
@@ -61,7 +62,7 @@ def broken_method(monkeypatch):
 def test_a_method_that_raises_is_a_method_error_naming_it_and_the_call(tiny_sequence, broken_method, breaks, where):
     reader = SequenceReader(tiny_sequence)
     with pytest.raises(MethodError, match=re.escape(f"method 'broken': {where}")) as caught:
-        run_frames(broken_method, reader, MethodContext(reader.intrinsics, reader.max_depth), {"breaks": breaks},
+        run_frames(choose_method(broken_method, {"breaks": breaks}), reader, MethodContext(reader.intrinsics, reader.max_depth),
                    progress=False)
     assert caught.value.__cause__ is not None  # the method's own error, with its traceback
 
@@ -69,14 +70,14 @@ def test_a_method_that_raises_is_a_method_error_naming_it_and_the_call(tiny_sequ
 def test_a_pose_of_the_wrong_shape_is_a_method_error(tiny_sequence, broken_method):
     reader = SequenceReader(tiny_sequence)
     with pytest.raises(MethodError, match=r"returned a pose of shape \(3,\) for frame 0; expected \(4, 4\)"):
-        run_frames(broken_method, reader, MethodContext(reader.intrinsics, reader.max_depth), {"breaks": "shape"},
+        run_frames(choose_method(broken_method, {"breaks": "shape"}), reader, MethodContext(reader.intrinsics, reader.max_depth),
                    progress=False)
 
 
 def test_an_input_error_from_a_method_stays_an_input_error(tiny_sequence, broken_method):
     reader = SequenceReader(tiny_sequence)
     with pytest.raises(InputError, match="frame needs depth") as caught:
-        run_frames(broken_method, reader, MethodContext(reader.intrinsics, reader.max_depth), {"breaks": "input"},
+        run_frames(choose_method(broken_method, {"breaks": "input"}), reader, MethodContext(reader.intrinsics, reader.max_depth),
                    progress=False)
     assert not isinstance(caught.value, MethodError)
 

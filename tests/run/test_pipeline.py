@@ -9,7 +9,7 @@ from longslam.cli.main import main
 from longslam.core.errors import InputError, UnknownNameError
 from longslam.core.frame import Frame, Intrinsics
 from longslam.io.trajectory_files import read_tum, write_kitti, write_tum
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.run.scored_run import run_sequence_isolated
 from longslam.slam.api import Method, MethodContext
 from longslam.slam.catalog import create_method, method_names
@@ -25,7 +25,7 @@ def sequence(tmp_path_factory):
 
 def test_odometry_method_returns_the_odometry(sequence, tmp_path):
     path, truth, odometry = sequence
-    figures = run_sequence("odometry", path, tmp_path / "run", progress=False)
+    figures = run_named("odometry", path, tmp_path / "run", progress=False)
     estimate = read_tum(tmp_path / "run" / "trajectory.txt")
     online = read_tum(tmp_path / "run" / "online.txt")
     np.testing.assert_allclose(estimate.poses, odometry.poses, atol=1e-7)
@@ -49,7 +49,7 @@ def test_the_run_folder_keeps_the_config_it_ran_with(sequence, tmp_path):
     from longslam.slam.submap.config import SubmapConfig
 
     path, _, _ = sequence
-    run_sequence("submap", path, tmp_path / "run", {"submap_interval": "1.5", "registration": False}, progress=False)
+    run_named("submap", path, tmp_path / "run", {"submap_interval": "1.5", "registration": False}, progress=False)
     written = tomllib.loads((tmp_path / "run" / "config.toml").read_text())
     assert written["run"]["method"] == "submap" and written["run"]["sequence"] == str(path.resolve())
     # Every field, defaults included, so the run can be repeated from its folder alone.
@@ -59,7 +59,7 @@ def test_the_run_folder_keeps_the_config_it_ran_with(sequence, tmp_path):
 def test_existing_run_folder_is_refused(sequence, tmp_path):
     (tmp_path / "run").mkdir()
     with pytest.raises(InputError, match="exists already"):
-        run_sequence("odometry", sequence[0], tmp_path / "run", progress=False)
+        run_named("odometry", sequence[0], tmp_path / "run", progress=False)
 
 
 def test_isolated_run_measures_its_own_process(sequence, tmp_path):

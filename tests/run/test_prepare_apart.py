@@ -54,8 +54,8 @@ def test_run_prepares_apart_so_the_peak_is_the_runs(tmp_path):
     seq = write_tiny_sequence(tmp_path / "seq", n=10)[0]
     marker = tmp_path / "built"
     here = Path(__file__).parent
-    code = ("import sys; import test_prepare_apart as t; from longslam.run import engine; "
-            "engine.get_spec = lambda name: t.SPEC; from longslam.cli.main import main; sys.exit(main(sys.argv[1:]))")
+    code = ("import sys; import test_prepare_apart as t; from longslam.slam.catalog import METHODS; "
+            "METHODS.register('cached', t.SPEC); from longslam.cli.main import main; sys.exit(main(sys.argv[1:]))")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(here), str(here.parent), *sys.path])}
     done = subprocess.run([sys.executable, "-c", code, "run", "--method", "cached", str(seq), "--out", str(tmp_path / "run"),
                            "--param", f"marker={marker}"], env=env, capture_output=True, text=True, timeout=120)

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from longslam.core.errors import MethodError
-from longslam.run import engine
+from longslam.run import engine, scored_run
+from longslam.slam import catalog
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.slam.api import MethodSpec, Result
 from longslam.core.trajectory import Trajectory
@@ -82,12 +83,12 @@ SPECS = {cls.name: MethodSpec(cls.name, None, cls) for cls in (Native, Fails, Th
 
 @pytest.fixture(autouse=True)
 def test_methods(monkeypatch):
-    monkeypatch.setattr(engine, "get_spec", lambda name: SPECS[name])
+    monkeypatch.setattr(catalog.METHODS, "_items", {**catalog.METHODS._items, **SPECS})
     Native.closed.clear()
 
 
 def test_native_output_goes_to_the_run_console_log_not_the_terminal(tiny_sequence, tmp_path, capfd):
-    engine.run_sequence("native", tiny_sequence, tmp_path / "run", progress=False)
+    scored_run.run_named("native", tiny_sequence, tmp_path / "run", progress=False)
     log = (tmp_path / "run" / CONSOLE_LOG).read_text()
     assert "native stdout at start" in log
     assert "native stderr 0" in log and "native stderr 19" in log
@@ -126,21 +127,21 @@ def test_descriptors_are_restored_after_an_error(tmp_path, capfd):
 
 def test_close_is_called_when_a_run_fails_and_not_when_it_finishes(tiny_sequence, tmp_path):
     with pytest.raises(MethodError, match="frame 3"):
-        engine.run_sequence("fails", tiny_sequence, tmp_path / "failed", progress=False)
+        scored_run.run_named("fails", tiny_sequence, tmp_path / "failed", progress=False)
     assert Native.closed == ["closed"]
     Native.closed.clear()
-    engine.run_sequence("native", tiny_sequence, tmp_path / "ok", progress=False)
+    scored_run.run_named("native", tiny_sequence, tmp_path / "ok", progress=False)
     assert Native.closed == []
 
 
 def test_process_cpu_time_counts_the_method_threads(tiny_sequence, tmp_path):
-    measurements = engine.run_sequence("threaded", tiny_sequence, tmp_path / "run", progress=False)
+    measurements = scored_run.run_named("threaded", tiny_sequence, tmp_path / "run", progress=False)
     assert measurements.process_cpu_time_s >= 0.4
 
 
 def test_the_demo_and_a_study_prepare_each_method_before_its_runs(tmp_path, monkeypatch):
     """MethodSpec.prepare: once-per-machine work outside every run's process and figures."""
-    from longslam.cli.main import demo
+    from longslam.cli import demo
     from longslam.slam import catalog
 
     prepared = []

@@ -6,13 +6,13 @@ import json
 import subprocess
 
 from conftest import write_tiny_sequence
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.run.provenance import SOURCE_ROOT, source_commit
 
 
 def test_a_run_names_its_commit_and_its_cpu_wait(tmp_path):
     seq = write_tiny_sequence(tmp_path / "seq", n=20)[0]
-    run_sequence("odometry", seq, tmp_path / "run", progress=False)
+    run_named("odometry", seq, tmp_path / "run", progress=False)
     stats = json.loads((tmp_path / "run" / "stats.json").read_text())
     head = subprocess.run(["git", "-C", str(SOURCE_ROOT), "rev-parse", "--short=7", "HEAD"], capture_output=True, text=True)
     if head.returncode == 0:

@@ -11,7 +11,7 @@ from longslam.run import engine
 from longslam.cli.main import main
 from longslam.core.errors import InputError
 from longslam.io.atomic import name_final_folder
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 
 N = 20  # frames of the tiny sequence (conftest.tiny_sequence)
 
@@ -34,7 +34,7 @@ def test_a_run_never_replaces_a_folder_another_run_finished_meanwhile(sequence, 
 
     monkeypatch.setattr(engine, "run_frames", other_run_finishes_first)
     with pytest.raises(InputError, match="written by another process while this one ran"):
-        run_sequence("odometry", sequence, out, progress=False)
+        run_named("odometry", sequence, out, progress=False)
     assert (out / "trajectory.txt").read_text() == "the other run's\n"
     assert sorted(p.name for p in out.iterdir()) == ["trajectory.txt"]
     assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no partial folder left
@@ -56,9 +56,9 @@ def test_two_runs_into_one_folder_at_once_one_wins(sequence, tmp_path):
 def test_overwrite_replaces_a_finished_folder(sequence, tmp_path):
     # A finished run (stats.json and config.toml) is replaced; any other folder is not (issue 21).
     out = tmp_path / "run"
-    run_sequence("odometry", sequence, out, progress=False)
+    run_named("odometry", sequence, out, progress=False)
     (out / "old.txt").write_text("old")
-    run_sequence("odometry", sequence, out, overwrite=True, progress=False)
+    run_named("odometry", sequence, out, overwrite=True, progress=False)
     assert not (out / "old.txt").exists() and (out / "stats.json").is_file()
     assert [p.name for p in tmp_path.iterdir()] == ["run"]
 
@@ -88,14 +88,14 @@ def test_peak_memory_is_the_whole_runs(sequence, tmp_path):
     out = tmp_path / "run"
     script = textwrap.dedent(f"""
         import numpy as np
-        from longslam.run import engine, folder
+        from longslam.run import folder, scored_run
         real = folder.write_tum
         def heavy(*args):
             block = np.ones(40_000_000)  # 320 MB, touched
             real(*args)
             del block
         folder.write_tum = heavy
-        engine.run_sequence("odometry", {str(sequence)!r}, {str(out)!r}, progress=False)
+        scored_run.run_named("odometry", {str(sequence)!r}, {str(out)!r}, progress=False)
     """)
     # The kernel's peak of a process that was forked (or vforked) from a big one starts at the
     # parent's resident size, and exec keeps it: a run started straight from pytest (hundreds of MB
@@ -118,7 +118,7 @@ def test_peak_memory_is_the_whole_runs(sequence, tmp_path):
 def test_stats_record_the_intrinsics_and_where_they_came_from(sequence, tmp_path, capsys):
     import shutil
 
-    run_sequence("odometry", sequence, tmp_path / "a", progress=False)
+    run_named("odometry", sequence, tmp_path / "a", progress=False)
     used = json.loads((tmp_path / "a" / "stats.json").read_text())["intrinsics"]
     assert used["fx"] == pytest.approx(8.0) and used["source"].endswith("camera.json")
     bare = tmp_path / "bare"

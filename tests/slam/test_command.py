@@ -27,7 +27,7 @@ from longslam.core.errors import InputError, MethodError
 from longslam.core.geometry import anchor, base_to_camera, hold_last, invert, pose_from_xyyaw
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.run.score import score
 from longslam.slam.catalog import BUILTIN, default_method_names, get_spec
 
@@ -132,7 +132,7 @@ def _truth_option(sequence: Path) -> tuple[str, str]:
 def test_a_program_run_as_a_method_is_anchored_and_measured_with_its_child(tiny, program, tmp_path):
     sequence, truth, _ = tiny
     params = {"command": _command(program, *_truth_option(sequence), "--write", "--child-mb", str(CHILD_MB))}
-    figures = run_sequence("command", sequence, tmp_path / "run", params, progress=False)
+    figures = run_named("command", sequence, tmp_path / "run", params, progress=False)
     run = tmp_path / "run"
     estimate = read_tum(run / "trajectory.txt")
     np.testing.assert_allclose(estimate.poses, truth.poses, atol=1e-5)  # the program's map frame is undone
@@ -161,7 +161,7 @@ def test_a_sparse_trajectory_holds_its_last_pose_and_reports_its_coverage(tiny, 
     params = {"command": _command(program, *_truth_option(sequence), "--write", "--every", "3", "--format", "euroc",
                                   "--name", "keyframes.txt"),
               "trajectory": "keyframes.txt", "format": "euroc"}
-    figures = run_sequence("command", sequence, tmp_path / "run", params, progress=False)
+    figures = run_named("command", sequence, tmp_path / "run", params, progress=False)
     method = figures.method_stats
     assert method["frames_covered"] == 7 and method["coverage"] == pytest.approx(1 / 3)
     assert method["program_poses"] == 7 and method["program_poses_unmatched"] == 0
@@ -178,7 +178,7 @@ def test_a_kitti_file_gives_a_pose_a_frame_in_order(tiny, program, tmp_path):
     sequence, truth, _ = tiny
     params = {"command": _command(program, *_truth_option(sequence), "--write", "--format", "kitti"),
               "format": "kitti"}
-    figures = run_sequence("command", sequence, tmp_path / "run", params, progress=False)
+    figures = run_named("command", sequence, tmp_path / "run", params, progress=False)
     assert figures.method_stats["coverage"] == 1.0
     np.testing.assert_allclose(read_tum(tmp_path / "run" / "trajectory.txt").poses, truth.poses, atol=1e-5)
 
@@ -186,7 +186,7 @@ def test_a_kitti_file_gives_a_pose_a_frame_in_order(tiny, program, tmp_path):
 def test_robot_frame_poses_become_camera_poses(tiny, program, tmp_path):
     sequence, truth, _ = tiny
     params = {"command": _command(program, *_truth_option(sequence), "--write", "--frame", "robot"), "frame": "robot"}
-    figures = run_sequence("command", sequence, tmp_path / "run", params, progress=False)
+    figures = run_named("command", sequence, tmp_path / "run", params, progress=False)
     estimate = read_tum(tmp_path / "run" / "trajectory.txt")
     np.testing.assert_allclose(estimate.poses, truth.poses, atol=1e-5)
     assert figures.method_stats["camera_height"] == pytest.approx(1.25)  # the first odometry pose's height
@@ -196,7 +196,7 @@ def test_a_program_that_exits_non_zero_fails_the_run_with_its_last_lines(tiny, p
     sequence, _, _ = tiny
     params = {"command": _command(program, "--exit", "3")}
     with pytest.raises(MethodError) as caught:
-        run_sequence("command", sequence, tmp_path / "run", params, progress=False)
+        run_named("command", sequence, tmp_path / "run", params, progress=False)
     message = str(caught.value)
     assert "exit status 3" in message and "failing now: no features in frame 7" in message and "\n" not in message
     assert not (tmp_path / "run").exists()  # a failed run leaves no run folder
@@ -206,7 +206,7 @@ def test_a_program_killed_by_a_signal_is_named_by_it(tiny, program, tmp_path):
     sequence, _, _ = tiny
     params = {"command": _command(program, "--signal", str(int(signal.SIGTERM)))}
     with pytest.raises(MethodError, match="killed by SIGTERM"):
-        run_sequence("command", sequence, tmp_path / "run", params, progress=False)
+        run_named("command", sequence, tmp_path / "run", params, progress=False)
 
 
 def _gone(pid: int, within: float = 5.0) -> bool:
@@ -229,7 +229,7 @@ def test_a_timeout_kills_the_program_and_its_children(tiny, program, tmp_path):
               "timeout": 1.5}
     t0 = time.monotonic()
     with pytest.raises(MethodError, match="timeout of 1.5 s") as caught:
-        run_sequence("command", sequence, tmp_path / "run", params, progress=False)
+        run_named("command", sequence, tmp_path / "run", params, progress=False)
     assert time.monotonic() - t0 < 15
     assert "stand-in: reading" in str(caught.value)
     leader, child = (int(v) for v in pids.read_text().split())
@@ -240,7 +240,7 @@ def test_a_timeout_kills_the_program_and_its_children(tiny, program, tmp_path):
 def test_a_program_that_writes_no_trajectory_fails_clearly(tiny, program, tmp_path):
     sequence, _, _ = tiny
     with pytest.raises(MethodError, match=r"status 0 but wrote no trajectory .*CameraTrajectory.txt"):
-        run_sequence("command", sequence, tmp_path / "run", {"command": _command(program)}, progress=False)
+        run_named("command", sequence, tmp_path / "run", {"command": _command(program)}, progress=False)
 
 
 def test_the_settings_file_and_the_numbers_hold_the_camera(tiny, program, tmp_path):
@@ -248,7 +248,7 @@ def test_the_settings_file_and_the_numbers_hold_the_camera(tiny, program, tmp_pa
     command = _command(program, *_truth_option(sequence), "--write", "--echo", "{fx:.3f} {cx} {width}x{height} {depth_scale}",
                        "--settings", "{settings}")
     params = {"command": command, "keep_sequence": True}
-    run_sequence("command", sequence, tmp_path / "run", params, progress=False)
+    run_named("command", sequence, tmp_path / "run", params, progress=False)
     run = tmp_path / "run"
     assert (run / "program" / "echo.txt").read_text() == "8.000 8.0 16x12 5000"
     assert (run / "program" / "settings_seen.yaml").read_text() == (run / "settings.yaml").read_text()

@@ -8,7 +8,7 @@ import pytest
 from scipy import ndimage
 
 from longslam.core.gridmap import OCCUPIED
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
 from longslam.slam.catalog import BUILTIN, default_method_names
@@ -30,7 +30,7 @@ def sequence(rendered):
 @pytest.mark.parametrize("method", [m for m in BUILTIN if m in default_method_names()])
 def test_written_map_lies_in_the_world(sequence, tmp_path, method):
     out = tmp_path / "run"
-    run_sequence(method, sequence, out, progress=False)
+    run_named(method, sequence, out, progress=False)
     database = json.loads((out / "stats.json").read_text())["method_stats"].get("database")
     assert database in (None, str(out / "memory.db"))  # the final path, not the temporary one
     if not (out / "map.ply").is_file():

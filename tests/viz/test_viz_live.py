@@ -13,7 +13,7 @@ from conftest import write_tiny_sequence
 from longslam.cli.main import main
 from longslam.core.errors import InputError
 from longslam.io.trajectory_files import read_tum
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 
 rerun = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
@@ -29,8 +29,8 @@ def turning(tmp_path_factory) -> Path:
 
 
 def test_a_run_recorded_to_rrd(turning, tmp_path):
-    plain = run_sequence("keyframe", turning, tmp_path / "plain", {"frontend.mode": "wheel"}, progress=False)
-    shown = run_sequence("keyframe", turning, tmp_path / "shown", {"frontend.mode": "wheel"}, progress=False,
+    plain = run_named("keyframe", turning, tmp_path / "plain", {"frontend.mode": "wheel"}, progress=False)
+    shown = run_named("keyframe", turning, tmp_path / "shown", {"frontend.mode": "wheel"}, progress=False,
                          viz=str(tmp_path / "run.rrd"))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plain", "run.rrd", "shown"]  # no partial left
     # the view changes nothing in the run, and its cost is measured apart
@@ -86,8 +86,8 @@ def test_loop_constraints_are_drawn_between_graph_nodes(tmp_path):
 
 
 def test_no_viz_no_rerun(turning, tmp_path):
-    code = ("import sys; from longslam.run.engine import run_sequence; "
-            f"run_sequence('odometry', {str(turning)!r}, {str(tmp_path / 'r')!r}, progress=False); "
+    code = ("import sys; from longslam.run.scored_run import run_named; "
+            f"run_named('odometry', {str(turning)!r}, {str(tmp_path / 'r')!r}, progress=False); "
             "assert 'rerun' not in sys.modules, 'rerun imported without --viz'")
     subprocess.run([sys.executable, "-c", code], check=True)
 
@@ -97,4 +97,4 @@ def test_bad_viz_target_is_refused_before_any_work(turning, tmp_path, capsys):
     assert "expected no value (a live viewer) or a file ending in .rrd" in capsys.readouterr().err
     assert not (tmp_path / "r").exists()
     with pytest.raises(InputError, match="does not exist"):
-        run_sequence("odometry", turning, tmp_path / "r", viz=str(tmp_path / "no" / "x.rrd"), progress=False)
+        run_named("odometry", turning, tmp_path / "r", viz=str(tmp_path / "no" / "x.rrd"), progress=False)

@@ -21,7 +21,7 @@ import pytest
 from conftest import TINY_INTRINSICS, write_tiny_sequence
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
-from longslam.run.engine import run_sequence
+from longslam.run.scored_run import run_named
 from longslam.slam.api import MethodContext, Result
 from longslam.core.trajectory import Trajectory
 
@@ -159,7 +159,7 @@ def test_a_viewer_closed_in_the_middle_of_a_run(sequence, tmp_path, monkeypatch)
         monkeypatch.setattr(live, "VIEWER_PORT", port)
         monkeypatch.setattr(live, "VIEWER_WAIT_S", 2.0)
         # a viewer that stays: the run streams to it and ends as usual
-        figures = run_sequence("odometry", sequence, tmp_path / "shown", progress=False, viz="viewer")
+        figures = run_named("odometry", sequence, tmp_path / "shown", progress=False, viz="viewer")
         assert figures.frames == 25 and figures.observer_time_s > 0
         # the viewer goes away before the run ends: the run finishes, its folder whole, and says so
         finish = live.LiveView._finish
@@ -170,7 +170,7 @@ def test_a_viewer_closed_in_the_middle_of_a_run(sequence, tmp_path, monkeypatch)
 
         monkeypatch.setattr(live.LiveView, "_finish", close_viewer_then_finish)
         with pytest.raises(InputError, match="the rerun viewer stopped taking data .*the run itself finished"):
-            run_sequence("odometry", sequence, tmp_path / "run", progress=False, viz="viewer")
+            run_named("odometry", sequence, tmp_path / "run", progress=False, viz="viewer")
         assert RUN_FILES <= {p.name for p in (tmp_path / "run").iterdir()}
     finally:
         stop()
@@ -182,7 +182,7 @@ def test_each_recording_has_its_own_id_a_name_and_a_blueprint(sequence, tmp_path
     ids = []
     for k in range(2):  # the same run twice: two recordings, never merged
         rrd = tmp_path / f"run{k}.rrd"
-        run_sequence("odometry", sequence, tmp_path / f"run{k}", progress=False, viz=str(rrd))
+        run_named("odometry", sequence, tmp_path / f"run{k}", progress=False, viz=str(rrd))
         (recording,) = RrdReader(rrd).recordings()
         assert recording.application_id == "longslam"
         ids.append(str(uuid.UUID(recording.recording_id)))  # a UUID
@@ -230,6 +230,6 @@ def test_wall_clock_stamps_the_paths_a_segment_at_a_time_and_a_json_log(tmp_path
 
 
 def test_a_simulated_sequence_has_no_wall_clock_timeline(sequence, tmp_path):
-    run_sequence("odometry", sequence, tmp_path / "run", progress=False, viz=str(tmp_path / "v.rrd"))
+    run_named("odometry", sequence, tmp_path / "run", progress=False, viz=str(tmp_path / "v.rrd"))
     assert rows(tmp_path / "v.rrd", "/world/camera", "timestamp") == []  # stamps from 0: not dates in 1970
     assert len(rows(tmp_path / "v.rrd", "/world/camera", "time")) == 25

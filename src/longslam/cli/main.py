@@ -21,6 +21,8 @@ from longslam.cli.errors import EXPECTED_FAILURES, describe_failure, quiet_broke
 from longslam.cli.output import configure, note
 from longslam.cli.parser import Parser, add_common_options
 from longslam.core.errors import InputError, LongslamError, MethodError
+from longslam.slam.api import MethodChoice
+from longslam.slam.catalog import choose_method
 
 log = logging.getLogger("longslam.cli.main")
 
@@ -164,16 +166,17 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}{perturbed}")
 
 
-def _run_inputs(args: argparse.Namespace) -> tuple[str, str, dict]:
-    """The method, sequence and parameters of `run`: the options, over a --config file's."""
+def _run_inputs(args: argparse.Namespace) -> tuple[MethodChoice, str]:
+    """The method with its parameters checked, and the sequence, of `run`: the options, over a
+    --config file's."""
     params = _params(args.param)
     if args.config is None:
         if args.method is None:
             raise LongslamError("give the method: --method NAME (see `longslam list`), or --config RUN/config.toml")
         if args.sequence is None:
             raise LongslamError("give the sequence folder to run on")
-        return args.method, args.sequence, params
-    from longslam.run.repeat import merged_params, read_run_config
+        return choose_method(args.method, params), args.sequence
+    from longslam.run.repeat import method_of, read_run_config
 
     config = read_run_config(args.config)
     if args.method is not None and args.method != config.method:
@@ -181,7 +184,7 @@ def _run_inputs(args: argparse.Namespace) -> tuple[str, str, dict]:
     sequence = args.sequence or config.sequence
     if sequence is None:
         raise LongslamError(f"give the sequence folder to run on ({args.config} names none in [run])")
-    return config.method, sequence, merged_params(config, params, args.config)
+    return method_of(config, args.config).over(params), sequence
 
 
 def cmd_run(args: argparse.Namespace) -> None:
@@ -195,9 +198,10 @@ def cmd_run(args: argparse.Namespace) -> None:
         from longslam.io.overwrite_policy import check_not_an_input
 
         check_not_an_input(args.out, {"--config": args.config}, "run folder")
-    method, sequence, params = _run_inputs(args)
-    log.info("run: method %s on %s into %s, parameters %s", method, sequence, args.out, params or "the defaults")
-    measurements = run_sequence(method, sequence, args.out, params, overwrite=args.overwrite,
+    method, sequence = _run_inputs(args)
+    log.info("run: method %s on %s into %s, parameters %s", method.name, sequence, args.out,
+             method.params or "the defaults")
+    measurements = run_sequence(method, sequence, args.out, overwrite=args.overwrite,
                                 intrinsics=args.intrinsics, viz=args.viz, prepare=True)
     from longslam.run.speed import describe_real_time_factor
 
@@ -209,7 +213,7 @@ def cmd_run(args: argparse.Namespace) -> None:
     for text in measurements.about.get("sequence_notes", []):
         note(f"{args.sequence}: {text}")
     for text in measurements.method_stats.get("notes", []):
-        note(f"{method}: {text}")
+        note(f"{method.name}: {text}")
 
 
 # evaluate's library fields -> its options, for the checks that can only run on the poses

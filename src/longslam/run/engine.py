@@ -37,19 +37,18 @@ from longslam.run.provenance import provenance
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes
 from longslam.core.settings import to_mapping
-from longslam.slam.api import Closable, MethodContext, Result, wanted_images
-from longslam.slam.catalog import get_spec
+from longslam.slam.api import Closable, MethodChoice, MethodContext, Result, wanted_images
 
 def run_frames(
-    method_name: str,
+    method: MethodChoice,
     frames: Iterable[Frame],
     context: MethodContext,
-    params: dict[str, Any] | None = None,
     total: int | None = None,
     progress: bool = True,
     observer: RunObserver | None = None,
 ) -> tuple[Result, RunMeasurements]:
-    """Feed every frame to a new method and finish it. Returns its result and the harness's
+    """Feed every frame to a new method (`method`'s, built with its checked config) and finish it.
+    Returns its result and the harness's
     measurements (times, memory, the config the method ran with and the method's own stats).
 
     `observer` (a live view, say) is shown each frame and the pose returned for it; its time is
@@ -60,22 +59,18 @@ def run_frames(
     # A long run's large arrays go back to the system when freed, rather than staying in the heap.
     map_large_blocks()
     baseline_rss = current_rss_bytes()
-    spec = get_spec(method_name)
-    config = spec.config(params)
     with contextlib.ExitStack() as stack:
         if context.output_dir is not None:
             log = stack.enter_context(native_output_to(Path(context.output_dir) / CONSOLE_LOG))
             context = dataclasses.replace(context, console_log=str(log))
-        return _run_method(method_name, spec, config, frames, context, params, total, progress, observer, baseline_rss)
+        return _run_method(method, frames, context, total, progress, observer, baseline_rss)
 
 
-def _run_method(method_name: str, spec: Any, config: Any, frames: Iterable[Frame], context: MethodContext,
-                params: dict[str, Any] | None, total: int | None, progress: bool,
-                observer: RunObserver | None, baseline_rss: int) -> tuple[Result, RunMeasurements]:
-    method = spec.build(context, config)
+def _run_method(choice: MethodChoice, frames: Iterable[Frame], context: MethodContext, total: int | None,
+                progress: bool, observer: RunObserver | None, baseline_rss: int) -> tuple[Result, RunMeasurements]:
+    method = choice.spec.build(context, choice.config)
     try:
-        return _feed(method_name, method, config, spec, frames, context, params, total, progress, observer,
-                     baseline_rss)
+        return _feed(choice, method, frames, context, total, progress, observer, baseline_rss)
     except BaseException:  # an error or Ctrl-C before finish returned: nothing of the method outlives the run
         if isinstance(method, Closable):
             method.close()
@@ -99,9 +94,9 @@ def _method_code(method_name: str, call: str) -> Iterator[None]:
         raise MethodError(f"method {method_name!r}: {call} raised {type(err).__name__}: {err}") from err
 
 
-def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterable[Frame], context: MethodContext,
-          params: dict[str, Any] | None, total: int | None, progress: bool, observer: RunObserver | None,
-          baseline_rss: int) -> tuple[Result, RunMeasurements]:
+def _feed(choice: MethodChoice, method: Any, frames: Iterable[Frame], context: MethodContext, total: int | None,
+          progress: bool, observer: RunObserver | None, baseline_rss: int) -> tuple[Result, RunMeasurements]:
+    method_name = choice.name
     wanted = set(wanted_images(method)) | set(getattr(observer, "images_every_frame", ()))
     images = tuple(name for name in IMAGES if name in wanted)
     if images:
@@ -130,12 +125,11 @@ def _feed(method_name: str, method: Any, config: Any, spec: Any, frames: Iterabl
     if observer is not None:
         with meter.observer():
             observer.finish(result)
-    return result, _measurements(method_name, spec, config, params, meter, usage, baseline_rss, result,
-                                 observer is not None)
+    return result, _measurements(choice, meter, usage, baseline_rss, result, observer is not None)
 
 
-def _measurements(method_name: str, spec: Any, config: Any, params: dict[str, Any] | None, meter: RunMeter,
-                  usage: TreeUsage, baseline_rss: int, result: Result, observed: bool) -> RunMeasurements:
+def _measurements(choice: MethodChoice, meter: RunMeter, usage: TreeUsage, baseline_rss: int, result: Result,
+                  observed: bool) -> RunMeasurements:
     wall_time = meter.wall_time()
     steps = meter.steps()
     method_time = float(steps.sum() + meter.finish_time)
@@ -144,9 +138,9 @@ def _measurements(method_name: str, spec: Any, config: Any, params: dict[str, An
     return RunMeasurements(
         longslam_version=str(source["longslam_version"]),
         longslam_commit=source["longslam_commit"],
-        method=method_name,
-        params=dict(params or {}),
-        config=to_mapping(config) if spec.config_type is not None else dict(config),
+        method=choice.name,
+        params=dict(choice.params),
+        config=to_mapping(choice.config) if choice.spec.config_type is not None else dict(choice.config),
         frames=meter.frames,
         sequence_duration_s=duration,
         wall_time_s=wall_time,
@@ -176,10 +170,9 @@ def _measurements(method_name: str, spec: Any, config: Any, params: dict[str, An
 
 def run_into_folder(
     out: Path,
-    method_name: str,
+    method: MethodChoice,
     frames: Iterable[Frame],
     reader: SequenceReader,
-    params: dict[str, Any] | None,
     about: dict[str, Any],
     *,
     progress: bool = False,
@@ -188,14 +181,14 @@ def run_into_folder(
     may_replace: Callable[[Path], None] | None = None,
     before_rename: Callable[[Path, Result, RunMeasurements], None] | None = None,
 ) -> tuple[Result, RunMeasurements]:
-    """Run `method_name` over `frames` (of the sequence `reader` reads) into the run folder `out`,
+    """Run `method` over `frames` (of the sequence `reader` reads) into the run folder `out`,
     whole or not at all: the method works in a temporary folder, its files and stats.json (with
     `about`: what the run was given) are written there, `before_rename(tmp, ...)` adds its own, and
     the folder is renamed to `out` last. Returns the result and the measurements."""
     with atomic_path(out, overwrite=overwrite, may_replace=may_replace) as tmp:
         tmp.mkdir(parents=True)
         context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
-        result, measurements = run_frames(method_name, frames, context, params, total=len(reader),
+        result, measurements = run_frames(method, frames, context, total=len(reader),
                                           progress=progress, observer=observer)
         measurements.about.update(about)
         measurements = measurements.in_folder(tmp, out)
@@ -206,17 +199,16 @@ def run_into_folder(
 
 
 def run_sequence(
-    method_name: str,
+    method: MethodChoice,
     sequence: str | Path,
     out: str | Path,
-    params: dict[str, Any] | None = None,
     overwrite: bool = False,
     progress: bool = True,
     intrinsics: str | tuple[float, float, float, float] | None = None,
     viz: str | None = None,
     prepare: bool = False,
 ) -> RunMeasurements:
-    """Run a method over a sequence on disk and write the run folder `out`. Returns the measurements.
+    """Run `method` over a sequence on disk and write the run folder `out`. Returns the measurements.
 
     `intrinsics` (fx, fy, cx, cy) replace the sequence's camera.json or stand in for a missing one.
     `prepare`: first do the method's once-per-machine work (ORB-SLAM3's default vocabulary, say) in
@@ -232,23 +224,20 @@ def run_sequence(
     if viz is not None and viz != "viewer":
         check_not_an_input(viz, {"input sequence": sequence, "run folder": out}, "--viz")
     reader = SequenceReader(sequence, intrinsics=intrinsics)
-    if prepare:
-        spec = get_spec(method_name)
-        spec.config(params)  # a bad parameter is refused here, not in the other process
-        if spec.prepare is not None:
-            run_isolated(prepare_method, spec, params, bars.setting() if progress else False,
-                         logging.getLogger("longslam").getEffectiveLevel())
+    if prepare and method.spec.prepare is not None:
+        run_isolated(prepare_method, method.spec, method.config, bars.setting() if progress else False,
+                     logging.getLogger("longslam").getEffectiveLevel())
     if viz is not None:
         from longslam.viz.live import LiveView  # rerun is imported only when a view is asked for
 
-        with LiveView(viz, f"{method_name} on {Path(sequence).name}", truth=reader.ground_truth,
+        with LiveView(viz, f"{method.name} on {Path(sequence).name}", truth=reader.ground_truth,
                       overwrite=overwrite) as view:
-            return _run_into(method_name, sequence, reader, out, params, overwrite, progress, view)
-    return _run_into(method_name, sequence, reader, out, params, overwrite, progress, None)
+            return _run_into(method, sequence, reader, out, overwrite, progress, view)
+    return _run_into(method, sequence, reader, out, overwrite, progress, None)
 
 
-def _run_into(method_name: str, sequence: str | Path, reader: SequenceReader, out: Path, params: dict[str, Any] | None,
-              overwrite: bool, progress: bool, observer: RunObserver | None) -> RunMeasurements:
+def _run_into(method: MethodChoice, sequence: str | Path, reader: SequenceReader, out: Path, overwrite: bool,
+              progress: bool, observer: RunObserver | None) -> RunMeasurements:
     clean_stale_partials(out.parent)  # run folders of runs that were killed
     about: dict[str, Any] = {
         "sequence": str(Path(sequence).resolve()),
@@ -257,6 +246,6 @@ def _run_into(method_name: str, sequence: str | Path, reader: SequenceReader, ou
     if reader.notes:
         about["sequence_notes"] = list(reader.notes)
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
-    _, measurements = run_into_folder(out, method_name, reader, reader, params, about, progress=progress,
-                                      observer=observer, overwrite=overwrite, may_replace=replace_guard(RUN))
+    _, measurements = run_into_folder(out, method, reader, reader, about, progress=progress, observer=observer,
+                                      overwrite=overwrite, may_replace=replace_guard(RUN))
     return measurements

@@ -22,7 +22,7 @@ def _child(queue: mp.Queue, function: Callable[..., Any], args: tuple, kwargs: d
         queue.put(("error", f"{type(err).__name__}: {err}"))
 
 
-def prepare_method(spec: Any, params: dict[str, Any] | None, bars: bool | None = None,
+def prepare_method(spec: Any, config: Any, bars: bool | None = None,
                    log_level: int = logging.WARNING) -> None:
     """A method's once-per-machine work (see `MethodSpec.prepare`), for `run_isolated`. A spawned
     process starts with no settings of its parent's: `bars` and `log_level` carry the command's
@@ -34,7 +34,7 @@ def prepare_method(spec: Any, params: dict[str, Any] | None, bars: bool | None =
         handler = logging.StreamHandler()
         handler.setFormatter(logging.Formatter("%(message)s"))
         logger.addHandler(handler)
-    spec.prepare_for(params)
+    spec.prepare(config)
 
 
 def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:

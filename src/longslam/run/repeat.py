@@ -15,6 +15,8 @@ from typing import Any
 from longslam.core.errors import InputError
 from longslam.core.textfile import read_text
 from longslam.core.suggest import did_you_mean
+from longslam.slam.api import MethodChoice
+from longslam.slam.catalog import choose_method
 
 TABLES = ("run", "params")
 
@@ -56,12 +58,10 @@ def read_run_config(path: str | Path) -> RunConfig:
     return RunConfig(run["method"], sequence, params)
 
 
-def merged_params(config: RunConfig, given: dict[str, Any], path: str | Path) -> dict[str, Any]:
-    """The file's parameters with the command line's over them, checked against the method."""
-    from longslam.slam.catalog import check_params
-
+def method_of(config: RunConfig, path: str | Path) -> MethodChoice:
+    """The file's method with its parameters checked as a typed file's ("320" is not a number in
+    TOML); errors name the file. The command line's parameters go over it with `.over`."""
     try:
-        check_params(config.method, config.params, typed=True)  # a TOML file: "320" is not a number there
+        return choose_method(config.method, config.params, typed=True)
     except InputError as err:
         raise InputError(f"run config {path}: {err}") from None
-    return {**config.params, **given}

@@ -14,11 +14,19 @@ from longslam.run.folder import TRAJECTORY
 from longslam.run.isolate import run_isolated
 from longslam.run.measurements import RunMeasurements
 from longslam.run.score import score
+from longslam.slam.catalog import choose_method
 
 
-def run_sequence_isolated(*args: Any, **kwargs: Any) -> RunMeasurements:
-    """`run_sequence` in a fresh process, so its peak memory is the run's alone."""
-    return run_isolated(run_sequence, *args, **kwargs)
+def run_named(method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None,
+              **kwargs: Any) -> RunMeasurements:
+    """`run_sequence` of method `method` with `params` (command-line text or values), checked here."""
+    return run_sequence(choose_method(method, params), sequence, out, **kwargs)
+
+
+def run_sequence_isolated(method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None,
+                          **kwargs: Any) -> RunMeasurements:
+    """`run_named` in a fresh process, so its peak memory is the run's alone."""
+    return run_isolated(run_named, method, sequence, out, params, **kwargs)
 
 
 def run_and_score(

@@ -201,14 +201,39 @@ class MethodSpec:
         if self.prepare is not None:
             self.prepare(self.config(params))
 
-    def config(self, params: Mapping[str, Any] | None = None, typed: bool = False) -> Any:
-        """The checked config for `params` (unknown keys and bad values refused), no method built.
-        `typed`: the values come from a typed file (a study's TOML), where a quoted number is a
-        mistake rather than command-line text to convert."""
+    def config(self, params: Mapping[str, Any] | None = None, typed: bool = False, base: Any = None) -> Any:
+        """The checked config for `params` (unknown keys and bad values refused) over the defaults,
+        or over the config `base`; no method built. `typed`: the values come from a typed file (a
+        study's TOML), where a quoted number is a mistake rather than command-line text to convert."""
         params = dict(params or {})
         if self.config_type is None:
-            return params
-        return from_mapping(self.config_type, params, f"method {self.name!r}", typed=typed)
+            return {**(base or {}), **params}
+        return from_mapping(self.config_type, params, f"method {self.name!r}", base=base, typed=typed)
+
+    def choose(self, params: Mapping[str, Any] | None = None, typed: bool = False) -> MethodChoice:
+        """The method with `params` checked once, where they enter (see `MethodChoice`)."""
+        return MethodChoice(self, dict(params or {}), self.config(params, typed))
 
     def create(self, context: MethodContext, params: Mapping[str, Any] | None = None) -> Method:
         return self.build(context, self.config(params))
+
+
+@dataclass(frozen=True)
+class MethodChoice:
+    """A method and the parameters a user gave it, checked once where they enter (the command line,
+    a run's config.toml, a study file): the spec, the parameters as given (a run folder records
+    them) and the typed config the method is built with. The engine takes this, never raw text."""
+
+    spec: MethodSpec
+    params: dict[str, Any]
+    config: Any
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def over(self, params: Mapping[str, Any], typed: bool = False) -> MethodChoice:
+        """These parameters with `params` over them (the command line's over a config file's)."""
+        if not params:
+            return self
+        return MethodChoice(self.spec, {**self.params, **params}, self.spec.config(params, typed, base=self.config))

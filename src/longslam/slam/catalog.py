@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import Any
 
 from longslam.core.registry import Registry
-from longslam.slam.api import Method, MethodContext, MethodSpec
+from longslam.slam.api import Method, MethodChoice, MethodContext, MethodSpec
 
 ENTRY_POINT_GROUP = "longslam.methods"
 
@@ -64,6 +64,11 @@ def default_method_names() -> list[str]:
 
 def get_spec(name: str) -> MethodSpec:
     return METHODS.get(name)
+
+
+def choose_method(name: str, params: dict[str, Any] | None = None, typed: bool = False) -> MethodChoice:
+    """Method `name` with `params` checked (UnknownNameError for a name no method has)."""
+    return get_spec(name).choose(params, typed)
 
 
 def check_params(name: str, params: dict[str, Any] | None = None, typed: bool = False) -> Any:

@@ -27,6 +27,7 @@ from longslam.sim.perturbations.stream import perturbed_frames
 from longslam.sim.sensors import get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
 from longslam.slam.api import Result
+from longslam.slam.catalog import choose_method
 from longslam.study.prepare import render_once
 from longslam.study.record import OK, RunRecord
 from longslam.study.run_scores import TruthLoader, score_run
@@ -103,6 +104,7 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
         (tmp / RECORD).write_text(to_json(record) + "\n", encoding="utf-8", errors="surrogateescape")
         records.append(record)
 
-    run_into_folder(run_dir, spec.method_name, frames, reader, spec.params, about, progress=progress,
-                    before_rename=score_and_record)
+    # The study file's values are typed (TOML): checked as such, once, here in the run's process.
+    method = choose_method(spec.method_name, spec.params, typed=True)
+    run_into_folder(run_dir, method, frames, reader, about, progress=progress, before_rename=score_and_record)
     return records[0]
