@@ -1,0 +1,51 @@
+"""The package's shape: few modules at its top, no import that runs back up a floor (an import
+circle between two of its packages, imports inside functions counted), no method leaning on a
+sibling method. `scripts/architecture.py` prints the floors these are measured on."""
+
+from __future__ import annotations
+
+import ast
+import importlib.util
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+spec = importlib.util.spec_from_file_location("architecture", ROOT / "scripts" / "architecture.py")
+assert spec is not None and spec.loader is not None
+architecture = importlib.util.module_from_spec(spec)
+sys.modules["architecture"] = architecture
+spec.loader.exec_module(architecture)
+
+METHODS = ("keyframe", "submap", "command")
+
+
+def test_at_most_six_modules_stand_at_the_top_of_the_package():
+    assert len(architecture.top_modules()) <= 6, architecture.top_modules()
+
+
+def test_no_import_runs_back_up_a_floor():
+    assert architecture.circles(architecture.imports_by_part()) == []
+
+
+def test_a_circle_is_found_where_there_is_one(tmp_path):
+    """The check can fail: two packages that import each other, one inside a function."""
+    for name, body in (("a", "from longslam.b import x\n"), ("b", "def f():\n    from longslam.a import y\n")):
+        (tmp_path / "longslam" / name).mkdir(parents=True)
+        (tmp_path / "longslam" / name / "__init__.py").write_text(body)
+    old = architecture.PACKAGE
+    architecture.PACKAGE = tmp_path / "longslam"
+    try:
+        found = architecture.circles(architecture.imports_by_part(tmp_path / "longslam"))
+    finally:
+        architecture.PACKAGE = old
+    assert {(a, b) for a, b, _ in found} == {("a", "b"), ("b", "a")}
+
+
+def test_no_method_imports_a_sibling_method():
+    slam = architecture.PACKAGE / "slam"
+    for method in METHODS:
+        for path in (slam / method).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.ImportFrom) and node.module:
+                    others = [m for m in METHODS if m != method and node.module.startswith(f"longslam.slam.{m}")]
+                    assert not others, f"{path.relative_to(ROOT)}:{node.lineno} imports {node.module}"
