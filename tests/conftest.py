@@ -126,35 +126,6 @@ def one_line_error(capsys, *needles: str) -> str:
     return lines[0]
 
 
-# The slow set: tests that render a route, run a method end to end on one, or start processes
-# (a study, Ray, ORB-SLAM3). `pytest -m "not slow"` is the fast set for the edit-test loop.
-SLOW_MODULES = {
-    "test_frontend", "test_keyframe", "test_maps", "test_orbslam3", "test_own_building", "test_report_study",
-    "test_perturbation_study", "test_run_safety", "test_sensor_study", "test_simulate", "test_study", "test_submap", "test_tum_layout",
-    "test_viz_live", "test_viz_viewer",
-}
-SLOW_TESTS = {
-    # processes: a study, the demo, Ray, the CLI in a subprocess; or a render
-    "test_a_study_shows_its_run_count_first", "test_non_ascii_paths_under_a_c_locale_and_paths_that_are_not_utf8",
-    "test_the_demo_and_a_study_prepare_each_method_before_its_runs", "test_a_render_cleans_partials_in_its_cache",
-    "test_ray_address_that_refuses_is_a_clear_error_and_creates_nothing", "test_ray_init_that_hangs_is_given_up",
-    "test_evaluate_into_a_closed_pipe_is_quiet", "test_report_says_which_figures_it_left_out_and_why",
-    "test_evo_reads_the_bag",
-    "test_a_file_size_limit_names_the_file", "test_named_routes_have_the_papers_lengths",
-    "test_isolated_run_measures_its_own_process", "test_orbslam3_loads_the_vocabulary_and_tracks",
-    "test_a_part_nothing_anchors_is_damped_not_fatal", "test_a_repeated_waypoint_is_driven_through",
-    "test_evo_res_reads_two_saved_results",
-    "test_completion_through_the_installed_command", "test_a_run_repeated_from_its_config_gives_the_same_trajectory",
-    "test_the_installed_command_runs_a_program",
-}
-
-
-def pytest_collection_modifyitems(config, items):
-    for item in items:
-        if item.module.__name__.rsplit(".", 1)[-1] in SLOW_MODULES or item.originalname in SLOW_TESTS:
-            item.add_marker(pytest.mark.slow)
-
-
 TINY_VOCABULARY = "2 1 0 0\n" + ("0 1 " + " ".join(["7"] * 32) + " 1.0\n") * 2  # k 2, L 1: a root and 2 words
 
 

@@ -82,6 +82,7 @@ def test_completion_offers_the_names(monkeypatch, line, expected):
     assert expected <= set(_complete(monkeypatch, line)), _complete(monkeypatch, line)
 
 
+@pytest.mark.slow
 def test_completion_through_the_installed_command(tmp_path):
     """The real `longslam` script answers a completion request (what the shell function that
     `register-python-argcomplete longslam` prints does), and runs nothing else."""
@@ -297,6 +298,7 @@ def test_run_config_errors_name_the_file(tmp_path, monkeypatch, capsys, text, ex
     one_line_error(capsys, needle)
 
 
+@pytest.mark.slow
 def test_a_run_repeated_from_its_config_gives_the_same_trajectory(tmp_path, capsys):
     sequence = write_tiny_sequence(tmp_path / "seq", n=30, turn=0.5, odometry_scale=1.05)[0]
     first, again = tmp_path / "first", tmp_path / "again"

@@ -306,6 +306,7 @@ def test_an_absurd_study_grid_is_refused_with_its_count_before_anything(tmp_path
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_a_study_shows_its_run_count_first(tmp_path, capsys):
     study = _study_file(tmp_path, "2")
     assert main(["study", str(study), "--out", str(tmp_path / "out"), "--no-report"]) == 0
@@ -345,6 +346,7 @@ def test_address_without_ray_is_refused_before_anything(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_ray_address_that_refuses_is_a_clear_error_and_creates_nothing(tmp_path, capsys):
     pytest.importorskip("ray")
     import socket
@@ -362,6 +364,7 @@ def test_ray_address_that_refuses_is_a_clear_error_and_creates_nothing(tmp_path,
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_ray_init_that_hangs_is_given_up(tmp_path, capsys, monkeypatch):
     ray = pytest.importorskip("ray")
     import threading
@@ -428,6 +431,7 @@ def _longslam(*args: str, env: dict | None = None, cwd: Path | None = None):
                           env={**os.environ, **(env or {})}, timeout=120)
 
 
+@pytest.mark.slow
 def test_non_ascii_paths_under_a_c_locale_and_paths_that_are_not_utf8(tmp_path):
     seq = write_tiny_sequence(tmp_path / "séquence", n=8)[0]
     c_locale = {"LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
@@ -610,6 +614,7 @@ def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
     assert "--floor" not in line
 
 
+@pytest.mark.slow
 def test_report_says_which_figures_it_left_out_and_why(tmp_path, capsys):
     study = _study_file(tmp_path, "1")
     out = tmp_path / "out"

@@ -147,6 +147,7 @@ def test_a_result_file_is_refused_before_any_work(files, tmp_path, capsys):
     assert zipfile.is_zipfile(tmp_path / "r.zip")
 
 
+@pytest.mark.slow
 def test_evo_res_reads_two_saved_results(files, tmp_path, capsys):
     gt, est, other = files
     saved = []

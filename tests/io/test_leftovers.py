@@ -6,6 +6,7 @@ import subprocess
 import time
 
 import numpy as np
+import pytest
 
 from longslam.core.frame import Intrinsics
 from longslam.core.geometry import camera_poses_from_planar
@@ -61,6 +62,7 @@ def test_a_run_cleans_partials_whose_process_is_gone(tmp_path):
     assert clean_stale_partials(tmp_path / "shared") == [] and all(p.exists() for p in fresh)
 
 
+@pytest.mark.slow
 def test_a_render_cleans_partials_in_its_cache(tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     dead = _leftovers(cache, _dead_pid())

@@ -169,6 +169,7 @@ def test_topic_presets_and_frames(sequence, tmp_path, preset):
     assert_same_sequence(SequenceReader(sequence), SequenceReader(tmp_path / "back"))
 
 
+@pytest.mark.slow
 def test_evo_reads_the_bag(sequence, tmp_path):
     # The venv's own evo (a test dependency): CI runs the tests without the venv on PATH.
     evo_traj = Path(sys.executable).with_name("evo_traj")

@@ -62,6 +62,7 @@ def test_existing_run_folder_is_refused(sequence, tmp_path):
         run_sequence("odometry", sequence[0], tmp_path / "run", progress=False)
 
 
+@pytest.mark.slow
 def test_isolated_run_measures_its_own_process(sequence, tmp_path):
     figures = run_sequence_isolated("odometry", sequence[0], tmp_path / "run", progress=False)
     assert figures.frames == N and figures.peak_rss_bytes > 0

@@ -13,6 +13,8 @@ from longslam.core.errors import InputError
 from longslam.io.atomic import name_final_folder
 from longslam.run.engine import run_sequence
 
+pytestmark = pytest.mark.slow  # runs the CLI in processes
+
 N = 20  # frames of the tiny sequence (conftest.tiny_sequence)
 
 

@@ -305,6 +305,7 @@ def test_a_command_with_spaces_runs_from_the_command_line(tiny, program, tmp_pat
     assert 'trajectory = "poses.txt"' in config and str(program) in config  # the run can be repeated from its folder
 
 
+@pytest.mark.slow
 def test_the_installed_command_runs_a_program(tiny, program, tmp_path):
     """`longslam run --method command SEQ --param command="prog {sequence} {output}" ...` in a shell."""
     sequence, truth, _ = tiny

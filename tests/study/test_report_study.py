@@ -13,6 +13,8 @@ import pytest
 from longslam.study.report.interactive import COLOURS
 from test_study import _chromium, env, study  # noqa: F401  (the module's study, run once here too)
 
+pytestmark = pytest.mark.slow  # runs a study and opens its report in a browser
+
 
 def test_every_local_runs_log_holds_what_ran_and_how_it_ended(study):
     out, _ = study

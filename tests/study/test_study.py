@@ -24,6 +24,8 @@ from longslam.study.database import DB_NAME
 from longslam.study.report import Cell, StudyResults, accuracy_table, format_mean_std, memory_table
 from longslam.study.driver import run_study
 
+pytestmark = pytest.mark.slow  # runs studies, some in processes
+
 ROUTE = "20 31.25\n28 31.25\n"  # 8 m along the spine: about 55 frames
 
 PLUGIN = '''

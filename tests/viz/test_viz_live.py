@@ -20,7 +20,7 @@ from rerun.chunk import RrdReader  # noqa: E402
 
 from rrd_checks import rows  # noqa: E402
 
-
+pytestmark = pytest.mark.slow  # runs methods with the live view, some in processes
 
 
 @pytest.fixture(scope="module")

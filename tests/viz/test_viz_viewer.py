@@ -32,6 +32,8 @@ from rrd_checks import rows  # noqa: E402
 
 import longslam.viz.live as live  # noqa: E402
 
+pytestmark = pytest.mark.slow  # starts viewer processes
+
 RUN_FILES = {"trajectory.txt", "online.txt", "stats.json", "config.toml"}
 
 

@@ -56,6 +56,7 @@ def test_our_optimizer_reaches_gtsams_levenberg_marquardt_minimum():
     assert np.linalg.norm(ours[:, :2] - truth[:, :2], axis=1).max() < 0.2 * np.linalg.norm(odometry[:, :2] - truth[:, :2], axis=1).max()
 
 
+@pytest.mark.slow
 def test_a_part_nothing_anchors_is_damped_not_fatal():
     # No wheel step from frame 40 to 41, no scan or loop across: frames 41.. float free, Gauss-
     # Newton's system is singular (GTSAM raises IndeterminateLinearSystemException); damped

@@ -24,6 +24,8 @@ from longslam.core.geometry.cells import group_cells_3d, pack_3d, unpack_3d
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 from longslam.world import get_world
 
+pytestmark = pytest.mark.slow  # runs the submap method on rendered routes
+
 SMALL = CameraSettings(width=80, height=60)
 HALL_LOOP = Route("hall-loop", "university", ("hall_entry", "hall_ne", "hall_se", "hall_sw", "hall_nw", "hall_ne"))
 # Up the branch corridor, into office_4 and out, on along the corridor: office_4's wall (0.2 m
