@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from conftest import one_line_error
+from helpers.cli_checks import one_line_error
 from longslam.cli.main import main
 
 

@@ -15,10 +15,10 @@ import sys
 from importlib.metadata import version
 from pathlib import Path
 
-import argcomplete
 import pytest
 
-from conftest import one_line_error, write_tiny_sequence
+from helpers.cli_checks import complete, one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli import output as cli_output
 from longslam.core import progress
 from longslam.cli.main import build_parser, main
@@ -52,21 +52,6 @@ def test_version_is_the_installed_distributions(capsys):
 
 
 # --- completion --------------------------------------------------------------------------------
-def _complete(monkeypatch, line: str) -> list[str]:
-    """What argcomplete answers a shell for `line` (cursor at the end), as its own tests ask it."""
-    monkeypatch.setenv("_ARGCOMPLETE", "1")
-    monkeypatch.setenv("_ARGCOMPLETE_SHELL", "bash")
-    monkeypatch.setenv("COMP_LINE", line)
-    monkeypatch.setenv("COMP_POINT", str(len(line)))
-    # argcomplete writes debugging to descriptor 9 if it is open: under pytest it may be anything.
-    monkeypatch.setattr(argcomplete.finders.CompletionFinder, "_init_debug_stream",
-                        lambda self: setattr(argcomplete.io, "debug_stream", io.StringIO()))
-    out = io.StringIO()
-    with pytest.raises(SystemExit):
-        argcomplete.autocomplete(build_parser(), output_stream=out, exit_method=sys.exit)
-    return [c.strip() for c in out.getvalue().split("\013")]
-
-
 @pytest.mark.parametrize("line, expected", [
     ("longslam run --method k", {"keyframe"}),
     ("longslam ev", {"evaluate"}),
@@ -79,7 +64,7 @@ def _complete(monkeypatch, line: str) -> list[str]:
     ("longslam run --method submap --param frontend.mo", {"frontend.mode="}),
 ])
 def test_completion_offers_the_names(monkeypatch, line, expected):
-    assert expected <= set(_complete(monkeypatch, line)), _complete(monkeypatch, line)
+    assert expected <= set(complete(monkeypatch, line)), complete(monkeypatch, line)
 
 
 @pytest.mark.slow

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from test_cli_manners import _complete
+from helpers.cli_checks import complete
 
 
 def test_sensor_names_are_completed(monkeypatch):
-    assert {"kinect-v1"} <= set(_complete(monkeypatch, "longslam simulate --route demo --sensor kin"))
-    assert {"ideal", "kinect-v1", "realsense-d435"} <= set(_complete(monkeypatch, "longslam simulate --route demo --sensor "))
+    assert {"kinect-v1"} <= set(complete(monkeypatch, "longslam simulate --route demo --sensor kin"))
+    assert {"ideal", "kinect-v1", "realsense-d435"} <= set(complete(monkeypatch, "longslam simulate --route demo --sensor "))

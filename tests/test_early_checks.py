@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import TINY_VOCABULARY, one_line_error
+from helpers.cli_checks import one_line_error
+from helpers.tiny_vocabulary import TINY_VOCABULARY
 from longslam.cli.main import main
 
 STUDY = 'name = "s"\nroutes = ["demo"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = [0]\n'
@@ -82,7 +83,7 @@ def test_a_study_all_of_whose_runs_failed_exits_with_an_error(tmp_path, capsys, 
     ("keyframe", "frontend.scan_anchor_lag=0", "scan_anchor_lag must be at least 1"),
 ])
 def test_nonsense_front_end_parameters_are_refused_before_the_run(tmp_path, capsys, method, param, needle):
-    from conftest import write_tiny_sequence
+    from helpers.tiny_sequences import write_tiny_sequence
 
     seq = write_tiny_sequence(tmp_path / "seq", n=5)[0]
     assert main(["run", "--method", method, str(seq), "--out", str(tmp_path / "run"), "--param", param]) == 2

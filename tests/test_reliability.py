@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from conftest import one_line_error, write_tiny_sequence
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 
 
@@ -606,7 +607,7 @@ def test_ros2_folder_without_metadata_and_one_topic_in_two_roles(seq, tmp_path, 
 
 def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
     pytest.importorskip("trimesh")
-    from building_mesh import write_building
+    from helpers.building_mesh import write_building
 
     ply, _ = write_building(tmp_path / "b")
     assert main(["world", "--world", str(ply), "--units", "mm", "--out", str(tmp_path / "p.png")]) == 2

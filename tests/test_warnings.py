@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import write_tiny_sequence
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 
 

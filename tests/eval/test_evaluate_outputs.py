@@ -16,7 +16,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
-from conftest import one_line_error
+from helpers.cli_checks import one_line_error
 from longslam.cli.main import main
 from longslam.eval.evaluate_output import format_text
 from longslam.eval.units import units_of

@@ -13,7 +13,7 @@ from longslam.run.engine import run_sequence
 from longslam.run.isolate import run_sequence_isolated
 from longslam.slam.api import Method, MethodContext
 from longslam.slam.catalog import create_method, method_names
-from conftest import write_tiny_sequence
+from helpers.tiny_sequences import write_tiny_sequence
 
 N = 30
 

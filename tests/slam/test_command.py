@@ -21,7 +21,8 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import one_line_error, write_tiny_sequence
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 from longslam.core.errors import InputError, MethodError
 from longslam.core.geometry import anchor, base_to_camera, hold_last, invert, pose_from_xyyaw
