@@ -31,7 +31,8 @@ def tiny_sequence(tmp_path_factory) -> Path:
 def render_cache(tmp_path_factory) -> Path:
     """The test session's own render cache: a test neither reads nor fills the user's, and a route
     rendered for one file is not rendered again for another (another noise level or seed only
-    draws new odometry)."""
+    draws new odometry). Under pytest-xdist each worker is a session of its own with its own
+    temporary folders, so each has its own cache: no two processes write one cache folder."""
     return tmp_path_factory.mktemp("render-cache")
 
 

@@ -3,7 +3,7 @@ extends the first."""
 
 from __future__ import annotations
 
-
+import pytest
 
 from helpers.cli_checks import one_line_error
 from helpers.file_trees import file_tree
@@ -11,6 +11,7 @@ from helpers.studies import tiny_study_file
 from longslam.cli.main import main
 
 
+@pytest.mark.slow  # renders a route and runs a study on it four times
 def test_a_different_study_into_a_study_folder_is_refused_unless_extended(tmp_path, capsys):
     from longslam.study.database import ResultsDB
 
