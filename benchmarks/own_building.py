@@ -5,7 +5,7 @@ method's accuracy, memory and speed on a route through it.
     python benchmarks/own_building.py --route myroute.json --seeds 0 1 2 --compare demo
     python benchmarks/own_building.py --render-only                    # loading and render speed, seconds
 
-Without --route, the test suite's generated building (tests/building_mesh.py: a hall and a wing
+Without --route, the test suite's generated building (tests/helpers/building_mesh.py: a hall and a wing
 at 30 degrees, written as GLB) is written to a temporary folder with a 49 m loop route through
 it. --compare names a university route run the same way (default demo). Render speed is one
 core's (Open3D given one thread) at the default 320 x 240 camera, along the route's ground truth.
@@ -32,7 +32,7 @@ from longslam.world import load_world
 def test_building(folder: Path) -> Path:
     """The test suite's building and a loop through it that drives the hall and the wing twice."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the generator lives with the tests
-    from building_mesh import WING_END, write_building
+    from helpers.building_mesh import WING_END, write_building
 
     write_building(folder)
     route = folder / "loop.json"

@@ -1,60 +1,24 @@
-"""Shared test helpers: tiny synthetic sequences, written in a moment, for tests of the run
-machinery (the engine, run folders, the CLI) that need frames but not a rendered building; and
-rendered sequences, each simulated once per session into the session's own render cache."""
+"""The fixtures several folders share: a tiny sequence, the session's render cache and its rendered
+sequences, a guard against touching /dev, and a vocabulary cache of its own. Helper functions
+(tiny sequences, a generated building, flat walls, CLI checks, ...) are in the `helpers` package."""
 
 from __future__ import annotations
 
 import builtins
 import io
-import json
 import os
 import stat
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from longslam.core.frame import Intrinsics
-from longslam.core.geometry import camera_poses_from_planar
-from longslam.io.sequence import SequenceWriter
-from longslam.sim.simulate import simulate
-from longslam.sim.camera import CameraSettings
+from helpers.tiny_sequences import write_tiny_sequence
+from helpers.tiny_vocabulary import TINY_VOCABULARY
 from longslam.core.odometry_noise import get_noise
+from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
-from longslam.core.trajectory import Trajectory
-
-TINY_INTRINSICS = Intrinsics.from_fov(16, 12, 90.0)
-
-
-def write_tiny_sequence(
-    path: Path, n: int = 30, step: float = 0.15, turn: float = 0.0, odometry_scale: float = 1.0, seed: int = 0,
-) -> tuple[Path, Trajectory, Trajectory]:
-    """A 16 x 12 sequence of `n` frames at 10 Hz driving `step` m per frame (turning `turn` rad in
-    all), with random images and depth, ground truth, and an odometry whose forward steps are
-    scaled by `odometry_scale`. Returns (path, ground truth, odometry)."""
-    rng = np.random.default_rng(seed)
-    stamps = 0.1 * np.arange(n)
-    xyyaw = np.column_stack([step * np.arange(n), np.zeros(n), np.linspace(0.0, turn, n)])
-    truth = Trajectory(stamps, camera_poses_from_planar(xyyaw, 1.25))
-    noisy = xyyaw.copy()
-    noisy[:, 0] *= odometry_scale
-    odometry = Trajectory(stamps, camera_poses_from_planar(noisy, 1.25))
-    with SequenceWriter(path, TINY_INTRINSICS, 8.0, {"route": "tiny"}) as writer:
-        for t in stamps:
-            writer.add(t, rng.integers(0, 255, (12, 16, 3), dtype=np.uint8), rng.uniform(0.5, 4, (12, 16)).astype(np.float32))
-        writer.set_ground_truth(truth)
-        writer.set_odometry(odometry)
-    return path, truth, odometry
-
-
-def write_bag_sequence(path: Path) -> Path:
-    """A tiny sequence that turns (24 frames), with noise level 'large' and the camera's height
-    in its meta.json: what a bag's export needs to carry."""
-    write_tiny_sequence(path, n=24, turn=1.0, odometry_scale=1.05)
-    meta = json.loads((path / "meta.json").read_text())
-    (path / "meta.json").write_text(json.dumps({**meta, "noise": "large", "camera": {"camera_height": 1.25}}))
-    return path
+from longslam.sim.simulate import simulate
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +31,8 @@ def tiny_sequence(tmp_path_factory) -> Path:
 def render_cache(tmp_path_factory) -> Path:
     """The test session's own render cache: a test neither reads nor fills the user's, and a route
     rendered for one file is not rendered again for another (another noise level or seed only
-    draws new odometry)."""
+    draws new odometry). Under pytest-xdist each worker is a session of its own with its own
+    temporary folders, so each has its own cache: no two processes write one cache folder."""
     return tmp_path_factory.mktemp("render-cache")
 
 
@@ -113,49 +78,6 @@ def nothing_under_dev(monkeypatch):
     yield
     monkeypatch.undo()
     assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
-
-
-def one_line_error(capsys, *needles: str) -> str:
-    """The command's stderr was one line, an error naming every needle, and no traceback."""
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and "error:" in lines[0], err
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
-    return lines[0]
-
-
-# The slow set: tests that render a route, run a method end to end on one, or start processes
-# (a study, Ray, ORB-SLAM3). `pytest -m "not slow"` is the fast set for the edit-test loop.
-SLOW_MODULES = {
-    "test_frontend", "test_keyframe", "test_maps", "test_orbslam3", "test_own_building", "test_report_study",
-    "test_perturbation_study", "test_run_safety", "test_sensor_study", "test_simulate", "test_study", "test_submap", "test_tum_layout",
-    "test_viz_live", "test_viz_viewer",
-}
-SLOW_TESTS = {
-    # processes: a study, the demo, Ray, the CLI in a subprocess; or a render
-    "test_a_study_shows_its_run_count_first", "test_non_ascii_paths_under_a_c_locale_and_paths_that_are_not_utf8",
-    "test_the_demo_and_a_study_prepare_each_method_before_its_runs", "test_a_render_cleans_partials_in_its_cache",
-    "test_ray_address_that_refuses_is_a_clear_error_and_creates_nothing", "test_ray_init_that_hangs_is_given_up",
-    "test_evaluate_into_a_closed_pipe_is_quiet", "test_report_says_which_figures_it_left_out_and_why",
-    "test_evo_reads_the_bag",
-    "test_a_file_size_limit_names_the_file", "test_named_routes_have_the_papers_lengths",
-    "test_isolated_run_measures_its_own_process", "test_orbslam3_loads_the_vocabulary_and_tracks",
-    "test_a_part_nothing_anchors_is_damped_not_fatal", "test_a_repeated_waypoint_is_driven_through",
-    "test_evo_res_reads_two_saved_results",
-    "test_completion_through_the_installed_command", "test_a_run_repeated_from_its_config_gives_the_same_trajectory",
-    "test_the_installed_command_runs_a_program",
-}
-
-
-def pytest_collection_modifyitems(config, items):
-    for item in items:
-        if item.module.__name__.rsplit(".", 1)[-1] in SLOW_MODULES or item.originalname in SLOW_TESTS:
-            item.add_marker(pytest.mark.slow)
-
-
-TINY_VOCABULARY = "2 1 0 0\n" + ("0 1 " + " ".join(["7"] * 32) + " 1.0\n") * 2  # k 2, L 1: a root and 2 words
 
 
 @pytest.fixture()

@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from conftest import one_line_error
+from helpers.cli_checks import one_line_error
 from longslam.cli.main import main
 
 
@@ -58,6 +58,7 @@ def test_a_negative_seed_is_refused_before_rendering(tmp_path, monkeypatch, caps
     one_line_error(capsys, "seed -1", ">= 0")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("second", ["20 31.25", "20.02 31.25"])
 def test_a_repeated_waypoint_is_driven_through(tmp_path, capsys, second):
     route = tmp_path / "route.txt"
@@ -95,6 +96,7 @@ def _shell(command: str, cwd) -> subprocess.CompletedProcess:
     return subprocess.run(["bash", "-c", command], cwd=cwd, env=env, capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_evaluate_into_a_closed_pipe_is_quiet(tiny, tmp_path):
     # `true` exits at once, so every write of the scores meets a closed pipe (like `| head -1`
     # after its first line, without the race).
@@ -104,6 +106,7 @@ def test_evaluate_into_a_closed_pipe_is_quiet(tiny, tmp_path):
         assert noise not in result.stderr, result.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", ["run", "simulate"])
 def test_a_file_size_limit_names_the_file(tiny, tmp_path, command):
     if command == "run":

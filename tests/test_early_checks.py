@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import TINY_VOCABULARY, one_line_error
+from helpers.cli_checks import one_line_error
+from helpers.tiny_vocabulary import TINY_VOCABULARY
 from longslam.cli.main import main
+from longslam.core.errors import InputError
 
 STUDY = 'name = "s"\nroutes = ["demo"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = [0]\n'
 
@@ -82,9 +84,31 @@ def test_a_study_all_of_whose_runs_failed_exits_with_an_error(tmp_path, capsys, 
     ("keyframe", "frontend.scan_anchor_lag=0", "scan_anchor_lag must be at least 1"),
 ])
 def test_nonsense_front_end_parameters_are_refused_before_the_run(tmp_path, capsys, method, param, needle):
-    from conftest import write_tiny_sequence
+    from helpers.tiny_sequences import write_tiny_sequence
 
     seq = write_tiny_sequence(tmp_path / "seq", n=5)[0]
     assert main(["run", "--method", method, str(seq), "--out", str(tmp_path / "run"), "--param", param]) == 2
     one_line_error(capsys, "front end", needle)
     assert not (tmp_path / "run").exists()
+
+
+def test_export_refuses_a_negative_camera_height_before_writing(tiny_sequence, tmp_path):
+    pytest.importorskip("rosbags")
+    from longslam.io.rosbag.export import export_sequence
+
+    calls = []
+    with pytest.raises(InputError, match="--camera-height must be .* 0 or more.* got -1"):
+        export_sequence(tiny_sequence, tmp_path / "bag", camera_height=-1.0, progress=lambda *a: calls.append(a))
+    assert calls == [] and not (tmp_path / "bag").exists()
+
+
+def test_import_checks_max_depth_before_reading_the_bag(tmp_path, monkeypatch):
+    pytest.importorskip("rosbags")
+    from longslam.io.rosbag import import_
+
+    def no_reading(*_):
+        raise AssertionError("the bag was opened before --max-depth was checked")
+
+    monkeypatch.setattr(import_, "_Bag", no_reading)
+    with pytest.raises(InputError, match=r"--max-depth 20.0: expected metres in \(0, 13.107\]"):
+        import_.import_bag(tmp_path / "bag", tmp_path / "seq", max_depth=20.0)

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from conftest import one_line_error, write_tiny_sequence
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 
 
@@ -140,3 +141,17 @@ def test_a_full_disk_inside_a_write_names_the_output(seq, tmp_path, capsys, monk
     zipped = tmp_path / "a.zip"
     assert main(["evaluate", str(seq / "odometry.txt"), str(seq / "groundtruth.txt"), "--save-results", str(zipped)]) == 2
     one_line_error(capsys, f"writing {zipped}: No space left on device", "the disk is full")
+
+
+@pytest.mark.parametrize("kind", ["ROS 2", "ROS 1"])
+def test_run_on_a_bag_points_to_import(tmp_path, capsys, kind):
+    if kind == "ROS 2":
+        bag = tmp_path / "bag"
+        bag.mkdir()
+        (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    else:
+        bag = tmp_path / "run.bag"
+        bag.write_bytes(b"#ROSBAG V2.0\n")
+    assert main(["run", "--method", "odometry", str(bag), "--out", str(tmp_path / "r")]) == 2
+    one_line_error(capsys, f"{bag} is a {kind} bag, not a sequence folder", f"longslam import {bag} --out SEQUENCE")
+    assert not (tmp_path / "r").exists()

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import one_line_error, write_tiny_sequence
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 
 

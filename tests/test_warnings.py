@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import write_tiny_sequence
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 
 
@@ -169,3 +170,63 @@ def test_demo_draws_no_bars_when_stderr_is_not_a_terminal(tmp_path, capfd, monke
     assert not progress.enabled()
     assert run_isolated(_count_with_a_bar) == 50
     assert "counting" not in capfd.readouterr().err
+
+
+def test_index_files_that_disagree_get_a_note_with_counts(tmp_path, capsys):
+    seq = write_tiny_sequence(tmp_path / "seq", n=10)[0]
+    lines = (seq / "depth.txt").read_text().splitlines()
+    (seq / "depth.txt").write_text("\n".join(lines[:-3]) + "\n")  # three colour images without depth
+    gt = (seq / "groundtruth.txt").read_text().splitlines()
+    (seq / "groundtruth.txt").write_text("\n".join(gt[:-5]) + "\n")  # ground truth for part only
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run")]) == 0
+    err = capsys.readouterr().err
+    assert "3 of 10 colour images in rgb.txt have no depth image" in err
+    assert "groundtruth.txt has no pose within 0.02 s for 2 of 7 frames" in err
+    pytest.importorskip("rosbags")
+    assert main(["export", str(seq), "--format", "ros2", "--odom-noise", "none", "--out", str(tmp_path / "bag")]) == 0
+    assert "3 of 10 colour images in rgb.txt have no depth image" in capsys.readouterr().err  # export says so too
+
+
+def test_evaluate_warns_on_partial_coverage_and_on_another_sequence(tmp_path, capsys):
+    import json
+
+    seq = write_tiny_sequence(tmp_path / "seq", n=20)[0]
+    other = write_tiny_sequence(tmp_path / "other", n=20, seed=1)[0]
+    assert main(["run", "--method", "odometry", str(seq), "--out", str(tmp_path / "run")]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "run"), str(seq), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err
+    assert json.loads(captured.out)["matched_share_estimate"] == 1.0
+    assert main(["evaluate", str(tmp_path / "run"), str(other)]) == 0
+    assert "ran on the sequence" in capsys.readouterr().err
+    half = tmp_path / "half.txt"
+    half.write_text("".join((seq / "groundtruth.txt").read_text().splitlines(keepends=True)[:11]))
+    assert main(["evaluate", str(tmp_path / "run"), str(half), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "only 10 of 20 poses" in captured.err and "(50%)" in captured.err
+    assert json.loads(captured.out)["matched_share_estimate"] == 0.5
+
+
+def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
+    pytest.importorskip("trimesh")
+    from helpers.building_mesh import write_building
+
+    ply, _ = write_building(tmp_path / "b")
+    assert main(["world", "--world", str(ply), "--units", "mm", "--out", str(tmp_path / "p.png")]) == 2
+    line = one_line_error(capsys, "too small to be a building", "leave out --units")
+    assert "--floor" not in line
+
+
+def test_a_walls_only_mesh_is_said_to_have_no_floor(tmp_path, capsys):
+    trimesh = pytest.importorskip("trimesh")
+    import numpy as np
+
+    corners = [(0, 0), (10, 0), (10, 8), (0, 8), (0, 0)]
+    quads = [np.array([[x0, y0, 0], [x1, y1, 0], [x1, y1, 3], [x0, y0, 3]], float)
+             for (x0, y0), (x1, y1) in zip(corners[:-1], corners[1:])]
+    k = 4 * np.arange(len(quads))[:, None]
+    mesh = tmp_path / "walls.ply"
+    trimesh.Trimesh(np.concatenate(quads), np.concatenate([k + [0, 1, 2], k + [0, 2, 3]]), process=False).export(mesh)
+    assert main(["world", "--world", str(mesh), "--floor", "0", "--out", str(tmp_path / "p.png")]) == 2
+    one_line_error(capsys, "no floor surface at height 0.000 m", "walls only")

@@ -16,7 +16,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
-from conftest import one_line_error
+from helpers.cli_checks import one_line_error
 from longslam.cli.main import main
 from longslam.eval.evaluate_output import format_text
 from longslam.eval.units import units_of
@@ -147,6 +147,7 @@ def test_a_result_file_is_refused_before_any_work(files, tmp_path, capsys):
     assert zipfile.is_zipfile(tmp_path / "r.zip")
 
 
+@pytest.mark.slow
 def test_evo_res_reads_two_saved_results(files, tmp_path, capsys):
     gt, est, other = files
     saved = []

@@ -6,6 +6,7 @@ import subprocess
 import time
 
 import numpy as np
+import pytest
 
 from longslam.core.frame import Intrinsics
 from longslam.core.geometry import camera_poses_from_planar
@@ -61,6 +62,7 @@ def test_a_run_cleans_partials_whose_process_is_gone(tmp_path):
     assert clean_stale_partials(tmp_path / "shared") == [] and all(p.exists() for p in fresh)
 
 
+@pytest.mark.slow
 def test_a_render_cleans_partials_in_its_cache(tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     dead = _leftovers(cache, _dead_pid())
@@ -83,3 +85,24 @@ def test_sequences_and_the_cache_get_the_modes_mkdir_gives(tmp_path, monkeypatch
                 assert stat.S_IMODE(folder.stat().st_mode) == 0o755, folder
     finally:
         os.umask(old)
+
+
+def test_a_same_host_partial_whose_process_is_gone_is_removed_at_once(tmp_path):
+    import subprocess
+
+    from longslam.io.partials import clean_stale_partials, host_tag, partial_path
+
+    proc = subprocess.Popen(["true"])
+    proc.wait()
+    mine = partial_path(tmp_path / "run", proc.pid)  # just written: no idle wait on this machine
+    assert host_tag() in mine.name and mine.name.startswith(".run.partial-")
+    mine.mkdir()
+    alive = partial_path(tmp_path / "busy")  # this process's
+    alive.mkdir()
+    elsewhere = tmp_path / f".run2.partial-{proc.pid}@another_machine"
+    elsewhere.mkdir()
+    assert clean_stale_partials(tmp_path) == [mine]
+    assert alive.exists() and elsewhere.exists()
+    old = time.time() - 2 * 24 * 3600
+    os.utime(elsewhere, (old, old))
+    assert clean_stale_partials(tmp_path) == [elsewhere]

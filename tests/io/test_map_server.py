@@ -10,7 +10,7 @@ import pytest
 import yaml
 from PIL import Image
 
-from conftest import write_tiny_sequence
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.io.map_server import write_map_server
 from longslam.run.scored_run import run_named

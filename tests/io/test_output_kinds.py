@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from conftest import one_line_error, write_tiny_sequence
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 
 

@@ -14,7 +14,8 @@ from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from conftest import write_bag_sequence, write_tiny_sequence  # noqa: E402
+from helpers.sequence_checks import assert_same_sequence  # noqa: E402
+from helpers.tiny_sequences import write_bag_sequence, write_tiny_sequence  # noqa: E402
 from longslam.cli.main import main  # noqa: E402
 from longslam.core.errors import InputError  # noqa: E402
 from longslam.core.geometry import base_to_camera, planar_poses  # noqa: E402
@@ -28,8 +29,7 @@ from longslam.run.scored_run import run_named  # noqa: E402
 from longslam.run.folder import TRAJECTORY  # noqa: E402
 from longslam.run.score import score  # noqa: E402
 from longslam.core.odometry_noise import get_noise  # noqa: E402
-from longslam.sim.noise import apply_noise
-from sequence_checks import assert_same_sequence  # noqa: E402
+from longslam.sim.noise import apply_noise  # noqa: E402
 
 
 @pytest.fixture(scope="module")

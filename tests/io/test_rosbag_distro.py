@@ -18,7 +18,7 @@ pytest.importorskip("rosbags")
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
-from conftest import write_bag_sequence  # noqa: E402
+from helpers.tiny_sequences import write_bag_sequence  # noqa: E402
 from longslam.cli.main import main  # noqa: E402
 from longslam.core.errors import InputError  # noqa: E402
 from longslam.core.geometry import base_to_camera, invert  # noqa: E402
@@ -27,7 +27,7 @@ from longslam.io.rosbag.export import export_sequence  # noqa: E402
 from longslam.io.rosbag.import_ import import_bag  # noqa: E402
 from longslam.io.rosbag.messages import pose_matrix  # noqa: E402
 from longslam.io.sequence import SequenceReader  # noqa: E402
-from sequence_checks import assert_same_sequence  # noqa: E402
+from helpers.sequence_checks import assert_same_sequence  # noqa: E402
 
 STORES = {"humble": Stores.ROS2_HUMBLE, "jazzy": Stores.ROS2_JAZZY}
 
@@ -169,6 +169,7 @@ def test_topic_presets_and_frames(sequence, tmp_path, preset):
     assert_same_sequence(SequenceReader(sequence), SequenceReader(tmp_path / "back"))
 
 
+@pytest.mark.slow
 def test_evo_reads_the_bag(sequence, tmp_path):
     # The venv's own evo (a test dependency): CI runs the tests without the venv on PATH.
     evo_traj = Path(sys.executable).with_name("evo_traj")

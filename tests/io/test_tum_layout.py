@@ -17,6 +17,8 @@ from longslam.eval.evaluation import evaluate
 from longslam.core.geometry import planar_poses
 from longslam.core.trajectory import Trajectory
 
+pytestmark = pytest.mark.slow  # runs the methods on TUM-layout sequences
+
 T0 = 1305031102.175304  # the first colour stamp of the real freiburg1_xyz
 
 

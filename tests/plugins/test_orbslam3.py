@@ -33,6 +33,8 @@ from longslam_orbslam3.config import OrbSlam3Config, close_depth_factor  # noqa:
 from longslam_orbslam3.console_log import count_markers  # noqa: E402
 from longslam_orbslam3.settings_file import fps_from_stamps, settings_yaml  # noqa: E402
 
+pytestmark = pytest.mark.slow  # runs ORB-SLAM3, some of it in processes
+
 
 def _pose(x: float, y: float = 0.0, yaw: float = 0.0) -> np.ndarray:
     return camera_poses_from_planar(np.array([[x, y, yaw]]), 1.25)[0]

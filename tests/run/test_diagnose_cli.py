@@ -6,7 +6,8 @@ import json
 
 import numpy as np
 
-from conftest import one_line_error, write_tiny_sequence
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 from longslam.run.folder import write_table
 from longslam.slam.api import Table

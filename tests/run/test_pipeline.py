@@ -13,7 +13,7 @@ from longslam.run.scored_run import run_named
 from longslam.run.scored_run import run_sequence_isolated
 from longslam.slam.api import Method, MethodContext
 from longslam.slam.catalog import create_method, method_names
-from conftest import write_tiny_sequence
+from helpers.tiny_sequences import write_tiny_sequence
 
 N = 30
 
@@ -62,6 +62,7 @@ def test_existing_run_folder_is_refused(sequence, tmp_path):
         run_named("odometry", sequence[0], tmp_path / "run", progress=False)
 
 
+@pytest.mark.slow
 def test_isolated_run_measures_its_own_process(sequence, tmp_path):
     figures = run_sequence_isolated("odometry", sequence[0], tmp_path / "run", progress=False)
     assert figures.frames == N and figures.peak_rss_bytes > 0

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from conftest import write_tiny_sequence
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.slam.api import MethodSpec, Result
 from longslam.core.trajectory import Trajectory
 

@@ -139,6 +139,7 @@ def test_process_cpu_time_counts_the_method_threads(tiny_sequence, tmp_path):
     assert measurements.process_cpu_time_s >= 0.4
 
 
+@pytest.mark.slow
 def test_the_demo_and_a_study_prepare_each_method_before_its_runs(tmp_path, monkeypatch):
     """MethodSpec.prepare: once-per-machine work outside every run's process and figures."""
     from longslam.cli import demo

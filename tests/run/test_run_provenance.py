@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 
-from conftest import write_tiny_sequence
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.run.scored_run import run_named
 from longslam.run.provenance import SOURCE_ROOT, source_commit
 

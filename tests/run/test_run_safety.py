@@ -13,6 +13,8 @@ from longslam.core.errors import InputError
 from longslam.io.atomic import name_final_folder
 from longslam.run.scored_run import run_named
 
+pytestmark = pytest.mark.slow  # runs the CLI in processes
+
 N = 20  # frames of the tiny sequence (conftest.tiny_sequence)
 
 
@@ -54,7 +56,7 @@ def test_two_runs_into_one_folder_at_once_one_wins(sequence, tmp_path):
 
 
 def test_overwrite_replaces_a_finished_folder(sequence, tmp_path):
-    # A finished run (stats.json and config.toml) is replaced; any other folder is not (issue 21).
+    # A finished run (stats.json and config.toml) is replaced; any other folder is not.
     out = tmp_path / "run"
     run_named("odometry", sequence, out, progress=False)
     (out / "old.txt").write_text("old")

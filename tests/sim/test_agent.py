@@ -47,6 +47,7 @@ def test_waypoint_inside_a_wall_is_refused(nav):
         nav.shortest_path((50.0, 29.9), (60.0, 31.25))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "name,count,length,tolerance",
     [("demo", 7, 60.0, 0.1), ("paper-300m", 12, 300.0, 0.05), ("paper-1km", 25, 1000.0, 0.05)],

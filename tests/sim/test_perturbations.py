@@ -22,7 +22,7 @@ from longslam.sim.perturbations import (
 from longslam.sim.perturbations.stream import perturbed_frames
 from longslam.sim.sensors import FrameMotion
 
-from conftest import one_line_error
+from helpers.cli_checks import one_line_error
 
 K = Intrinsics.from_fov(32, 24, 90.0)  # fx = 16 px
 RATE = 10.0  # frames per second, as the follower's

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import one_line_error
+from helpers.cli_checks import one_line_error
 from longslam.cli.main import main
 
 PLUGIN = '''

@@ -18,8 +18,9 @@ from longslam.sim.sensors import (
 from longslam.sim.sensors import catalog
 from longslam.sim.sensors.stream import camera_motions, sensed_frame, sensed_frames
 
-from conftest import one_line_error, write_tiny_sequence
-from flat_walls import K, TEXTURED_HALF, _wall, render
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
+from helpers.flat_walls import K, TEXTURED_HALF, render, square_wall
 
 def sense(model: SensorModel, rgb, depth, seed: int = 0, index: int = 0, motion: FrameMotion | None = None):
     return model.sense(rgb, depth, K, motion or FrameMotion.still(), frame_rng(model.name, seed, index))
@@ -40,7 +41,7 @@ def textured():
 @pytest.mark.parametrize("distance", [1.0, 2.0, 4.0])
 def test_kinect_axial_noise_matches_its_formula_on_a_flat_wall(distance):
     model = KinectV1()
-    rgb, depth = render([_wall(distance)])
+    rgb, depth = render([square_wall(distance)])
     assert np.allclose(depth, distance, atol=1e-4)  # the clean render is the wall itself
     _, noisy = sense(model, rgb, depth)
     valid = noisy > 0
@@ -52,7 +53,7 @@ def test_kinect_axial_noise_matches_its_formula_on_a_flat_wall(distance):
 
 def test_kinect_depth_comes_in_disparity_steps():
     model = KinectV1()
-    rgb, depth = render([_wall(4.0)])
+    rgb, depth = render([square_wall(4.0)])
     _, noisy = sense(model, rgb, depth)
     bf = 0.075 * 580.0
     disparity_eighths = 8 * bf / noisy[noisy > 0]
@@ -65,7 +66,7 @@ def test_kinect_depth_comes_in_disparity_steps():
 
 @pytest.mark.parametrize("distance", [0.45, 4.8])
 def test_kinect_returns_nothing_out_of_its_range(distance):
-    rgb, depth = render([_wall(distance)])
+    rgb, depth = render([square_wall(distance)])
     assert (depth > 0).all()
     _, noisy = sense(KinectV1(), rgb, depth)
     assert (noisy > 0).mean() < 0.01
@@ -74,7 +75,7 @@ def test_kinect_returns_nothing_out_of_its_range(distance):
 def test_kinect_projector_shadow_is_a_band_left_of_a_near_edge():
     # A panel 1 m away covering the right half of the view (world y < 0), the wall 2 m away.
     panel = np.array([[1.0, 0.0, -5], [1.0, -5, -5], [1.0, -5, 5], [1.0, 0.0, 5]], float)
-    rgb, depth = render([_wall(2.0), panel])
+    rgb, depth = render([square_wall(2.0), panel])
     edge = int(np.argmax(depth[120] < 1.5))  # first column on the panel
     assert 150 <= edge <= 170
     model = KinectV1(lateral_px=0.0)  # the band's edges exactly where the geometry puts them
@@ -95,7 +96,7 @@ def test_kinect_lateral_noise_reads_each_pixel_from_a_neighbour_offset_by_its_si
     # panel pixel reads anything but 1 m only when its offset crosses the edge. Ten times the
     # model's 0.8 px makes the share large enough to measure; the scaling is the model's.
     panel = np.array([[1.0, 0.0, -5], [1.0, -5, -5], [1.0, -5, 5], [1.0, 0.0, 5]], float)
-    rgb, depth = render([_wall(2.0), panel])
+    rgb, depth = render([square_wall(2.0), panel])
     edge = int(np.argmax(depth[120] < 1.5))
     model = KinectV1(lateral_px=8.0, axial_a=0.0, axial_b=0.0, disparity_step=1e-6, max_incidence_deg=90.0)
     sigma = 8.0 * K.fx / 580.0  # device pixels in the render's: 2.2 px
@@ -130,7 +131,7 @@ def test_kinect_drops_grazing_returns():
 
 @pytest.mark.parametrize("distance", [1.0, 2.0, 4.0])
 def test_realsense_rms_error_matches_its_formula_on_a_flat_wall(distance, textured):
-    rgb, depth = render([_wall(distance, TEXTURED_HALF)], textured)
+    rgb, depth = render([square_wall(distance, TEXTURED_HALF)], textured)
     _, noisy = sense(RealSenseD435(), rgb, depth)
     valid = noisy > 0
     expected = 0.02 * 2.0 * (distance / 2.0) ** 2  # 2 % at 2 m, growing as z^2
@@ -141,7 +142,7 @@ def test_realsense_rms_error_matches_its_formula_on_a_flat_wall(distance, textur
 
 @pytest.mark.parametrize("distance", [1.0, 2.0])
 def test_realsense_invalid_band_on_the_left_edge(distance, textured):
-    rgb, depth = render([_wall(distance, TEXTURED_HALF)], textured)
+    rgb, depth = render([square_wall(distance, TEXTURED_HALF)], textured)
     _, noisy = sense(RealSenseD435(), rgb, depth)
     width = 0.050 * K.fx / distance  # b f / Z: 8 px at 1 m, 4 px at 2 m
     assert (noisy[:, :int(math.floor(width - 0.5))] == 0).all()
@@ -150,7 +151,7 @@ def test_realsense_invalid_band_on_the_left_edge(distance, textured):
 
 def test_realsense_speckle_holes_on_a_low_texture_wall():
     model = RealSenseD435()
-    rgb, depth = render([_wall(2.0)])  # one flat colour: nothing to match
+    rgb, depth = render([square_wall(2.0)])  # one flat colour: nothing to match
     _, noisy = sense(model, rgb, depth)
     share = (noisy[:, 10:] == 0).mean()
     assert share == pytest.approx(model.expected_speckle_share(), rel=0.15)
@@ -158,14 +159,14 @@ def test_realsense_speckle_holes_on_a_low_texture_wall():
 
 
 def test_realsense_range_is_0_3_to_10_m():
-    rgb, depth = render([_wall(0.25)])
+    rgb, depth = render([square_wall(0.25)])
     assert ((sense(RealSenseD435(speckle_seed=0.0), rgb, depth)[1]) > 0).mean() < 0.01
 
 
 # ------------------------------------------------------------------ ideal and colour
 
 def test_ideal_changes_nothing(textured):
-    rgb, depth = render([_wall(2.0, TEXTURED_HALF)], textured)
+    rgb, depth = render([square_wall(2.0, TEXTURED_HALF)], textured)
     ideal = get_sensor("ideal")
     assert ideal.is_ideal and not KinectV1().is_ideal
     out_rgb, out_depth = sense(ideal, rgb, depth)

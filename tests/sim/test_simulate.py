@@ -14,6 +14,8 @@ from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import Route
 from longslam.sim.simulate import simulate
 
+pytestmark = pytest.mark.slow  # renders routes
+
 SMALL = CameraSettings(width=64, height=48)
 ROUTE = Route("short", "university", ((20.0, 31.25), (26.0, 31.25), "junction_a"))
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import one_line_error
+from helpers.cli_checks import one_line_error
 from longslam.cli.main import main
 from longslam.core.errors import InputError
 from longslam.sim.drive import drive_route
@@ -78,7 +78,7 @@ def test_a_tour_between_places_at_one_spot_is_refused_at_once(tmp_path, capsys, 
     import signal
     import time
 
-    from building_mesh import write_building
+    from helpers.building_mesh import write_building
 
     monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
     ply, _ = write_building(tmp_path / "b")

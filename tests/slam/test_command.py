@@ -21,7 +21,8 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import one_line_error, write_tiny_sequence
+from helpers.cli_checks import one_line_error
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 from longslam.core.errors import InputError, MethodError
 from longslam.core.geometry import anchor, base_to_camera, hold_last, invert, pose_from_xyyaw
@@ -305,6 +306,7 @@ def test_a_command_with_spaces_runs_from_the_command_line(tiny, program, tmp_pat
     assert 'trajectory = "poses.txt"' in config and str(program) in config  # the run can be repeated from its folder
 
 
+@pytest.mark.slow
 def test_the_installed_command_runs_a_program(tiny, program, tmp_path):
     """`longslam run --method command SEQ --param command="prog {sequence} {output}" ...` in a shell."""
     sequence, truth, _ = tiny

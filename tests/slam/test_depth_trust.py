@@ -15,14 +15,14 @@ from longslam.sim.sensors import FrameMotion, KinectV1, RealSenseD435, frame_rng
 from longslam.slam.depth_trust import DepthTrust, inverse_depth_noise, scan_weight, trusted_depth, trusted_range
 from longslam.slam.frontend import FrontEnd
 
-from flat_walls import K, TEXTURED_HALF, _wall, render
+from helpers.flat_walls import K, TEXTURED_HALF, render, square_wall
 
 
 @pytest.fixture(scope="module")
 def wall_2m():
     rng = np.random.default_rng(7)
     texture = rng.integers(30, 225, (1024, 1024), dtype=np.uint8)[:, :, None].repeat(3, axis=2)
-    return render([_wall(2.0, TEXTURED_HALF)], texture)
+    return render([square_wall(2.0, TEXTURED_HALF)], texture)
 
 
 def _sensed(model, rgb, depth):

@@ -14,6 +14,8 @@ from longslam.sim.routes import Route
 from longslam.slam.catalog import BUILTIN, default_method_names
 from longslam.world import get_world
 
+pytestmark = pytest.mark.slow  # runs every method end to end on a rendered route
+
 CAMERA = CameraSettings(width=160, height=120)
 ROUTE = Route("map-check", "university", ((20.0, 31.25), (26.0, 31.25), "junction_a"))
 WALL_HEIGHT = 3.0  # the university's floor-to-ceiling height

@@ -239,7 +239,7 @@ def test_unused_words_leave_the_index_and_held_ones_keep_their_ids(index):
 
 
 def test_vocabulary_scores_follow_the_nodes_indexed(scenes):
-    """Issue 22: a query keeps the idf and the nodes' norms from the last one (they change only
+    """A query keeps the idf and the nodes' norms from the last one (they change only
     with the nodes indexed). After nodes come and go, its scores must be those of scoring afresh."""
     vocab = Vocabulary(index="bruteforce")
     for node, canvas in enumerate(scenes[:6]):

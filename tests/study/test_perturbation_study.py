@@ -21,6 +21,8 @@ from longslam.study.config import load_study
 from longslam.study.database import DB_NAME
 from longslam.study.driver import run_study
 
+pytestmark = pytest.mark.slow  # renders routes and runs a study over perturbations
+
 
 @pytest.fixture(scope="module")
 def cache(tmp_path_factory):

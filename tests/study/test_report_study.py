@@ -10,8 +10,10 @@ import subprocess
 import numpy as np
 import pytest
 
+from helpers.studies import chromium
 from longslam.study.report.interactive import COLOURS
-from test_study import _chromium, env, study  # noqa: F401  (the module's study, run once here too)
+
+pytestmark = pytest.mark.slow  # runs a study and opens its report in a browser
 
 
 def test_every_local_runs_log_holds_what_ran_and_how_it_ended(study):
@@ -61,7 +63,7 @@ def test_every_seeds_trajectory_is_drawn(study):
     assert '"label":"seed 1"' in page and '"label":"all seeds"' in page  # the seed menu
 
 
-@pytest.mark.skipif(_chromium() is None, reason="chromium is not installed (apt-get install chromium)")
+@pytest.mark.skipif(chromium() is None, reason="chromium is not installed (apt-get install chromium)")
 def test_a_screenshot_shows_the_runs_table_and_an_interactive_figure(study, tmp_path):
     import matplotlib.image as mpimg
     from matplotlib.colors import to_rgb
@@ -80,7 +82,7 @@ window.addEventListener("load", () => {
     page.write_text((out / "report.html").read_text().replace("</body>", keep))
     shot = tmp_path / "shot.png"
     command = [
-        _chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
         "--disable-component-update", "--disable-sync", "--no-first-run", "--hide-scrollbars",
         f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1300,1400", "--virtual-time-budget=10000",
         f"--screenshot={shot}", page.as_uri(),

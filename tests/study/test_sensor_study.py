@@ -24,6 +24,8 @@ from longslam.study.config import load_study
 from longslam.study.database import DB_NAME
 from longslam.study.driver import run_study
 
+pytestmark = pytest.mark.slow  # renders routes and runs a study over sensors
+
 SMALL = CameraSettings(width=64, height=48)
 ROUTE = Route("short", "university", ((20.0, 31.25), (26.0, 31.25), "junction_a"))
 

@@ -11,140 +11,26 @@ import signal
 import sqlite3
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
 import pytest
 
+from helpers.studies import chromium, write_study
 from longslam.cli.main import main
-from longslam.slam import catalog
 from longslam.study.config import load_study
 from longslam.study.database import DB_NAME
 from longslam.study.report import Cell, StudyResults, accuracy_table, format_mean_std, memory_table
 from longslam.study.driver import run_study
 
-ROUTE = "20 31.25\n28 31.25\n"  # 8 m along the spine: about 55 frames
+pytestmark = pytest.mark.slow  # runs studies, some in processes
 
-PLUGIN = '''
-"""Test methods registered through the `longslam.methods` entry point, like a user's own."""
-import os
-import signal
-import time
-
-import numpy as np
-
-from longslam.core.geometry import base_to_camera, planar_from_camera_poses
-from longslam.slam.api import MethodSpec, Result
-from longslam.slam.occupancy import assemble, local_grid
-from longslam.core.trajectory import Trajectory
-
-
-class Gridded:
-    """Dead reckoning plus an occupancy grid from every 5th depth image."""
-
-    name = "gridded"
-
-    def __init__(self, context, params):
-        self.stamps, self.poses, self.grids = [], [], []
-
-    def step(self, frame):
-        pose = np.array(frame.odometry, dtype=np.float64)
-        self.stamps.append(frame.timestamp)
-        self.poses.append(pose)
-        if frame.index % 5 == 0:
-            self.grids.append((len(self.poses) - 1, local_grid(frame.depth, frame.intrinsics, base_to_camera(1.25))))
-        return pose
-
-    def finish(self):
-        trajectory = Trajectory(np.array(self.stamps), np.array(self.poses))
-        xyyaw = planar_from_camera_poses(trajectory.poses, 1.25)
-        grid = assemble([g for _, g in self.grids], xyyaw[[i for i, _ in self.grids]])
-        return Result(trajectory, trajectory, grid=grid, stats={"local_grids": len(self.grids)})
-
-
-class Crashy(Gridded):
-    def step(self, frame):
-        if frame.index == 5:
-            raise RuntimeError("crashy fails on purpose at frame 5")
-        return super().step(frame)
-
-
-class Dies(Gridded):
-    def step(self, frame):
-        if frame.index == 5:
-            # What a native system says as it dies goes to the run's console.log.
-            os.write(1, b"native: assertion failed, about to die\\n")
-            os.kill(os.getpid(), signal.SIGKILL)
-        return super().step(frame)
-
-
-class Sleepy(Gridded):
-    """Slow enough that two runs started together overlap."""
-
-    def step(self, frame):
-        time.sleep(0.02)
-        return super().step(frame)
-
-
-# A system with threads of its own, as ORB-SLAM3's plugin declares itself.
-HOG = MethodSpec("hog", None, Sleepy, threads=2, real_time=True, deterministic=False)
-'''
-
-
-@pytest.fixture(scope="module")
-def env(tmp_path_factory, render_cache):
-    """The session's render cache, a tiny route, and a plugin of test methods on the path."""
-    root = tmp_path_factory.mktemp("study")
-    plugins = root / "plugins"
-    (plugins / "longslam_test_plugin-0.1.dist-info").mkdir(parents=True)
-    (plugins / "longslam_test_plugin.py").write_text(PLUGIN)
-    (plugins / "longslam_test_plugin-0.1.dist-info" / "METADATA").write_text(
-        "Metadata-Version: 2.1\nName: longslam-test-plugin\nVersion: 0.1\n"
-    )
-    (plugins / "longslam_test_plugin-0.1.dist-info" / "entry_points.txt").write_text(
-        "[longslam.methods]\ngridded = longslam_test_plugin:Gridded\n"
-        "crashy = longslam_test_plugin:Crashy\ndies = longslam_test_plugin:Dies\n"
-        "sleepy = longslam_test_plugin:Sleepy\nhog = longslam_test_plugin:HOG\n"
-    )
-    (root / "tiny.txt").write_text(ROUTE)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("LONGSLAM_CACHE", str(render_cache))
-        mp.syspath_prepend(str(plugins))  # spawned children get the parent's sys.path
-        mp.setenv("PYTHONPATH", os.pathsep.join([str(plugins), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
-        # The catalogue finds the entry points again once the plugin is on the path.
-        assert {"gridded", "crashy", "dies"} <= set(catalog.method_names())
-        yield root
-
-
-def _study(root: Path, name: str, methods: list[str], noise: list[str], seeds: list[int]) -> Path:
-    path = root / f"{name}.toml"
-    path.write_text(textwrap.dedent(f"""
-        name = "{name}"
-        routes = ["tiny.txt"]
-        noise = {json.dumps(noise)}
-        methods = {json.dumps(methods)}
-        seeds = {json.dumps(seeds)}
-        [camera]
-        width = 64
-        height = 48
-    """))
-    return path
 
 
 def _rows(out: Path) -> list[dict]:
     with sqlite3.connect(out / DB_NAME) as conn:
         conn.row_factory = sqlite3.Row
         return [dict(r) for r in conn.execute("SELECT * FROM runs")]
-
-
-@pytest.fixture(scope="module")
-def study(env):
-    """One study: two good methods (one with a grid), one that raises, one whose process dies."""
-    config = load_study(_study(env, "main", ["odometry", "gridded", "crashy", "dies"], ["large"], [0, 1]))
-    out = env / "main-out"
-    summary = run_study(config, out, jobs=2, progress=False)
-    return out, summary
 
 
 def test_a_study_writes_one_row_per_run_and_records_crashes(study):
@@ -227,7 +113,7 @@ def test_the_papers_numbers_stand_beside_ours_on_the_papers_routes():
 
 
 def test_a_killed_study_resumes_and_runs_everything_exactly_once(env):
-    file = _study(env, "resume", ["odometry"], ["none", "large"], [0, 1])
+    file = write_study(env, "resume", ["odometry"], ["none", "large"], [0, 1])
     out = env / "resume-out"
     command = [sys.executable, "-m", "longslam", "study", str(file), "--out", str(out), "--jobs", "1", "--no-report"]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -269,7 +155,7 @@ def test_a_second_study_into_a_busy_folder_stops_with_a_clear_message(study, env
 
     out, _ = study
     before = _rows(out)
-    file = _study(env, "main", ["odometry", "gridded", "crashy", "dies"], ["large"], [0, 1])
+    file = write_study(env, "main", ["odometry", "gridded", "crashy", "dies"], ["large"], [0, 1])
     with study_lock(out):  # another study holds the folder
         assert main(["study", str(file), "--out", str(out), "--retry-failed", "--no-report"]) == 2
     err = capsys.readouterr().err
@@ -300,7 +186,7 @@ def test_ray_executor_against_a_local_ray(env):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
-        config = load_study(_study(env, "ray", ["odometry"], ["large"], [0, 1]))
+        config = load_study(write_study(env, "ray", ["odometry"], ["large"], [0, 1]))
         out = env / "ray-out"
         summary = run_study(config, out, executor="ray", progress=False, report=False)
     finally:
@@ -310,10 +196,6 @@ def test_ray_executor_against_a_local_ray(env):
     assert len(rows) == 2 and all(r["status"] == "ok" and r["executor"] == "ray" for r in rows)
     for row in rows:
         assert (out / row["trajectory_path"]).is_file() and row["ate"] > 0 and row["peak_rss_bytes"] > 0
-
-
-def _chromium() -> str | None:
-    return shutil.which("chromium") or shutil.which("chromium-browser")
 
 
 CHECK = """<script>
@@ -338,13 +220,13 @@ window.addEventListener("load", () => {
 </script></body>"""
 
 
-@pytest.mark.skipif(_chromium() is None, reason="chromium is not installed (apt-get install chromium)")
+@pytest.mark.skipif(chromium() is None, reason="chromium is not installed (apt-get install chromium)")
 def test_report_page_in_a_headless_browser(study, tmp_path):
     out, _ = study
     page = tmp_path / "report.html"
     page.write_text((out / "report.html").read_text().replace("</body>", CHECK))
     command = [
-        _chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
         "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
         "--virtual-time-budget=10000", "--dump-dom", page.as_uri(),
     ]
@@ -445,7 +327,7 @@ def test_an_old_one_camera_study_folder_reports_and_resumes(study, env, tmp_path
     with ResultsDB(old / DB_NAME) as db:
         assert {r["camera_name"] for r in db.runs()} == {"camera"}
     # The same study again resumes into the same rows: nothing is redone.
-    file = _study(env, "main", ["odometry", "gridded", "crashy", "dies"], ["large"], [0, 1])
+    file = write_study(env, "main", ["odometry", "gridded", "crashy", "dies"], ["large"], [0, 1])
     summary = run_study(load_study(file), old, report=False, progress=False)
     assert (summary.planned, summary.skipped, summary.ran) == (8, 8, 0)
     assert sorted(r["key"] for r in _rows(old)) == sorted(r["key"] for r in rows)
@@ -472,6 +354,9 @@ def test_a_camera_column_beside_the_papers_rows():
     page = table_html(table)
     assert page.count('class="camera"') == 4 and '<th colspan="3"></th>' in page
     assert _row_widths(page) == [4] * len(table.rows)  # method, camera, metric, the one column
+    # One camera: no camera column, as before cameras could be named.
+    one = StudyResults(Path("."), {}, runs[:1], runs[:1], ["paper-300m"], ["small"], ["odometry"], ["qvga"])
+    assert accuracy_table(one).row_cameras == [] and "| method | metric |" in table_markdown(accuracy_table(one))
 
 
 def _row_widths(page: str) -> list[int]:
@@ -482,9 +367,6 @@ def _row_widths(page: str) -> list[int]:
         widths.append(len(spans) + len(carried))
         carried = [n - 1 for n in carried + spans if n > 1]
     return widths
-    # One camera: no camera column, as before cameras could be named.
-    one = StudyResults(Path("."), {}, runs[:1], runs[:1], ["paper-300m"], ["small"], ["odometry"], ["qvga"])
-    assert accuracy_table(one).row_cameras == [] and "| method | metric |" in table_markdown(accuracy_table(one))
 
 
 def _spans(rows: list[dict]) -> list[tuple[str, float, float]]:
@@ -500,13 +382,13 @@ def _overlap(a: tuple[str, float, float], b: tuple[str, float, float]) -> bool:
 
 def test_runs_of_one_core_share_the_machine(env):
     out = env / "sleepy-out"
-    run_study(load_study(_study(env, "sleepy", ["sleepy"], ["large"], [0, 1])), out, jobs=2, progress=False)
+    run_study(load_study(write_study(env, "sleepy", ["sleepy"], ["large"], [0, 1])), out, jobs=2, progress=False)
     spans = _spans(_rows(out))
     assert len(spans) == 2 and _overlap(*spans)  # the check below can fail
 
 
 def test_a_run_that_needs_every_core_runs_alone_and_each_cell_repeats(env):
-    path = _study(env, "cores", ["sleepy", "hog"], ["large"], [0])
+    path = write_study(env, "cores", ["sleepy", "hog"], ["large"], [0])
     path.write_text(path.read_text().replace('seeds = [0]', 'seeds = [0]\nrepeats = 3'))
     out = env / "cores-out"
     summary = run_study(load_study(path), out, jobs=2, progress=False)

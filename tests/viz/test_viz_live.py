@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import write_tiny_sequence
+from helpers.tiny_sequences import write_tiny_sequence
 from longslam.cli.main import main
 from longslam.core.errors import InputError
 from longslam.io.trajectory_files import read_tum
@@ -18,9 +18,9 @@ from longslam.run.scored_run import run_named
 rerun = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
-from rrd_checks import rows  # noqa: E402
+from helpers.recordings import rows  # noqa: E402
 
-
+pytestmark = pytest.mark.slow  # runs methods with the live view, some in processes
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,7 @@ def test_loop_constraints_are_drawn_between_graph_nodes(tmp_path):
     from longslam.slam.graph import PoseGraph
     from longslam.core.trajectory import Trajectory
     from longslam.viz.live import LiveView
-    from conftest import TINY_INTRINSICS
+    from helpers.tiny_sequences import TINY_INTRINSICS
 
     class WithGraph:  # any method with a public PoseGraph
         graph = PoseGraph()

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import TINY_INTRINSICS, write_tiny_sequence
+from helpers.tiny_sequences import TINY_INTRINSICS, write_tiny_sequence
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.run.scored_run import run_named
@@ -28,9 +28,11 @@ from longslam.core.trajectory import Trajectory
 rerun = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
-from rrd_checks import rows  # noqa: E402
+from helpers.recordings import rows  # noqa: E402
 
 import longslam.viz.live as live  # noqa: E402
+
+pytestmark = pytest.mark.slow  # starts viewer processes
 
 RUN_FILES = {"trajectory.txt", "online.txt", "stats.json", "config.toml"}
 

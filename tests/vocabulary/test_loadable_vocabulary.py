@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import one_line_error
+from helpers.cli_checks import one_line_error
 from longslam.cli.main import main
 from longslam.core.errors import InputError
 from longslam.vocabulary import build_tree, format_text

@@ -334,6 +334,7 @@ def orbslam3_settings(sequence: Path) -> str:
         """)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("pyorbslam3") is None, reason="pyorbslam3 (GPL, the plugin's) is not installed")
 def test_orbslam3_loads_the_vocabulary_and_tracks(hall_sequence, tmp_path):
     voc = tmp_path / "voc.txt"

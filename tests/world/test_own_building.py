@@ -11,13 +11,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from building_mesh import CRATE, WING_END, WING_MID, write_building
+from helpers.building_mesh import CRATE, WING_END, WING_MID, write_building
 from longslam.cli.main import main
 from longslam.core.gridmap import FREE, OCCUPIED
 from longslam.io.sequence import SequenceReader
 from longslam.study.config import load_study
 from longslam.study.driver import run_study
 from longslam.world import load_mesh_world
+
+pytestmark = pytest.mark.slow  # renders a building of its own and runs a study in it
 
 ROUTE = {"world": "building.glb", "waypoints": [[1.0, 1.0], [8.5, 2.6], list(WING_END)]}
 CAMERA = ["--width", "64", "--height", "48"]

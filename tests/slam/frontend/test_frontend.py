@@ -19,6 +19,8 @@ from longslam.slam.frontend.registration import register
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
 from longslam.core.trajectory import Trajectory
 
+pytestmark = pytest.mark.slow  # runs the front end on rendered routes
+
 
 def _wall(a, b, step=0.05):
     a, b = np.asarray(a, float), np.asarray(b, float)

@@ -56,6 +56,7 @@ def test_our_optimizer_reaches_gtsams_levenberg_marquardt_minimum():
     assert np.linalg.norm(ours[:, :2] - truth[:, :2], axis=1).max() < 0.2 * np.linalg.norm(odometry[:, :2] - truth[:, :2], axis=1).max()
 
 
+@pytest.mark.slow
 def test_a_part_nothing_anchors_is_damped_not_fatal():
     # No wheel step from frame 40 to 41, no scan or loop across: frames 41.. float free, Gauss-
     # Newton's system is singular (GTSAM raises IndeterminateLinearSystemException); damped
@@ -103,6 +104,7 @@ def _long_smoother(window: int, frames: int = 400) -> tuple[FullSmoother, np.nda
     return smoother, truth
 
 
+@pytest.mark.slow  # solves a 230- or 400-frame route's smoother several times over (10-30 s)
 def test_a_route_longer_than_the_window_is_solved_window_by_window_to_the_whole_solve():
     # A hard case for windows: the online poses are the raw biased wheels (the front end's are
     # already corrected by its filter), and only the loops across windows show the heading bias.
@@ -150,6 +152,7 @@ def test_a_route_within_the_window_is_solved_whole():
     assert np.array_equal(within.solve(), whole.solve())
 
 
+@pytest.mark.slow  # solves a 230- or 400-frame route's smoother several times over (10-30 s)
 def test_a_route_of_up_to_whole_frames_is_solved_whole_and_a_longer_one_in_windows():
     import dataclasses
 
@@ -280,6 +283,7 @@ def test_the_frames_between_held_nodes_follow_the_nodes_not_the_online_poses():
     assert error.max() < 0.01, error.max()
 
 
+@pytest.mark.slow  # solves a 230- or 400-frame route's smoother several times over (10-30 s)
 def test_a_route_up_to_hold_nodes_beyond_is_solved_over_every_frame_though_nodes_are_given():
     smoother, truth = _long_smoother(window=100, frames=230)
     held = {k: truth[k] for k in range(0, 230, 10)}

@@ -5,37 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers.pose_graphs import LOOP_SIGMAS, ODO_SIGMAS, as_array, drifting_odometry, square_route
 from longslam.core.errors import InputError
-from longslam.core.geometry import compose_xyyaw, planar_poses, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
+from longslam.core.geometry import compose_xyyaw, planar_poses, pose_from_xyyaw, relative_xyyaw, xyyaw_from_pose
 from longslam.slam.graph import PoseGraph
-
-ODO_SIGMAS = (0.05, 0.05, 0.01)
-LOOP_SIGMAS = (0.05, 0.05, 0.01)
-
-
-def square_route(side_steps: int = 10, step: float = 1.0) -> np.ndarray:
-    """Ground truth: a 10 m square driven counter-clockwise, ending where it started."""
-    poses = [(0.0, 0.0, 0.0)]
-    x = y = yaw = 0.0
-    for _ in range(4):
-        for i in range(side_steps):
-            x += step * np.cos(yaw)
-            y += step * np.sin(yaw)
-            if i == side_steps - 1:
-                yaw = float(wrap_angle(yaw + np.pi / 2))
-            poses.append((x, y, yaw))
-    return np.array(poses)
-
-
-def drifting_odometry(truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-step deltas with a 3 % scale error and a 0.02 rad/step heading bias, and their integral."""
-    deltas = relative_xyyaw(truth[:-1], truth[1:])
-    deltas[:, 0] *= 1.03
-    deltas[:, 2] += 0.02
-    poses = [truth[0]]
-    for d in deltas:
-        poses.append(compose_xyyaw(poses[-1], d))
-    return deltas, np.array(poses)
 
 
 def build_graph(truth: np.ndarray) -> tuple[PoseGraph, np.ndarray]:
@@ -46,10 +19,6 @@ def build_graph(truth: np.ndarray) -> tuple[PoseGraph, np.ndarray]:
     for i, d in enumerate(deltas):
         graph.add_odometry(i, i + 1, d, ODO_SIGMAS)
     return graph, odo
-
-
-def as_array(result: dict, n: int) -> np.ndarray:
-    return np.array([result[i] for i in range(n)])
 
 
 def test_planar_helpers_round_trip():
@@ -146,7 +115,7 @@ def test_bad_input_is_named():
 
 
 def test_a_loop_tried_in_working_memory_moves_only_the_free_nodes_and_is_judged_there():
-    """Issue 22: a loop try solved over the whole graph costs time in proportion to the route.
+    """A loop try solved over the whole graph would cost time in proportion to the route.
     Tried with `free` nodes (RTAB-Map's working memory), only they move; the held nodes are the
     other ends of their edges."""
     truth = square_route()
@@ -177,8 +146,8 @@ def test_a_loop_tried_in_working_memory_moves_only_the_free_nodes_and_is_judged_
 
 
 def test_kept_factors_and_connectivity_follow_the_edges_added_and_removed():
-    """Issue 22: each edge's factor is made once and the graph's connectivity kept as edges come,
-    so a solve no longer rebuilds them. A removed edge's factor must leave the solve, and an edge
+    """Each edge's factor is made once and the graph's connectivity kept as edges come, so a
+    solve does not rebuild them. A removed edge's factor must leave the solve, and an edge
     whose removal splits the graph must make the next solve name the island."""
     truth = square_route()
     graph, _ = build_graph(truth)
@@ -207,7 +176,7 @@ def test_kept_factors_and_connectivity_follow_the_edges_added_and_removed():
 
 
 def test_a_local_try_is_judged_on_the_edges_at_its_free_nodes_as_edge_errors_judges_them():
-    """Issue 22: a local solve finds its edges through each node's edges and judges them in one
+    """A local solve finds its edges through each node's edges and judges them in one
     numpy pass. Its verdict must be `edge_errors`' largest split error over exactly the edges at
     the free nodes, a removed edge left out."""
     truth = square_route()

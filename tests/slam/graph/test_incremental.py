@@ -6,11 +6,10 @@ import gtsam
 import numpy as np
 import pytest
 
+from helpers.pose_graphs import LOOP_SIGMAS, ODO_SIGMAS, as_array, drifting_odometry, square_route
 from longslam.core.errors import InputError
 from longslam.core.geometry import compose_xyyaw, log_xyyaw, relative_xyyaw
 from longslam.slam.graph import PoseGraph
-
-from test_graph import LOOP_SIGMAS, ODO_SIGMAS, as_array, drifting_odometry, square_route
 
 
 def laps(count: int) -> np.ndarray:

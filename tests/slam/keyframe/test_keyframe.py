@@ -18,6 +18,8 @@ from longslam.slam.keyframe.memory_db import MemoryDatabase
 from longslam.slam.catalog import check_params, create_method
 from longslam.world import get_world
 
+pytestmark = pytest.mark.slow  # runs the keyframe method on rendered routes
+
 CAMERA = CameraSettings(width=160, height=120)
 # Along the spine, back, and along it again: the second pass sees what the first saw.
 ROUTE = Route("twice", "university", ((18.0, 31.25), (34.0, 31.25), (18.0, 31.25), (34.0, 31.25)))

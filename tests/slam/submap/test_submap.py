@@ -24,6 +24,8 @@ from longslam.core.geometry.cells import group_cells_3d, pack_3d, unpack_3d
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 from longslam.world import get_world
 
+pytestmark = pytest.mark.slow  # runs the submap method on rendered routes
+
 SMALL = CameraSettings(width=80, height=60)
 HALL_LOOP = Route("hall-loop", "university", ("hall_entry", "hall_ne", "hall_se", "hall_sw", "hall_nw", "hall_ne"))
 # Up the branch corridor, into office_4 and out, on along the corridor: office_4's wall (0.2 m
@@ -204,8 +206,8 @@ def test_loop_closure_is_on_with_the_fused_front_end_and_off_in_the_papers_confi
 
 
 def test_loops_reach_the_smoother_between_the_frames_they_were_seen_from(rendered):
-    """Issue 25: a loop fed between two submaps' first frames, at 0.5 m because a submap is not
-    rigid, left most of the fused front end's drift in (paper-1km xlarge, seed 2: 0.66 m, against
+    """A loop fed between two submaps' first frames, at 0.5 m because a submap is not rigid,
+    left most of the fused front end's drift in (paper-1km xlarge, seed 2: 0.66 m, against
     0.87 with no loops). Between its own frames a loop needs no submap to be rigid. The demo at
     xlarge noise with the scan band starved (the frontend test's sequence): measured 0.048 m with
     loops, 0.199 m without, dead reckoning 0.652 m."""
@@ -230,7 +232,7 @@ def test_loops_reach_the_smoother_between_the_frames_they_were_seen_from(rendere
 
 
 def test_the_maps_walls_lie_on_the_true_walls(rendered):
-    """Issue 25: the TSDF's band behind office_4's wall, seen from the office, drew the wall up
+    """The TSDF's band behind office_4's wall, seen from the office, drew the wall up
     to 0.7 m into the corridor; the free space the corridor's camera saw through clears it."""
     reader = SequenceReader(rendered(OFFICE_4, "none", 0, SMALL))
     truth = get_world("university").occupancy
@@ -242,8 +244,8 @@ def test_the_maps_walls_lie_on_the_true_walls(rendered):
         return distance
 
     before, after = off_the_walls(grid_free_space=False), off_the_walls()
-    # Beyond the scoring's tolerance (2 cells, Table 3): 13 % of the slice's cells alone (the
-    # map before issue 25), 4 % with the free space.
+    # Beyond the scoring's tolerance (2 cells, Table 3): 13 % of the slice's cells without the
+    # free space, 4 % with it.
     far = 2 * SubmapConfig().grid_resolution + 1e-9
     assert np.mean(before > far) > 0.1
     assert np.mean(after > far) < 0.06, np.percentile(after, [50, 90, 99, 100])
@@ -330,7 +332,7 @@ def _wall_submap(shift: float) -> TSDF:
 
 
 def test_the_submap_store_gives_back_what_it_was_given_and_holds_only_the_newest(tmp_path):
-    """Issue 22: finished submaps' TSDFs wait on disk, so that memory does not grow with the route."""
+    """Finished submaps' TSDFs wait on disk, so that memory does not grow with the route."""
     from longslam.slam.submap.global_map import fuse_submaps
     from longslam.slam.submap.store import FILE_NAME, SubmapStore
 
@@ -363,7 +365,7 @@ def test_the_submap_store_gives_back_what_it_was_given_and_holds_only_the_newest
 
 
 def test_a_route_driven_again_keeps_no_keyframe_where_a_kept_one_stands(rendered):
-    """Issue 22: place-recognition keyframes (and their words) grew with the route, about 14 MB a
+    """Place-recognition keyframes (and their words) would grow with the route, about 14 MB a
     km, though a route that drives the same corridors again sees the same places. With
     `loop_keyframe_min_distance` (1.5 m by default) a keyframe is kept only where no kept one stands."""
     reader = SequenceReader(rendered(get_route("demo-x2"), "large", 0))

@@ -26,7 +26,7 @@ def check_vocabulary_file(path: Path, what: str) -> None:
 def _user_file(given: str, what: str, source: str) -> tuple[str, dict[str, Any]]:
     path = Path(given).expanduser()
     if not path.is_file():
-        from longslam.io.outputs import special_file_kind
+        from longslam.core.file_kinds import special_file_kind
 
         problem = "a folder" if path.is_dir() else special_file_kind(path) or "no such file"
         raise InputError(f"{what}: {problem} (expected a DBoW2 text vocabulary such as ORBvoc.txt)")

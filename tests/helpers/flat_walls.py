@@ -30,7 +30,7 @@ def _quads_mesh(quads: list[np.ndarray], texture: np.ndarray | None = None) -> W
     return WorldMesh(vertices, triangles, triangle_uvs=uvs, texture=texture)
 
 
-def _wall(x: float, half: float = 30.0) -> np.ndarray:
+def square_wall(x: float, half: float = 30.0) -> np.ndarray:
     """A square wall across the view at distance x, facing the camera."""
     return np.array([[x, -half, -half], [x, half, -half], [x, half, half], [x, -half, half]], float)
 

@@ -1,0 +1,13 @@
+"""What several test files share, named by what it makes or checks (fixtures stay in conftest.py):
+
+- `tiny_sequences`: tiny synthetic sequences written in a moment (`write_tiny_sequence`);
+- `building_mesh`: a generated building of a shape the university does not have, as a mesh file;
+- `flat_walls`: flat walls rendered by the paper's camera;
+- `pose_graphs`: a square route and a drifting odometry for pose-graph tests;
+- `tiny_vocabulary`: the smallest sound ORB vocabulary file;
+- `cli_checks`: the CLI's failure was one line; what shell completion answers;
+- `sequence_checks`: two sequences the same, as a round trip must give them;
+- `recordings`: reading a rerun recording back.
+
+`tests/` is on the path (pyproject's `pythonpath`), so a test imports `from helpers.x import y`.
+"""

@@ -1,0 +1,116 @@
+"""What the study tests run: a tiny route, a plugin of test methods registered through the
+`longslam.methods` entry point (one with a grid, one that raises, one whose process dies, slow ones),
+a study file over them, and the headless browser the report is opened in."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import textwrap
+from pathlib import Path
+
+ROUTE = "20 31.25\n28 31.25\n"  # 8 m along the spine: about 55 frames
+
+PLUGIN = '''
+"""Test methods registered through the `longslam.methods` entry point, like a user's own."""
+import os
+import signal
+import time
+
+import numpy as np
+
+from longslam.core.geometry import base_to_camera, planar_from_camera_poses
+from longslam.slam.api import MethodSpec, Result
+from longslam.slam.occupancy import assemble, local_grid
+from longslam.core.trajectory import Trajectory
+
+
+class Gridded:
+    """Dead reckoning plus an occupancy grid from every 5th depth image."""
+
+    name = "gridded"
+
+    def __init__(self, context, params):
+        self.stamps, self.poses, self.grids = [], [], []
+
+    def step(self, frame):
+        pose = np.array(frame.odometry, dtype=np.float64)
+        self.stamps.append(frame.timestamp)
+        self.poses.append(pose)
+        if frame.index % 5 == 0:
+            self.grids.append((len(self.poses) - 1, local_grid(frame.depth, frame.intrinsics, base_to_camera(1.25))))
+        return pose
+
+    def finish(self):
+        trajectory = Trajectory(np.array(self.stamps), np.array(self.poses))
+        xyyaw = planar_from_camera_poses(trajectory.poses, 1.25)
+        grid = assemble([g for _, g in self.grids], xyyaw[[i for i, _ in self.grids]])
+        return Result(trajectory, trajectory, grid=grid, stats={"local_grids": len(self.grids)})
+
+
+class Crashy(Gridded):
+    def step(self, frame):
+        if frame.index == 5:
+            raise RuntimeError("crashy fails on purpose at frame 5")
+        return super().step(frame)
+
+
+class Dies(Gridded):
+    def step(self, frame):
+        if frame.index == 5:
+            # What a native system says as it dies goes to the run's console.log.
+            os.write(1, b"native: assertion failed, about to die\\n")
+            os.kill(os.getpid(), signal.SIGKILL)
+        return super().step(frame)
+
+
+class Sleepy(Gridded):
+    """Slow enough that two runs started together overlap."""
+
+    def step(self, frame):
+        time.sleep(0.02)
+        return super().step(frame)
+
+
+# A system with threads of its own, as ORB-SLAM3's plugin declares itself.
+HOG = MethodSpec("hog", None, Sleepy, threads=2, real_time=True, deterministic=False)
+'''
+
+
+def write_study(root: Path, name: str, methods: list[str], noise: list[str], seeds: list[int]) -> Path:
+    path = root / f"{name}.toml"
+    path.write_text(textwrap.dedent(f"""
+        name = "{name}"
+        routes = ["tiny.txt"]
+        noise = {json.dumps(noise)}
+        methods = {json.dumps(methods)}
+        seeds = {json.dumps(seeds)}
+        [camera]
+        width = 64
+        height = 48
+    """))
+    return path
+
+
+def chromium() -> str | None:
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def tiny_study_file(folder: Path, seeds: str, extra: str = "", name: str = "s.toml") -> Path:
+    """A study file (and its 1 m route r.txt) in `folder`: odometry at noise 'none' with a 16 x 12
+    camera over `seeds` (TOML text), plus `extra` lines."""
+    (folder / "r.txt").write_text("20 31.25\n21 31.25\n")
+    study = folder / name
+    study.write_text(f'routes = ["r.txt"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = {seeds}\n'
+                     '[camera]\nwidth = 16\nheight = 12\n' + extra)
+    return study
+
+
+def empty_study_folder(path: Path) -> Path:
+    """A study folder whose database holds a study and no runs."""
+    from longslam.study.database import DB_NAME, ResultsDB
+
+    path.mkdir()
+    with ResultsDB(path / DB_NAME) as db:
+        db.set_study({"name": "s", "routes": [], "noise": [], "methods": [], "seeds": [0]})
+    return path
