@@ -41,7 +41,7 @@ def test_the_runs_table_links_only_files_that_are_there(study):
     links = re.findall(r"\[(trajectory|stats|config|log)\]\(([^)]+)\)", table)
     assert len(links) == 20 and all((out / href).is_file() and (out / href).stat().st_size > 0 for _, href in links)
     crashed = next(row for row in rows if "| crashy | 0 |" in row)
-    assert "error: RuntimeError: crashy fails on purpose at frame 5" in crashed and "[log](logs/tiny/large/crashy/seed-0.log)" in crashed
+    assert "error: MethodError: method 'crashy': step() of frame 5 raised RuntimeError: crashy fails on purpose at frame 5" in crashed and "[log](logs/tiny/large/crashy/seed-0.log)" in crashed
     odometry = next(row for row in rows if "| odometry | 1 |" in row)
     cells = [c.strip() for c in odometry.strip("|").split("|")]
     header = [c.strip() for c in table.split("\n| route |")[1].splitlines()[0].strip("|").split("|")]
