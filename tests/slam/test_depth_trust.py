@@ -13,7 +13,7 @@ from longslam.core.frame import Frame
 from longslam.core.geometry import camera_poses_from_planar
 from longslam.sim.sensors import FrameMotion, KinectV1, RealSenseD435, frame_rng
 from longslam.slam.depth_trust import DepthTrust, inverse_depth_noise, scan_weight, trusted_depth, trusted_range
-from longslam.slam.frontend import FrontEnd
+from longslam.slam.frontend import FrontEnd, FrontEndConfig
 
 from helpers.flat_walls import K, TEXTURED_HALF, render, square_wall
 
@@ -105,21 +105,24 @@ def test_a_weighted_scan_informs_the_registration_less():
 
 def test_a_method_gets_the_front_ends_limit_for_the_frame_it_stepped_without_measuring_again(wall_2m, monkeypatch):
     import longslam.slam.depth_trust as depth_trust
+    import longslam.slam.frontend.motion as motion
 
     rgb, depth = wall_2m
     kinect = _sensed(KinectV1(), rgb, depth)
     poses = camera_poses_from_planar(np.zeros((2, 3)), 1.25)
-    front = FrontEnd(K)
-    front.step(Frame(0, 0.0, rgb, kinect, poses[0], K))
+    step = FrontEnd(K).step(Frame(0, 0.0, rgb, kinect, poses[0], K))
     limit = trusted_range(kinect)
     assert limit is not None  # a Kinect frame is limited, not used as it is
     expected = trusted_depth(kinect, limit)
     measured = []
     real = depth_trust.inverse_depth_noise
     monkeypatch.setattr(depth_trust, "inverse_depth_noise", lambda *a, **k: measured.append(1) or real(*a, **k))
-    stepped = front.trusted_depth(Frame(0, 0.0, rgb, kinect, poses[0], K), kinect)
+    stepped = step.trusted_depth(kinect)
     assert measured == []  # the stepped frame's range, as the front end measured it
     np.testing.assert_array_equal(stepped, expected)
-    other = front.trusted_depth(Frame(1, 0.1, rgb, kinect, poses[1], K), kinect)
-    assert len(measured) == 1  # a frame it did not step is measured
-    np.testing.assert_array_equal(other, stepped)
+    # On wheels alone the step looks at no depth: the range is measured when the method asks.
+    wheels = FrontEnd(K, FrontEndConfig(mode="wheel")).step(Frame(0, 0.0, rgb, kinect, poses[0], K))
+    assert not wheels.depth_measured
+    np.testing.assert_array_equal(wheels.trusted_depth(kinect), stepped)
+    assert len(measured) == 1
+    assert isinstance(wheels, motion.FrameStep)

@@ -131,6 +131,25 @@ class FrontEndConfig:
                 raise InputError(f"front end: {f.name} must be {'> 0' if positive else '>= 0'} and finite, got {value!r}")
 
 
+@dataclass(frozen=True)
+class FrameStep:
+    """What the front end made of one frame, for the method that stepped it: the robot base's
+    planar pose (online), and the range to which the frame's depth can be trusted, measured from the
+    frame's own noise when the step looked at its depth (fused), else measured on first ask."""
+
+    index: int
+    xyyaw: np.ndarray  # (3,) x, y, yaw of the robot base
+    depth_trust: DepthTrust
+    depth_measured: bool  # whether `depth_limit` is the step's measurement
+    depth_limit: float | None  # metres; None: every return trusted
+
+    def trusted_depth(self, depth: np.ndarray) -> np.ndarray:
+        """`depth` (the frame's depth image as the method holds it) without the returns beyond what
+        the frame's own noise lets be trusted (depth_trust)."""
+        limit = self.depth_limit if self.depth_measured else trusted_range(depth, self.depth_trust)
+        return trusted_depth(depth, limit)
+
+
 class FrontEnd:
     """Per-frame planar motion for a SLAM method (see the module's docstring). Not thread-safe;
     one instance per sequence."""
@@ -167,8 +186,9 @@ class FrontEnd:
         self._depth: np.ndarray | None = None
 
     # --- per frame ---------------------------------------------------------------------------
-    def step(self, frame: Frame) -> np.ndarray:
-        """Planar (x, y, yaw) of the robot base for this frame, online."""
+    def step(self, frame: Frame) -> FrameStep:
+        """What the front end made of this frame: its planar (x, y, yaw) of the robot base, online,
+        and the depth's trusted range (see `FrameStep`)."""
         t0 = time.perf_counter()
         k = len(self._online)
         if self._has_wheels is None:
@@ -189,18 +209,9 @@ class FrontEnd:
         self._online.append(pose)
         self.counts["frames"] += 1
         self._time += time.perf_counter() - t0
-        return pose.copy()
-
-    def trusted_depth(self, frame: Frame, depth: np.ndarray) -> np.ndarray:
-        """`depth` (the frame's depth image as a method holds it) without the returns beyond what
-        the frame's own noise lets be trusted (depth_trust): the range measured when this front
-        end stepped the frame, so a method does not measure it twice; measured here otherwise
-        (mode "wheel" looks at no depth)."""
-        if self._depth_limit is not None and self._depth_limit[0] == frame.index:
-            limit = self._depth_limit[1]
-        else:
-            limit = trusted_range(depth, self.config.depth_trust)
-        return trusted_depth(depth, limit)
+        measured = self._depth_limit is not None and self._depth_limit[0] == frame.index
+        limit = self._depth_limit[1] if measured and self._depth_limit is not None else None
+        return FrameStep(frame.index, pose.copy(), self.config.depth_trust, measured, limit)
 
     @property
     def images_every_frame(self) -> tuple[str, ...]:

@@ -26,7 +26,7 @@ from longslam.core.memory_release import release_free_memory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, Table
 from longslam.slam.features import Features, extract
-from longslam.slam.frontend import FrontEnd
+from longslam.slam.frontend import FrameStep, FrontEnd
 from longslam.slam.graph import ODOMETRY, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.loops import SOURCES, LoopCloser, counter_names
@@ -85,12 +85,13 @@ class KeyframeMethod:
 
     # --- per frame ---------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
-        odom = self._frontend_motion(frame)
+        motion = self._frontend_motion(frame)
+        odom = motion.xyyaw
         self.counts[stats.FRAMES] += 1
         if self._is_new_node(frame.timestamp, odom):
             self._node_frame[len(self.nodes)] = len(self._frame_stamps)
             started = time.perf_counter()
-            self._add_node(frame, odom)
+            self._add_node(frame, motion)
             self._node_seconds.append(time.perf_counter() - started)
         node = self._last_node
         assert node is not None and self._mount is not None  # the first frame made a node and placed the mount
@@ -99,8 +100,8 @@ class KeyframeMethod:
         self._online.append(xyyaw)
         return self._mount.to_camera(xyyaw[None])[0]
 
-    def _frontend_motion(self, frame: Frame) -> np.ndarray:
-        """The front end's online pose of this frame, used as the node's "odometry"."""
+    def _frontend_motion(self, frame: Frame) -> FrameStep:
+        """The front end's step of this frame: its online pose is the node's "odometry"."""
         pose = self.frontend.step(frame)
         if self._mount is None:
             assert self.frontend.mount is not None  # its first step placed it
@@ -124,12 +125,13 @@ class KeyframeMethod:
         return np.hypot(delta[0], delta[1]) >= self.config.linear_update or abs(delta[2]) >= self.config.angular_update
 
     # --- nodes ---------------------------------------------------------------------------------
-    def _add_node(self, frame: Frame, odom: np.ndarray) -> None:
+    def _add_node(self, frame: Frame, motion: FrameStep) -> None:
+        odom = motion.xyyaw
         cfg = self.config
         node_id = len(self.nodes)
         depth = np.asarray(frame.depth, dtype=np.float32)
         # Features, grid and points only where the frame's depth noise allows (the front end's rule).
-        depth = self.frontend.trusted_depth(frame, depth)
+        depth = motion.trusted_depth(depth)
         has_depth = bool(np.any(np.isfinite(depth) & (depth > 0)))
         if not has_depth:
             self.counts[stats.FRAMES_WITHOUT_DEPTH] += 1

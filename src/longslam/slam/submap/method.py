@@ -145,7 +145,8 @@ class SubmapMethod:
 
     # --- frames ------------------------------------------------------------------------------
     def step(self, frame: Frame) -> np.ndarray:
-        odometry = self.frontend.camera_poses(self.frontend.step(frame)[None])[0]
+        motion = self.frontend.step(frame)
+        odometry = self.frontend.camera_poses(motion.xyyaw[None])[0]
         self._mount = self.frontend.mount
         assert self._mount is not None  # the front end placed it at the first frame
         active = self.submaps[-1] if self.submaps else None
@@ -164,7 +165,7 @@ class SubmapMethod:
         self._last_odometry = odometry
         depth = np.asarray(frame.depth)
         # Integrated only where the frame's depth noise allows (the front end's rule).
-        depth = self.frontend.trusted_depth(frame, depth) if depth.ndim == 2 else depth
+        depth = motion.trusted_depth(depth) if depth.ndim == 2 else depth
         updates = 0
         assert active.tsdf is not None  # the active submap holds its TSDF
         if depth.ndim == 2 and depth.shape == (frame.intrinsics.height, frame.intrinsics.width):
