@@ -18,13 +18,8 @@ back when the optimised graph disagrees with it, in one of two ways:
   rotation judged apart (RTAB-Map's RGBD/OptimizeMaxError);
 - "edge": the new edge's own Mahalanobis error must stay under `max_error` (longslam's Voxgraph).
 
-A graph given `batch_nodes` (off by default) is solved incrementally once it outgrows them, by
-GTSAM's iSAM2: each optimisation adds the nodes and edges new since the last one (and drops
-removed ones) and re-eliminates only the part of the Bayes tree they touch, and the "graph" check
-judges every edge at once in numpy. A whole solve and the edge-by-edge check cost time in
-proportion to the graph (a loop try at 10 km cost ten times one on the first kilometre); the
-incremental one kept keyframe's per-frame cost flat on the 10 km tour, but there it accepted 644
-loops where the whole solve accepted 2,324 (docs/scale.md), so it is an option to measure with.
+A loop try given the nodes it may move (`free`) solves and checks only the edges that touch them,
+so its cost follows the working memory's budget, not the route's length.
 """
 
 from __future__ import annotations
@@ -48,15 +43,6 @@ ODOMETRY, LOOP, REGISTRATION = "odometry", "loop", "registration"
 # Sigmas of the prior that pins the first node: the graph is only defined up to a rigid motion,
 # and pinning the first node keeps the optimised trajectory in the odometry's frame.
 ANCHOR_SIGMAS = (1e-6, 1e-6, 1e-6)
-
-# iSAM2: a variable is relinearised once its step exceeds this, and after each update up to this
-# many further passes run while any variable is still being relinearised. GTSAM's default
-# threshold, 0.1, leaves a loop's heading correction of a few degrees linearised where it began:
-# the check then found tight edges off by more than 3 sigmas, and on the 10 km tour it rejected
-# 2,190 of 3,029 verified loops (ATE 1.54 m against the whole solve's 0.67). At 0.01 every one of
-# paper-1km-x3's 776 tries got the whole solve's verdict.
-RELINEARIZE_THRESHOLD = 0.01
-RELINEARIZE_PASSES = 5
 
 
 @dataclass(frozen=True)
@@ -122,11 +108,7 @@ def _xyyaw(values, what: str) -> tuple[float, float, float]:
 class PoseGraph:
     """Nodes with (x, y, yaw) estimates; edges with full information, optionally robust."""
 
-    def __init__(self, robust_kernel: str = "cauchy", robust_k: float = 1.0, max_iterations: int = 100,
-                 batch_nodes: int = 0):
-        """`batch_nodes`: solved whole up to this many nodes, incrementally (iSAM2) beyond; 0: always whole."""
-        if int(batch_nodes) < 0:
-            raise InputError(f"batch_nodes must be 0 (always solve whole) or a positive node count, got {batch_nodes!r}")
+    def __init__(self, robust_kernel: str = "cauchy", robust_k: float = 1.0, max_iterations: int = 100):
         if robust_kernel not in ROBUST_KERNELS:
             raise InputError(f"robust_kernel must be one of {', '.join(ROBUST_KERNELS)}, got {robust_kernel!r}")
         # Cauchy by default: its influence falls off for large residuals, so a grossly wrong
@@ -138,11 +120,9 @@ class PoseGraph:
         self._edges: dict[int, Edge] = {}
         self._next_edge = 0
         self._optimized: dict[int, tuple[float, float, float]] = {}
-        self.last_error: float | None = None  # total graph error after the last whole solve (None once incremental)
+        self.last_error: float | None = None  # total graph error after the last whole solve
         self.last_iterations: int = 0
         self.optimizations = 0  # optimisations actually run
-        self.batch_nodes = int(batch_nodes)
-        self._incremental: _Incremental | None = None  # set once the graph outgrows batch_nodes
         self._order_of: dict[int, int] = {}  # node id -> its place in the adding order
         self._factors: dict[int, gtsam.BetweenFactorPose2] = {}  # edge id -> its factor, made at its first solve
         self._touching: dict[int, set[int]] = {}  # node id -> the ids of the edges at it (a local solve's edges)
@@ -151,11 +131,8 @@ class PoseGraph:
     # --- building
 
     def add_node(self, node_id: int, xyyaw) -> None:
-        """Add a node, or replace the initial estimate of an existing one (once the graph is solved
-        incrementally, a node already solved keeps its estimate)."""
+        """Add a node, or replace the initial estimate of an existing one."""
         node_id = int(node_id)
-        if self._incremental is not None and node_id not in self._initial:
-            self._incremental.new_nodes.append(node_id)
         self._order_of.setdefault(node_id, len(self._order_of))
         self._initial[node_id] = _xyyaw(xyyaw, f"node {node_id}")
         if self._components is not None:
@@ -188,8 +165,6 @@ class PoseGraph:
             self._components.join(a, b)
         self._touching.setdefault(a, set()).add(edge_id)
         self._touching.setdefault(b, set()).add(edge_id)
-        if self._incremental is not None:
-            self._incremental.add_edge(self._edges[edge_id])
         return edge_id
 
     def add_odometry(self, a: int, b: int, delta_xyyaw, sigmas=None, information=None) -> int:
@@ -213,8 +188,6 @@ class PoseGraph:
         self._touching[edge.b].discard(edge_id)
         self._factors.pop(edge_id, None)
         self._components = None  # the edge may have held two parts together
-        if self._incremental is not None:
-            self._incremental.remove_edge(edge_id)
 
     def try_loop(
         self, a: int, b: int, delta_xyyaw, *, max_error: float, sigmas=None, information=None,
@@ -226,19 +199,16 @@ class PoseGraph:
         With `free` (node ids), only those nodes move: the solve and the "graph" check take the
         edges that touch them, with the nodes at those edges' other ends held where they are
         (`optimize_local`). That is RTAB-Map's optimisation of the map in working memory: its cost
-        is bounded by the memory's budget, not the route's length. A graph already solved
-        incrementally (`batch_nodes`) goes on with iSAM2 and ignores `free`."""
+        is bounded by the memory's budget, not the route's length."""
         edge_id = self.add_edge(a, b, delta_xyyaw, sigmas=sigmas, information=information, kind=kind, robust=False)
         if check not in ("graph", "edge"):
             self.remove_edge(edge_id)
             raise InputError(f"try_loop: check must be 'graph' or 'edge', got {check!r}")
-        if free is not None and self._incremental is None:
+        if free is not None:
             return self._try_loop_local(edge_id, set(map(int, free)) | {int(a), int(b)}, max_error, check)
         self._solve(warm_start=True)
         if check == "edge":
             error = self.edge_error(edge_id)
-        elif self._incremental is not None:
-            error = self._incremental.max_split_error()
         else:
             error = max(max(e.translation_error, e.rotation_error) for e in self.edge_errors(None))
         if error > max_error:
@@ -273,8 +243,6 @@ class PoseGraph:
         group of free nodes, its first node is held). Returns the edges solved. Whole-graph
         solves (`optimize`) are left as they are: a free set that holds every node gives the same
         problem as a warm whole solve, but anchored at the first node's estimate."""
-        if self._incremental is not None:
-            raise InputError("optimize_local: the graph is solved incrementally (batch_nodes)")
         free = {int(n) for n in free if int(n) in self._initial}
         # In the order they were added (edge ids grow), as a scan of every edge would give them.
         touching = self._touching
@@ -354,18 +322,11 @@ class PoseGraph:
     def estimate(self, node_id: int) -> np.ndarray:
         """Latest optimised pose (x, y, yaw) of a node, or its initial estimate if not optimised yet."""
         node_id = int(node_id)
-        if self._incremental is not None:
-            solved = self._incremental.estimate(node_id)
-            if solved is not None:
-                return solved
-            return np.array(self._initial[node_id])
         return np.array(self._optimized.get(node_id, self._initial[node_id]))
 
     def estimates(self, node_ids) -> np.ndarray:
         """`estimate` of many nodes at once, (N, 3) x, y, yaw."""
         ids = [int(n) for n in node_ids]
-        if self._incremental is not None:
-            return np.array([self.estimate(n) for n in ids]).reshape(len(ids), 3)
         optimized, initial = self._optimized, self._initial
         return np.array([optimized.get(n) or initial[n] for n in ids], dtype=np.float64).reshape(len(ids), 3)
 
@@ -423,25 +384,15 @@ class PoseGraph:
         depends only on the graph's contents (removing an edge and re-optimising restores the
         earlier result). `warm_start` starts from the last optimised poses instead, which
         converges faster when a long graph grows by a few nodes at a time. A graph without
-        edges has nothing to optimise: its estimates stay as they are. A graph solved
-        incrementally (past `batch_nodes`) always goes on from its last estimate.
+        edges has nothing to optimise: its estimates stay as they are.
         """
         self._solve(max_iterations, warm_start)
-        if self._incremental is None and self._optimized:
+        if self._optimized:
             return dict(self._optimized)
         return {n: tuple(self.estimate(n)) for n in self._initial}
 
     def _solve(self, max_iterations: int | None = None, warm_start: bool = False) -> None:
         if not self._edges:
-            return
-        if self._incremental is None and 0 < self.batch_nodes < len(self._initial):
-            self._check_connected()
-            self._incremental = _Incremental(self._initial, self._optimized, self._edges.values(), self._noise)
-            self._optimized = {}
-        if self._incremental is not None:
-            self._incremental.update(self._initial)
-            self.last_error, self.last_iterations = None, 1
-            self.optimizations += 1
             return
         self._check_connected()
         graph = gtsam.NonlinearFactorGraph()
@@ -539,45 +490,6 @@ class _Components:
             self.count -= 1
 
 
-class _EdgeTable:
-    """Every edge's ends, measurement and information as arrays, a row per edge id (removed
-    edges stay, masked), so the whole graph's residuals are one numpy pass."""
-
-    def __init__(self) -> None:
-        self.rows = 0
-        self.ends = np.zeros((0, 2), dtype=np.int64)
-        self.delta = np.zeros((0, 3))
-        self.information = np.zeros((0, 3, 3))
-        self.alive = np.zeros(0, dtype=bool)
-
-    def add(self, edge: Edge) -> None:
-        row = edge.edge_id
-        if row >= len(self.alive):
-            grow = max(row + 1, 2 * len(self.alive), 1024)
-            self.ends = np.resize(self.ends, (grow, 2))
-            self.delta = np.resize(self.delta, (grow, 3))
-            self.information = np.resize(self.information, (grow, 3, 3))
-            self.alive = np.concatenate([self.alive, np.zeros(grow - len(self.alive), dtype=bool)])
-        self.ends[row] = (edge.a, edge.b)
-        self.delta[row] = edge.delta
-        self.information[row] = edge.information
-        self.alive[row] = True
-        self.rows = max(self.rows, row + 1)
-
-    def remove(self, edge_id: int) -> None:
-        self.alive[edge_id] = False
-
-    def max_split_error(self, keys: np.ndarray, poses: np.ndarray) -> float:
-        """The largest translation or rotation error over the live edges, each judged in its own
-        sigmas as `PoseGraph.edge_errors` does; `poses` (N, 3) are the nodes `keys` (sorted)."""
-        live = np.flatnonzero(self.alive[: self.rows])
-        if not len(live):
-            return 0.0
-        ends = self.ends[live]
-        at = np.searchsorted(keys, ends)
-        return _max_split_error(self.delta[live], self.information[live], poses[at[:, 0]], poses[at[:, 1]])
-
-
 def _max_split_error(delta: np.ndarray, information: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     """The largest translation or rotation error of edges (N, 3) `delta` with (N, 3, 3)
     `information` between poses `a` and `b` (N, 3), each judged in its own sigmas as
@@ -586,93 +498,3 @@ def _max_split_error(delta: np.ndarray, information: np.ndarray, a: np.ndarray, 
     translation = np.sqrt(np.maximum(np.einsum("ni,nij,nj->n", residual[:, :2], information[:, :2, :2], residual[:, :2]), 0.0))
     rotation = np.abs(residual[:, 2]) * np.sqrt(information[:, 2, 2])
     return float(max(translation.max(), rotation.max()))
-
-
-class _Incremental:
-    """The graph in GTSAM's iSAM2, kept in step with the PoseGraph's nodes and edges."""
-
-    def __init__(self, initial: dict[int, tuple[float, float, float]], optimized: dict[int, tuple[float, float, float]],
-                 edges, noise_of) -> None:
-        params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(RELINEARIZE_THRESHOLD)
-        params.relinearizeSkip = 1
-        self.isam = gtsam.ISAM2(params)
-        self.table = _EdgeTable()
-        self.slots: dict[int, int] = {}  # edge id -> its factor's slot in iSAM2
-        self.new_edges: list[Edge] = []
-        self.removed_slots: list[int] = []
-        self.first = next(iter(initial))
-        # The first update takes the whole graph, warm from the last whole solve.
-        self.new_nodes: list[int] = list(initial)
-        self.starts = {n: optimized.get(n, xyyaw) for n, xyyaw in initial.items()}
-        self.keys = np.zeros(0, dtype=np.int64)
-        self.poses = np.zeros((0, 3))
-        self.noise_of = noise_of  # Edge -> its noise model (the PoseGraph's robust kernel)
-        for edge in edges:
-            self.add_edge(edge)
-
-    def add_edge(self, edge: Edge) -> None:
-        self.new_edges.append(edge)
-        self.table.add(edge)
-
-    def remove_edge(self, edge_id: int) -> None:
-        self.table.remove(edge_id)
-        if edge_id in self.slots:
-            self.removed_slots.append(self.slots.pop(edge_id))
-        else:
-            self.new_edges = [e for e in self.new_edges if e.edge_id != edge_id]
-
-    def estimate(self, node_id: int) -> np.ndarray | None:
-        row = int(np.searchsorted(self.keys, node_id))
-        if row < len(self.keys) and self.keys[row] == node_id:
-            return self.poses[row].copy()
-        return None
-
-    def max_split_error(self) -> float:
-        return self.table.max_split_error(self.keys, self.poses)
-
-    def update(self, initial: dict[int, tuple[float, float, float]]) -> None:
-        self._check_new_nodes_reached()
-        factors = gtsam.NonlinearFactorGraph()
-        values = gtsam.Values()
-        if not len(self.keys):
-            factors.add(gtsam.PriorFactorPose2(self.first, gtsam.Pose2(*initial[self.first]), noise.diagonal(ANCHOR_SIGMAS)))
-        for edge in self.new_edges:
-            factors.add(_between_factor(edge, self.noise_of(edge)))
-        for node in self.new_nodes:
-            values.insert(node, gtsam.Pose2(*self.starts.get(node, initial[node])))
-        result = self.isam.update(factors, values, self.removed_slots)
-        slots = list(result.getNewFactorsIndices())
-        if not len(self.keys):
-            slots = slots[1:]  # the anchor's
-        for edge, slot in zip(self.new_edges, slots):
-            self.slots[edge.edge_id] = int(slot)
-        for _ in range(RELINEARIZE_PASSES):
-            if self.isam.update().getVariablesRelinearized() == 0:
-                break
-        self.new_edges, self.new_nodes, self.removed_slots, self.starts = [], [], [], {}
-        estimate = self.isam.calculateEstimate()
-        self.keys = np.asarray(estimate.keys(), dtype=np.int64)
-        self.poses = gtsam.utilities.extractPose2(estimate)
-
-    def _check_new_nodes_reached(self) -> None:
-        # A new node no new edge reaches from the solved graph would leave iSAM2 an indeterminate
-        # system (and an opaque error): name it, as the whole solve does.
-        if not self.new_nodes or not len(self.keys):
-            return
-        reached = set()
-        pending = set(self.new_nodes)
-        linked: dict[int, list[int]] = {}
-        for edge in self.new_edges:
-            linked.setdefault(edge.a, []).append(edge.b)
-            linked.setdefault(edge.b, []).append(edge.a)
-        frontier = [n for n in linked if n not in pending]
-        while frontier:
-            for nxt in linked.get(frontier.pop(), ()):
-                if nxt in pending and nxt not in reached:
-                    reached.add(nxt)
-                    frontier.append(nxt)
-        missing = sorted(pending - reached)
-        if missing:
-            raise InputError(f"pose graph is not connected: {len(missing)} new node(s) have no path to the solved graph "
-                             f"(e.g. {missing[:5]})")

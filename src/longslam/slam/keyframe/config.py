@@ -29,8 +29,7 @@ SIZE_LIMITS = {
 @dataclass(frozen=True)
 class KeyframeConfig:
     # The values a text parameter takes (`longslam list --params` shows them).
-    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"vocabulary_index": tuple(WORD_INDEXES),
-                                                     "loop_check_scope": ("working_memory", "graph")}
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"vocabulary_index": tuple(WORD_INDEXES)}
 
     # Node creation (Rtabmap/DetectionRate, RGBD/LinearUpdate, RGBD/AngularUpdate).
     detection_rate: float = 1.0  # Hz: at most this many new nodes per second
@@ -92,22 +91,8 @@ class KeyframeConfig:
     # it; fewer, and the link leaves that direction free (along a straight corridor). 0: trust the
     # registration's Hessian in every direction.
     scan_proximity_min_constraining: int = 10
-    # RGBD/NeighborLinkRefining: consecutive nodes linked by PnP where it verifies, if the visual
-    # transform is within these bounds of the odometry (fraction of the step, or 1 m; rad).
-    neighbor_refining: bool = False  # measured: PnP links at 320x240 are noisier than wheel odometry
-    refine_max_offset: float = 0.3  # fraction of the odometry step a refined neighbour link may differ by (or 1 m)
-    refine_max_angle: float = 0.3  # rad a refined neighbour link may differ from the odometry by
     # Graph (RGBD/OptimizeMaxError): a new loop whose error exceeds this is rejected.
     optimize_max_error: float = 3.0  # sigmas: a new loop whose error after optimisation exceeds this is rejected
-    # A whole solve per loop try costs time in proportion to the graph; past this many nodes the
-    # graph can be solved incrementally instead (iSAM2). Off by default: on the 10 km tour it
-    # kept the per-frame cost flat but accepted 644 loops against 2,324 (ATE 2.35 m against 0.67).
-    graph_batch_nodes: int = 0  # nodes solved whole by Levenberg-Marquardt, beyond them by iSAM2; 0: always whole
-    # What a loop try optimises and checks: "working_memory" (RTAB-Map's optimizeCurrentMap: the
-    # nodes in short-term and working memory move, the long-term nodes their edges reach are held),
-    # so a try costs what the memory's budget allows whatever the route's length; or "graph" (every
-    # node, a whole solve per try: cost in proportion to the route).
-    loop_check_scope: str = "working_memory"
     odom_sigma_linear: float = 0.05  # odometry link std per metre travelled
     # Wheels barely slip sideways: drift is forward scale and heading, so a link's lateral std is
     # a fraction of its forward std, and the graph explains drift by turning rather than sliding.
@@ -155,8 +140,5 @@ class KeyframeConfig:
         if self.vocabulary_index not in WORD_INDEXES:
             raise InputError(f"method 'keyframe': parameter vocabulary_index must be one of {', '.join(WORD_INDEXES)}, "
                              f"got {self.vocabulary_index!r}")
-        if self.loop_check_scope not in self.CHOICES["loop_check_scope"]:
-            raise InputError(f"method 'keyframe': parameter loop_check_scope must be working_memory or graph, "
-                             f"got {self.loop_check_scope!r}")
         if self.obstacle_max_height <= self.obstacle_min_height:
             raise InputError("method 'keyframe': obstacle_max_height must exceed obstacle_min_height")

@@ -145,20 +145,19 @@ class LoopCloser:
         return True
 
     def _try_loop(self, node: Node, anchor: int, delta: np.ndarray, **uncertainty) -> LoopCheck:
-        """The graph's verdict on a link from `anchor` to the new node (`loop_check_scope`)."""
+        """The graph's verdict on a link from `anchor` to the new node, the nodes in memory free."""
         free = self.free_nodes(node)
         check = self.graph.try_loop(anchor, node.id, delta, max_error=self.config.optimize_max_error, check="graph",
                                     free=free, **uncertainty)
-        # A rejected try in working memory leaves every estimate as it was; a whole solve does not.
-        if check.accepted or free is None:
+        # A rejected try in working memory leaves every estimate as it was.
+        if check.accepted:
             self.positions.refresh(self.graph, free)
         return check
 
-    def free_nodes(self, node: Node) -> set[int] | None:
-        """The nodes a loop try may move (`loop_check_scope`): short-term and working memory and
-        the new node; None: every node."""
-        if self.config.loop_check_scope == "graph":
-            return None
+    def free_nodes(self, node: Node) -> set[int]:
+        """The nodes a loop try may move, as RTAB-Map's optimizeCurrentMap: short-term and working
+        memory and the new node (the long-term nodes their edges reach are held), so a try costs
+        what the memory's budget allows whatever the route's length."""
         return self.memory.wm | set(self.memory.stm) | {node.id}
 
     def proximity_candidates(self, node: Node, exclude: set[int]) -> list[int]:

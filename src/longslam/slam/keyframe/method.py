@@ -21,7 +21,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
-from longslam.core.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw, wrap_angle
+from longslam.core.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw
 from longslam.core.memory_release import release_free_memory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, Table
@@ -51,12 +51,11 @@ class KeyframeMethod:
             self._own_dir = folder = tempfile.mkdtemp(prefix="longslam-ltm-")
         self.db_path = Path(folder) / "memory.db"
         self.db = MemoryDatabase(self.db_path)
-        self.graph = PoseGraph(batch_nodes=self.config.graph_batch_nodes)
+        self.graph = PoseGraph()
         self.counts = {
             stats.FRAMES: 0, stats.NODES: 0, stats.FRAMES_WITHOUT_DEPTH: 0, "frames_no_features": 0, stats.ODOMETRY_JUMPS: 0,
             **{name: 0 for name in counter_names()},
             "nodes_transferred": 0, "nodes_retrieved": 0, stats.OPTIMIZATIONS: 0,
-            "neighbor_links_refined": 0, "neighbor_links_odometry": 0, "neighbor_links_rejected": 0,
         }
         vocabulary = Vocabulary(self.config.word_distance, self.config.max_words, self.config.vocabulary_index)
         self.memory = KeyframeMemory(self.config, self.db, vocabulary, self._node_camera_poses, self.counts)
@@ -151,8 +150,6 @@ class KeyframeMethod:
         else:
             delta = relative_xyyaw(previous.odom, odom)
             sigmas = self._odometry_sigmas(delta, node.stamp - previous.stamp)
-            if cfg.neighbor_refining:
-                delta, sigmas = self._refine_neighbor_link(previous, node, delta, sigmas)
             self.graph.add_node(node_id, compose_xyyaw(self.graph.estimate(previous.id), delta))
             self.graph.add_odometry(previous.id, node_id, delta, sigmas)
             self.db.put_link(previous.id, node_id, "odometry", pose_from_xyyaw(delta), np.diag(1.0 / np.square(sigmas)))
@@ -166,26 +163,6 @@ class KeyframeMethod:
             self.loops.detect(node, words)
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
         self.memory.admit(node_id, words)
-
-    def _refine_neighbor_link(self, previous: Node, node: Node, delta: np.ndarray, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """RGBD/NeighborLinkRefining: replace the wheel odometry between consecutive nodes by
-        the visual transform when PnP verifies it and it stays near the odometry, so that the
-        odometry's scale and heading bias is corrected on first visits too, not only at loops."""
-        cfg = self.config
-        assert self.loops is not None and node.features is not None  # made at the first frame; a new node has its features
-        if previous.features is None or len(previous.features) == 0 or len(node.features) == 0:
-            return delta, sigmas
-        visual = self.loops.visual_link(node.features, previous.features)
-        if visual is None:
-            self.counts["neighbor_links_odometry"] += 1
-            return delta, sigmas
-        step = float(np.hypot(delta[0], delta[1]))
-        off = float(np.hypot(*(visual[:2] - delta[:2])))
-        if off > cfg.refine_max_offset * max(step, 1.0) or abs(wrap_angle(visual[2] - delta[2])) > cfg.refine_max_angle:
-            self.counts["neighbor_links_rejected"] += 1
-            return delta, sigmas
-        self.counts["neighbor_links_refined"] += 1
-        return visual, np.array([cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular])
 
     def _drop_floor_and_ceiling_points(self, features: Features) -> Features:
         """Keep 3D points only between `anchor_min_height` and `anchor_max_height` above the floor.
