@@ -13,8 +13,8 @@ import traceback
 from typing import Any
 
 # One OpenBLAS thread per process unless the user sets it: a run's matrices are small, a study
-# runs one method per core, and OpenBLAS's spinning threads cost a keyframe run on paper-300m
-# 11 s of CPU (the other core's) for 1 s of wall time. Set before numpy loads OpenBLAS.
+# runs one method per core, and OpenBLAS's spinning threads take the other cores' CPU for next
+# to no wall time. Set before numpy loads OpenBLAS.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from longslam.cli.errors import EXPECTED_FAILURES, describe_failure, quiet_broken_pipe

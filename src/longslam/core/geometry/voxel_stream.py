@@ -23,8 +23,7 @@ import numpy as np
 from longslam.core.geometry.cells import average_3d
 
 # 0.8 m at keyframe's 5 cm voxels: a building is some hundred slabs. The largest slab's filter is
-# the stream's peak, and its points grow with the laps: on paper-1km-x3 (keyframe's 2.4 million
-# points) slabs of 64 voxels held 6 MB more.
+# the stream's peak, and its points grow with the laps: narrow slabs keep it small.
 SLAB_VOXELS = 16
 BUFFER_POINTS = 1 << 18  # points held in RAM (3 MB as float32) before they go to the slab files
 

@@ -12,7 +12,7 @@ from longslam.slam.place_recognition import WORD_INDEXES
 
 
 # Size-like parameters held to ranges that keep a run within a machine's memory: a grid's cells
-# grow as 1/cell^2 (grid_cell 1e-6 was OOM-killed at 23.5 GB at its first node), and feature and
+# grow as 1/cell^2 (a micrometre cell exhausts any machine's memory at the first node), and feature and
 # word counts size per-node arrays. (least, most, unit and why), both ends inclusive.
 SIZE_LIMITS = {
     "grid_cell": (0.01, 10.0, "m", "a finer grid needs (range / cell)^2 cells per node"),
@@ -62,12 +62,11 @@ class KeyframeConfig:
     anchor_min_height: float = 0.15
     anchor_max_height: float = 2.6  # m: points higher than this above the floor anchor no transform
     # Polish each verified transform on 3D-3D matches (depth on both sides), as RTAB-Map's
-    # Vis/EstimationType 0; measured on paper-300m: the worst loop error falls from 0.46 m to 0.09 m.
+    # Vis/EstimationType 0: PnP on one side's depth leaves a loop's transform as noisy as that depth.
     refine_3d: bool = True
     # A loop or proximity link is kept only if both images' depth hold its transform: this many
-    # 3D-3D matches land within 3 pixels' footprint (at least 5 cm) of it (0: not checked). Of
-    # the 2,197 visual links of a 10 km tour (large noise, seed 0), the 2,080 with 10 were at
-    # most 0.26 m off; the two wrong ones (0.53 and 0.83 m) had fewer (docs/scale.md).
+    # 3D-3D matches land within 3 pixels' footprint (at least 5 cm) of it (0: not checked): a
+    # link held by one image's depth alone can lock onto a look-alike place.
     loop_min_depth_support: int = 10
     # Proximity detection (RGBD/ProximityBySpace, RGBD/LocalRadius).
     proximity: bool = True
@@ -77,8 +76,7 @@ class KeyframeConfig:
     # Proximity by scan matching (RGBD/ProximityBySpace with ICP, scan_proximity.py): the new
     # node's obstacle cells registered against older nearby nodes' that shared open space with it,
     # whichever way they looked. None: on with the fused front end, off in "wheel" mode (the
-    # paper's RTAB-Map: Reg/Strategy 0, visual proximity only). docs/diagnose.md has the 40 runs
-    # of the paper study it was measured on.
+    # paper's RTAB-Map: Reg/Strategy 0, visual proximity only).
     scan_proximity: bool | None = None
     scan_proximity_radius: float = 4.0  # m between the estimates of the new node and an older one
     scan_proximity_min_age: float = 30.0  # s: older nodes only (the front end matched the recent ones)

@@ -110,8 +110,8 @@ class MemoryDatabase:
 
     def put_node(self, node_id: int, stamp: float, pose: np.ndarray, odometry: np.ndarray, arrays: dict[str, np.ndarray], weight: int = 0) -> None:
         buffer = io.BytesIO()
-        # Stored as they are: deflating a node's arrays took 5.7 ms a node (1.2 s of a 16 s run on
-        # paper-300m) to save 42 % of a file on disk; the descriptors hardly compress anyway.
+        # Stored as they are: deflating costs milliseconds a node for a file a little smaller on
+        # disk; the descriptors hardly compress anyway.
         np.savez(buffer, **arrays)
         with self._writing():
             self._db.execute(

@@ -53,10 +53,10 @@ class SubmapConfig:
     frontend: FrontEndConfig = field(default_factory=FrontEndConfig)
     frontend_max_edge_error: float = 3.0  # sigmas: graph edges beyond this stay out of the smoother
     # Registration edges into the front end's smoother (loop edges always go). None: only in
-    # "wheel" mode, where they are the only correction the smoother gets. Off in "fused" mode:
-    # measured on paper-300m large seed 1, 22 were fed and 2 were off by 0.55 and 0.81 m against
-    # ground truth with a small graph error (a submap of 20 s carries its own drift), and ATE rose
-    # from 0.49 m (front end alone) to 0.56 m; the scan-to-map factors already hold the local geometry.
+    # "wheel" mode, where they are the only correction the smoother gets. Off in "fused" mode: a
+    # submap of 20 s carries its own drift, so a registration edge can be off by more than the
+    # front end's own estimate while its graph error stays small, and the scan-to-map factors
+    # already hold the local geometry.
     frontend_registrations: bool | None = None
     # Registration constraints between finished submaps whose bounding boxes overlap
     registration: bool = True
@@ -75,8 +75,8 @@ class SubmapConfig:
     robust_kernel: str = "cauchy"
     robust_k: float = 2.0  # width of the robust kernel, in stds
     # Loop closure from visual place recognition. None: on with the fused front end, off in
-    # "wheel" mode (the paper's main runs: Voxgraph has no loop closure of its own). Measured on
-    # paper-1km xlarge, seeds 0-4, the fused front end alone drifts to 0.62-1.03 m.
+    # "wheel" mode (the paper's main runs: Voxgraph has no loop closure of its own): without it
+    # the fused front end's drift over a kilometre stays in the map.
     loop_closure: bool | None = None
     loop_keyframe_interval: float = 2.0  # seconds between keyframes kept for place recognition
     loop_max_features: int = 500  # ORB features kept per place-recognition keyframe
@@ -94,8 +94,8 @@ class SubmapConfig:
     loop_min_depth_support: int = 10  # 3D-3D matches that must hold a loop (keyframe's loop_min_depth_support; 0: not checked)
     loop_max_error: float = 3.0  # reject a closure whose error after optimisation exceeds this (sigmas)
     # On a route that drives the same corridors again, place-recognition keyframes and their words
-    # stop growing: a keyframe is kept only where no kept one stands (docs/scale.md). Every
-    # keyframe kept (0) held 41 MB of features and words, and more in the word index, at 3 km.
+    # stop growing: a keyframe is kept only where no kept one stands, so their memory follows the
+    # building's size, not the route's length (0 keeps every keyframe).
     loop_keyframe_min_distance: float = 1.5  # m between camera positions at the graph's estimates (0: keep every keyframe)
     loop_keyframe_min_angle: float = 0.5  # rad between camera headings for a kept keyframe to stand there
     # The 2D map sliced from the fused TSDF
