@@ -127,13 +127,14 @@ class FullSmoother:
     def add_loop(self, i: int, j: int, delta: np.ndarray, information: np.ndarray) -> None:
         self.loops.append((int(i), int(j), np.asarray(delta, dtype=np.float64), np.asarray(information, dtype=np.float64)))
 
-    def solve(self, held: Mapping[int, np.ndarray] | None = None) -> np.ndarray:
+    def solve(self, held: Mapping[int, np.ndarray] | None = None, hold: bool = False) -> np.ndarray:
         """Every frame's smoothed base pose (x, y, yaw), (frames, 3). `held`: a method's optimised
-        graph nodes ({frame: pose}), held on a route longer than `hold_nodes_beyond` frames."""
+        graph nodes ({frame: pose}), held on a route longer than `hold_nodes_beyond` frames, or
+        on any route with `hold`."""
         n = len(self.initial)
         if n == 0:
             return np.zeros((0, 3))
-        if held is not None and n > self.config.hold_nodes_beyond:
+        if held is not None and (hold or n > self.config.hold_nodes_beyond):
             self.solved_by = "held nodes"
             return self.solve_held(held)
         self.solved_by = "every frame"
