@@ -26,6 +26,14 @@ def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
 def run_process(command: list[str], log: Path, env: dict[str, str] | None = None) -> tuple[float, float, int]:
     """(wall seconds, peak RSS in MiB, exit status) of one child process (environment `env`, or
     this one's); its output goes to `log`."""
+    wall, peak, _, code = run_process_usage(command, log, env)
+    return wall, peak, code
+
+
+def run_process_usage(command: list[str], log: Path,
+                      env: dict[str, str] | None = None) -> tuple[float, float, float, int]:
+    """`run_process`, with the child's CPU seconds (user + system) before the exit status: on a
+    machine shared with other jobs the wall time grows with their load, its CPU time far less."""
     with open(log, "w") as out:
         start = time.perf_counter()
         child = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT, env=env)
@@ -35,4 +43,4 @@ def run_process(command: list[str], log: Path, env: dict[str, str] | None = None
     code = os.waitstatus_to_exitcode(status)
     if code:
         print(log.read_text()[-2000:], file=sys.stderr)
-    return wall, usage.ru_maxrss / 1024.0, code
+    return wall, usage.ru_maxrss / 1024.0, usage.ru_utime + usage.ru_stime, code

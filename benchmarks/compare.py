@@ -12,6 +12,8 @@ is its own `longslam run` process with this interpreter and PYTHONPATH set to th
 --repeats rounds (both `src` folders byte-compiled first, so that no run pays for it). Per run:
 
 - wall: wall-clock seconds of the whole process, start to exit (imports, reading, writing);
+- CPU: the process's CPU seconds, user and system (`os.wait4`'s rusage): on a machine shared
+  with other jobs its wall time grows with their load, its CPU time far less;
 - peak: the process's peak resident memory as the kernel counts it (`os.wait4`'s ru_maxrss, what
   `/usr/bin/time -v` prints), in MB (10^6 bytes);
 - ATE: the run's trajectory.txt against the sequence's groundtruth.txt, scored by the working
@@ -41,7 +43,7 @@ TREE_SRC = ROOT / "src"
 # has installed (an editable install may point at another checkout): it simulates and scores here.
 sys.path.insert(0, str(TREE_SRC))
 
-from common import run_process, sequence  # noqa: E402
+from common import run_process_usage, sequence  # noqa: E402
 from longslam.core.errors import InputError  # noqa: E402
 from longslam.run.score import score_files  # noqa: E402
 from longslam.core.settings import parse_key_values  # noqa: E402
@@ -106,15 +108,18 @@ def _ate(values: list[float]) -> str:
 
 def format_table(rows: list[dict], rev: str) -> list[str]:
     """The comparison table's lines. Each row: sequence, method, params (text) and per side ("tree",
-    "rev") lists of the runs' wall_s, peak_mb and ate_m (a failed run adds to none of them)."""
+    "rev") lists of the runs' wall_s, cpu_s, peak_mb and ate_m (a failed run adds to none of them)."""
     head = ["sequence", "method", "params", "wall s tree", f"wall s {rev}", f"tree / {rev}",
+            "CPU s tree", f"CPU s {rev}", f"tree / {rev}",
             "peak MB tree", f"peak MB {rev}", f"tree / {rev}", "ATE m tree", f"ATE m {rev}"]
     cells = []
     for row in rows:
         wall = {side: median(row[side]["wall_s"]) for side in SIDES}
+        cpu = {side: median(row[side].get("cpu_s", [])) for side in SIDES}
         peak = {side: median(row[side]["peak_mb"]) for side in SIDES}
         cells.append([row["sequence"], row["method"], row["params"] or "-",
                       _figure(wall["tree"], ".1f"), _figure(wall["rev"], ".1f"), ratio(wall["tree"], wall["rev"]),
+                      _figure(cpu["tree"], ".1f"), _figure(cpu["rev"], ".1f"), ratio(cpu["tree"], cpu["rev"]),
                       _figure(peak["tree"], ".0f"), _figure(peak["rev"], ".0f"), ratio(peak["tree"], peak["rev"]),
                       _ate(row["tree"]["ate_m"]), _ate(row["rev"]["ate_m"])])
     widths = [max(len(line[i]) for line in [head] + cells) for i in range(len(head))]
@@ -196,11 +201,11 @@ def measure(src: Path, seq: Path, method: str, pairs: list[str], out: Path) -> d
     command = [sys.executable, "-m", "longslam", "run", str(seq), "--method", method, "--out", str(out), "--overwrite"]
     for pair in pairs:
         command += ["--param", pair]
-    wall, peak_mib, status = run_process(command, out.with_name(out.name + ".log"), env=side_env(src))
+    wall, peak_mib, cpu, status = run_process_usage(command, out.with_name(out.name + ".log"), env=side_env(src))
     if status:
         return {"failed": status, "log": str(out.with_name(out.name + ".log"))}
     stats = json.loads((out / "stats.json").read_text())
-    return {"wall_s": wall, "peak_mb": peak_mib * 2**20 / 1e6, "ate_m": score_files(out / "trajectory.txt", seq)["ate"],
+    return {"wall_s": wall, "cpu_s": cpu, "peak_mb": peak_mib * 2**20 / 1e6, "ate_m": score_files(out / "trajectory.txt", seq)["ate"],
             "stats_peak_rss_mb": stats.get("peak_rss_bytes", 0) / 1e6, "command": shlex.join(command)}
 
 
@@ -240,7 +245,7 @@ def main(argv: list[str] | None = None) -> None:
         for seq in seqs:
             for method in args.methods:
                 row = {"sequence": seq.name, "method": method, "params": " ".join(args.params),
-                       **{side: {"wall_s": [], "peak_mb": [], "ate_m": []} for side in SIDES}}
+                       **{side: {"wall_s": [], "cpu_s": [], "peak_mb": [], "ate_m": []} for side in SIDES}}
                 for repeat in range(args.repeats):
                     for side in SIDES:
                         done += 1
@@ -253,10 +258,10 @@ def main(argv: list[str] | None = None) -> None:
                             print(f"[{done}/{total}] {seq.name} {method} {name}: failed (exit {figures['failed']}), "
                                   f"see {figures['log']}", flush=True)
                             continue
-                        for key in ("wall_s", "peak_mb", "ate_m"):
+                        for key in ("wall_s", "cpu_s", "peak_mb", "ate_m"):
                             row[side][key].append(figures[key])
                         print(f"[{done}/{total}] {seq.name} {method} {name} (run {repeat + 1}/{args.repeats}): "
-                              f"{figures['wall_s']:.1f} s, {figures['peak_mb']:.0f} MB, ATE {figures['ate_m']:.4f} m",
+                              f"{figures['wall_s']:.1f} s (CPU {figures['cpu_s']:.1f} s), {figures['peak_mb']:.0f} MB, ATE {figures['ate_m']:.4f} m",
                               flush=True)
                 rows.append(row)
         print(f"\nload average at the end {os.getloadavg()[0]:.2f}\n")

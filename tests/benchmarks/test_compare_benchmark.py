@@ -42,8 +42,8 @@ def test_ratios_are_tree_over_rev():
     assert compare.ratio(None, 10.0) == compare.ratio(5.0, None) == compare.ratio(5.0, 0.0) == "-"
 
 
-def _side(wall, peak, ate):
-    return {"wall_s": wall, "peak_mb": peak, "ate_m": ate}
+def _side(wall, peak, ate, cpu=None):
+    return {"wall_s": wall, "cpu_s": [w / 2 for w in wall] if cpu is None else cpu, "peak_mb": peak, "ate_m": ate}
 
 
 def test_the_table_shows_medians_ratios_failures_and_unsteady_ate():
@@ -56,11 +56,11 @@ def test_the_table_shows_medians_ratios_failures_and_unsteady_ate():
     ]
     lines = compare.format_table(rows, "c517f78")
     assert lines[0].split() == ["sequence", "method", "params", "wall", "s", "tree", "wall", "s", "c517f78", "tree",
-                                "/", "c517f78", "peak", "MB", "tree", "peak", "MB", "c517f78", "tree", "/", "c517f78",
+                                "/", "c517f78", "CPU", "s", "tree", "CPU", "s", "c517f78", "tree", "/", "c517f78", "peak", "MB", "tree", "peak", "MB", "c517f78", "tree", "/", "c517f78",
                                 "ATE", "m", "tree", "ATE", "m", "c517f78"]
     assert lines[2].split() == ["paper-300m-large-0", "keyframe", "frontend.mode=wheel", "12.0", "22.0", "0.55",
-                                "305", "400", "0.76", "0.5000", "0.8000*"]
-    assert lines[3].split() == ["paper-300m-large-0", "submap", "-", "failed", "5.0", "-", "failed", "100", "-",
+                                "6.0", "11.0", "0.55", "305", "400", "0.76", "0.5000", "0.8000*"]
+    assert lines[3].split() == ["paper-300m-large-0", "submap", "-", "failed", "5.0", "-", "failed", "2.5", "-", "failed", "100", "-",
                                 "failed", "0.1000"]
     assert "tree / c517f78: below 1 the working tree is faster" in lines[4]
     assert lines[5].startswith("* the repeats' ATE differ")

@@ -16,8 +16,15 @@ import gc
 import sys
 
 
-M_MMAP_THRESHOLD = -3  # glibc's mallopt parameter (malloc.h)
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters (malloc.h)
 LARGE_BLOCK = 1 << 20  # bytes: blocks this large or larger get pages of their own
+# Bytes of free memory at the heap's top kept for the next allocations rather than returned.
+# Fixing the mmap threshold also fixes this one (glibc then adjusts neither) at its 128 KiB
+# default, so the heap's top went back to the system after nearly every frame's arrays and was
+# faulted in again by the next frame's: page faults at every step. Above it, a step's own arrays
+# (the ones under LARGE_BLOCK) reuse the pages the step before freed; `release_free_memory`
+# still returns everything free at the end of a phase.
+TRIM_THRESHOLD = 16 << 20
 
 
 @functools.cache
@@ -31,9 +38,10 @@ def _libc():
         return None
 
 
-def map_large_blocks(threshold: int = LARGE_BLOCK) -> bool:
+def map_large_blocks(threshold: int = LARGE_BLOCK, trim: int = TRIM_THRESHOLD) -> bool:
     """Give every allocation of `threshold` bytes or more pages of its own (glibc's mallopt
-    M_MMAP_THRESHOLD), returned to the system when it is freed; True if set.
+    M_MMAP_THRESHOLD), returned to the system when it is freed, and keep up to `trim` bytes free
+    at the heap's top (M_TRIM_THRESHOLD, see TRIM_THRESHOLD); True if set.
 
     By default glibc raises that threshold each time such a block is freed (up to 32 MiB), and
     from then on serves blocks of that size from the heap, which keeps their pages after they
@@ -44,7 +52,7 @@ def map_large_blocks(threshold: int = LARGE_BLOCK) -> bool:
     if mallopt is None:
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
-    return bool(mallopt(M_MMAP_THRESHOLD, int(threshold)))
+    return bool(mallopt(M_MMAP_THRESHOLD, int(threshold))) and bool(mallopt(M_TRIM_THRESHOLD, int(trim)))
 
 
 @functools.cache

@@ -13,6 +13,7 @@ is the camera's (8 m) rather than Grid/RangeMax's 5 m, so that every wall seen i
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,6 +67,14 @@ def _remove_cells(cells: np.ndarray, drop: np.ndarray) -> np.ndarray:
     return cells[~np.isin(key(cells), key(drop))]
 
 
+@functools.lru_cache(maxsize=8)
+def _pixel_rays(intrinsics: Intrinsics, stride: int, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel of a `stride`-subsampled image, (u - cx) / fx and (v - cy) / fy: a point's x and
+    y over its depth. The same for every image of a camera, so computed once."""
+    rows, cols = np.indices(shape)
+    return (cols * stride - intrinsics.cx) / intrinsics.fx, (rows * stride - intrinsics.cy) / intrinsics.fy
+
+
 def depth_points_in_base(
     depth: np.ndarray, intrinsics: Intrinsics, camera_in_base: np.ndarray, stride: int = 2
 ) -> np.ndarray:
@@ -78,12 +87,12 @@ def depth_points_in_base(
             f"depth shape {depth.shape} does not match intrinsics {intrinsics.height}x{intrinsics.width} (H x W)"
         )
     stride = max(int(stride), 1)
-    sub = depth[::stride, ::stride].astype(np.float64)
+    sub = depth[::stride, ::stride]
     ok = np.isfinite(sub) & (sub > 0)
-    rows, cols = np.nonzero(ok)
-    z = sub[rows, cols]
-    x = (cols * stride - intrinsics.cx) / intrinsics.fx * z
-    y = (rows * stride - intrinsics.cy) / intrinsics.fy * z
+    z = sub[ok].astype(np.float64)
+    along_x, along_y = _pixel_rays(intrinsics, stride, sub.shape)
+    x = along_x[ok] * z
+    y = along_y[ok] * z
     # The rotation applied per coordinate: a (N, 3) @ (3, 3) product is slower for N ~ 77k.
     pose = np.asarray(camera_in_base, dtype=np.float64)
     rot, t = pose[:3, :3], pose[:3, 3]
@@ -97,18 +106,22 @@ def _trace_free(ends: np.ndarray, cell: float) -> np.ndarray:
     """Cells crossed by 2D rays from the origin to each end point, (K, 2) int.
 
     Rays are sampled every half cell, all at once: one ragged array of sample positions built
-    with np.repeat, rather than a Python loop per ray.
+    with np.repeat, rather than a Python loop per ray. A sample in the same cell as the one
+    before it is dropped (most are: two samples a cell), which leaves the set of cells as it was.
     """
     if not len(ends):
         return _empty_cells()
     lengths = np.linalg.norm(ends, axis=1)
     counts = np.ceil(lengths / (0.5 * cell)).astype(np.int64) + 1
-    ray = np.repeat(np.arange(len(ends)), counts)
     starts = np.cumsum(counts) - counts
-    step = np.arange(len(ray)) - np.repeat(starts, counts)
+    step = np.arange(int(counts.sum())) - np.repeat(starts, counts)
     t = step / np.maximum(np.repeat(counts, counts) - 1, 1)
-    samples = ends[ray] * t[:, None]
-    return np.floor(samples / cell).astype(np.int64)
+    # Per axis: no (K, 2) copies of the samples.
+    i = np.floor(np.repeat(ends[:, 0], counts) * t / cell).astype(np.int64)
+    j = np.floor(np.repeat(ends[:, 1], counts) * t / cell).astype(np.int64)
+    new = np.ones(len(i), dtype=bool)
+    new[1:] = (i[1:] != i[:-1]) | (j[1:] != j[:-1])
+    return np.column_stack([i[new], j[new]])
 
 
 def local_grid(
@@ -158,10 +171,16 @@ def local_grid(
         n_bins = int(np.ceil(2.0 * np.pi * range_max / cell))
         angle = np.arctan2(floor_xy[:, 1], floor_xy[:, 0])
         sector = np.minimum(((angle + np.pi) / (2.0 * np.pi) * n_bins).astype(np.int64), n_bins - 1)
-        order = np.lexsort((-np.minimum(floor_dist, range_max), sector))
-        first = np.ones(len(order), dtype=bool)
-        first[1:] = sector[order][1:] != sector[order][:-1]
-        ends.append(floor_xy[order[first]])
+        # Each sector's farthest point, the first of the sector's points at that distance (a
+        # stable sort by sector and distance would pick the same), sectors in ascending order:
+        # per-sector maxima cost one pass where the sort of every floor point cost most of a grid.
+        reach = np.minimum(floor_dist, range_max)
+        farthest = np.full(n_bins, -np.inf)
+        np.maximum.at(farthest, sector, reach)
+        candidates = np.flatnonzero(reach == farthest[sector])
+        first = np.full(n_bins, len(reach))
+        np.minimum.at(first, sector[candidates], candidates)
+        ends.append(floor_xy[first[first < len(reach)]])
     traced = _trace_free(np.vstack(ends), cell)
     free = _unique_cells(np.vstack([traced, floor_cells]))
     free = _remove_cells(free, obstacles)

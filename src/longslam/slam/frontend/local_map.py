@@ -54,7 +54,11 @@ class LocalMap:
     def rebuild(self, centre: np.ndarray) -> None:
         cfg = self.config
         self._since_rebuild = 0
-        parts = [w for xy, w in self._scans if np.hypot(*(xy - centre)) <= cfg.radius and len(w)]
+        # The scans' positions as one array: a test per scan in Python cost more than the rest of
+        # gathering them.
+        where = np.array([xy for xy, _ in self._scans]).reshape(-1, 2) - centre
+        near = np.hypot(where[:, 0], where[:, 1]) <= cfg.radius
+        parts = [w for (_, w), keep in zip(self._scans, near) if keep and len(w)]
         if not parts:
             self.points, self.normals, self.tree = np.zeros((0, 2)), np.zeros((0, 2)), None
             return

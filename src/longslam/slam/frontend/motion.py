@@ -382,11 +382,18 @@ class FrontEnd:
     def final_trajectory(self, held: Mapping[int, np.ndarray] | None = None) -> np.ndarray:
         """(N, 3) planar poses of every frame from the smoother over all frames. In wheel mode
         without loops this is the online trajectory itself. `held`: a method's optimised graph
-        nodes ({frame: pose}); on a route longer than `smoother.hold_nodes_beyond` frames they are
-        held and the frames between smoothed chunk by chunk (`FullSmoother.solve_held`)."""
+        nodes ({frame: pose}); in wheel mode, or on a route longer than `smoother.hold_nodes_beyond`
+        frames, they are held and the frames between smoothed chunk by chunk
+        (`FullSmoother.solve_held`).
+
+        Wheel mode holds them on any route: its frames have nothing but the wheel steps, taken as
+        given (the lateral step all but fixed), and a solve over every frame has to bend those
+        steps to meet each loop, where the method's graph, whose node links allow for the wheels'
+        drift, already placed its nodes with the loops it checked. Held, the frames between two
+        nodes only follow the wheels from one to the next, at a fraction of the cost."""
         if self.config.mode == "wheel" and not self._smoother.loops:
             return self.online_trajectory()
-        poses = self._smoother.solve(held)
+        poses = self._smoother.solve(held, hold=self.config.mode == "wheel")
         # The solve's graphs are gone; what comes next (a method's map) should not start on top
         # of their freed heap.
         release_free_memory()

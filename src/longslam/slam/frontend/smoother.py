@@ -69,9 +69,11 @@ class SmootherConfig:
     # start: +180 MB in 43.7 s in windows of 2,500, +156 MB in 22.7 s in windows of 500, whole
     # +238 MB in 10.2 s; paper-1km, 532 loops: +55, +30 and +55 MB), the result within 0.1 um.
     window: int = 500
-    # A route of up to this many frames is solved whole (0: by `window` from the start): faster,
-    # and at that length it holds no more than the windows (paper-300m is solved whole).
-    whole_frames: int = 2500
+    # A route of up to this many frames is solved whole (0: by `window` from the start): faster
+    # (each window is built and linearised twice a step), and up to this length the whole solve's
+    # peak stays under the one the maps reach after it (paper-300m and paper-1km are solved whole;
+    # the result is the windows' but for rounding).
+    whole_frames: int = 8000
     # Routes longer than this many frames are finished with the graph's nodes held (0: every route).
     # A method that hands over its graph's optimised nodes (keyframe, submap) then has only the
     # frames between them smoothed, chunk by chunk (`solve_held`): the finish holds one chunk's
@@ -127,13 +129,14 @@ class FullSmoother:
     def add_loop(self, i: int, j: int, delta: np.ndarray, information: np.ndarray) -> None:
         self.loops.append((int(i), int(j), np.asarray(delta, dtype=np.float64), np.asarray(information, dtype=np.float64)))
 
-    def solve(self, held: Mapping[int, np.ndarray] | None = None) -> np.ndarray:
+    def solve(self, held: Mapping[int, np.ndarray] | None = None, hold: bool = False) -> np.ndarray:
         """Every frame's smoothed base pose (x, y, yaw), (frames, 3). `held`: a method's optimised
-        graph nodes ({frame: pose}), held on a route longer than `hold_nodes_beyond` frames."""
+        graph nodes ({frame: pose}), held on a route longer than `hold_nodes_beyond` frames, or
+        on any route with `hold`."""
         n = len(self.initial)
         if n == 0:
             return np.zeros((0, 3))
-        if held is not None and n > self.config.hold_nodes_beyond:
+        if held is not None and (hold or n > self.config.hold_nodes_beyond):
             self.solved_by = "held nodes"
             return self.solve_held(held)
         self.solved_by = "every frame"
