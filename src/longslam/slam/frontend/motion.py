@@ -90,11 +90,9 @@ class FrontEndConfig:
     visual_gate_angle_no_wheels: float = 0.2  # rad: the heading gate around the constant-velocity prediction without wheels
     visual_sigma_forward: float = 0.004  # m per step
     visual_sigma_lateral: float = 0.05  # m per step: the wheels hold the lateral step
-    # Looser than the step's white scatter (0.0016 rad) on purpose: the tracked heading also has
-    # a bias of about -0.005 deg per step, which at its scatter's weight beats wheels with a small
-    # bias (paper-300m small: ATE 0.09 -> 0.26 m), while 0.05 left xlarge wheels' bias unseen where
-    # no scan registers (paper-1km xlarge seed 2: 1.43 m). 0.004 beat both on each sequence of the
-    # sweep in docs/diagnose.md.
+    # Looser than the step's white scatter on purpose: the tracked heading also has a small bias
+    # per step, which at its scatter's weight would outvote wheels with a small bias, while a much
+    # looser sigma leaves a large wheel bias unseen where no scan registers.
     visual_sigma_yaw: float = 0.004  # rad per step
     # Without wheels the visual step is the motion itself: its measured per-step scatter.
     visual_sigmas_no_wheels: tuple[float, float, float] = (0.004, 0.005, 0.002)  # m, m, rad

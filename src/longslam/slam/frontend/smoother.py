@@ -54,20 +54,13 @@ class SmootherConfig:
     bias_states: bool = True
     # "lm": Levenberg-Marquardt (Gauss-Newton steps, damped when one fails); "gn": stop there instead.
     optimizer: str = "lm"
-    # Measured on paper-300m xlarge seed 2 (with GTSAM's own optimizer, not the loop of
-    # slam/graph/solver.py):
-    # 1e-5 took 27 iterations for ATE 0.567 m; 3e-4 takes 5 for 0.580 m. Without bias states
-    # 0.590 m.
+    # Stop once a step lowers the error by less than this share: the last iterations of a tighter
+    # tolerance move the trajectory by millimetres at several times the cost.
     relative_tolerance: float = 3e-4
     # Most frames in one window of the solve (0: no limit). A longer route is solved window by
     # window (`slam.graph.parts`): the same Levenberg-Marquardt steps as one solve over every
-    # frame, but no more than one window's linear system is held at a time. Measured on the
-    # final graph of paper-1km-x3 (3 km, large noise, seed 0; 20,980 frames, 712 loops): the
-    # solve's own peak +142 MiB whole, +65 MiB in windows of 2,000 frames, the result within
-    # 5 um of the whole solve's, in 17.5 s against 4.2 s. Shorter windows hold less and take less
-    # time (final graph of paper-1km-x3 with 2,029 loops, whole-process peak over the solve's
-    # start: +180 MB in 43.7 s in windows of 2,500, +156 MB in 22.7 s in windows of 500, whole
-    # +238 MB in 10.2 s; paper-1km, 532 loops: +55, +30 and +55 MB), the result within 0.1 um.
+    # frame, but no more than one window's linear system is held at a time, so the solve's peak
+    # does not grow with the route; shorter windows hold less and, with many loops, take less time.
     window: int = 500
     # A route of up to this many frames is solved whole (0: by `window` from the start): faster
     # (each window is built and linearised twice a step), and up to this length the whole solve's
