@@ -1,4 +1,5 @@
 """`python -m longslam`: the `longslam` command."""
+
 import sys
 
 from longslam.cli.main import main

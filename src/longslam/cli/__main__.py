@@ -1,4 +1,5 @@
 """`python -m longslam.cli`: the `longslam` command."""
+
 import sys
 
 from longslam.cli.main import main

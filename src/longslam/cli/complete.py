@@ -60,9 +60,16 @@ def method_params(parsed_args: argparse.Namespace | None = None, **_: Any) -> li
     return [f"{name}=" for name in parameter_names(config_type)] if config_type is not None else []
 
 
-COMPLETERS = {"method": method_names, "route": route_names, "noise": noise_levels, "odom_noise": noise_levels,
-              "world": world_names, "param": method_params, "params_of": method_names,
-             "sensor": sensor_names}
+COMPLETERS = {
+    "method": method_names,
+    "route": route_names,
+    "noise": noise_levels,
+    "odom_noise": noise_levels,
+    "world": world_names,
+    "param": method_params,
+    "params_of": method_names,
+    "sensor": sensor_names,
+}
 
 
 def attach_completers(parser: argparse.ArgumentParser) -> None:

@@ -8,20 +8,20 @@ from typing import overload
 
 import numpy as np
 
+from longslam.core.odometry_noise import get_noise
+from longslam.core.trajectory import Trajectory
 from longslam.eval.metrics import ape_errors
 from longslam.eval.sync import associate
+from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
 from longslam.io.trajectory_files import read_tum
 from longslam.run.folder import TRAJECTORY
 from longslam.run.scored_run import run_and_score
 from longslam.run.speed import format_real_time_factor
-from longslam.io.paths import check_output_folder
 from longslam.sim.camera import CameraSettings
-from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import get_route
 from longslam.sim.simulate import check_seed, simulate
 from longslam.slam.catalog import default_method_names, get_spec
-from longslam.core.trajectory import Trajectory
 from longslam.viz.plots import plot_errors_over_time, plot_plan
 from longslam.world import load_world
 
@@ -94,8 +94,14 @@ def run_demo(
         run_dir = out / "runs" / name
         scores, measurements = run_and_score(name, sequence, run_dir, progress=progress, viz=_viz_target(viz, name))
         estimate = read_tum(run_dir / TRAJECTORY)
-        rows.append({"method": name, **scores, "peak_rss_bytes": measurements.peak_rss_bytes,
-                     "real_time_factor": measurements.real_time_factor})
+        rows.append(
+            {
+                "method": name,
+                **scores,
+                "peak_rss_bytes": measurements.peak_rss_bytes,
+                "real_time_factor": measurements.real_time_factor,
+            }
+        )
         paths[name] = estimate.positions[:, :2]
         curves[name] = error_over_time(truth, estimate)
         ates[name] = scores["ate"]
@@ -104,7 +110,9 @@ def run_demo(
     waypoints = route.resolve(world.places)
     title = f"route {route.name}, noise {noise.name}, seed {seed}"
     plot_plan(world.occupancy, plot, paths, waypoints=waypoints, title=title, zoom_margin=6.0, errors=ates)
-    plot_errors_over_time(curves, out / ERRORS_FIGURE, title=f"position error over time (no alignment): {title}", errors=ates)
+    plot_errors_over_time(
+        curves, out / ERRORS_FIGURE, title=f"position error over time (no alignment): {title}", errors=ates
+    )
     return rows, plot
 
 

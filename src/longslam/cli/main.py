@@ -28,8 +28,10 @@ log = logging.getLogger("longslam.cli.main")
 
 
 CAMERA_HELP = {
-    "width": "image width in pixels", "height": "image height in pixels",
-    "fov": "horizontal field of view in degrees", "max_depth": "depth range in metres",
+    "width": "image width in pixels",
+    "height": "image height in pixels",
+    "fov": "horizontal field of view in degrees",
+    "max_depth": "depth range in metres",
     "camera_height": "camera height above the floor in metres",
 }
 
@@ -40,8 +42,12 @@ def _camera_args(parser: argparse.ArgumentParser) -> None:
 
     defaults = CameraSettings()
     for key, field in CAMERA_KEYS.items():
-        parser.add_argument(f"--{key.replace('_', '-')}", dest=f"camera_{key}", metavar=key.upper(),
-                            help=f"{CAMERA_HELP[key]} (default {getattr(defaults, field)})")
+        parser.add_argument(
+            f"--{key.replace('_', '-')}",
+            dest=f"camera_{key}",
+            metavar=key.upper(),
+            help=f"{CAMERA_HELP[key]} (default {getattr(defaults, field)})",
+        )
 
 
 def _camera(args: argparse.Namespace):
@@ -57,7 +63,7 @@ def _camera(args: argparse.Namespace):
         if bad is None or bad[1] not in keys:
             raise
         option = "--" + keys[bad[1]].replace("_", "-")
-        rest = str(err)[bad.end():].strip()
+        rest = str(err)[bad.end() :].strip()
         if bad[2] == " must be":
             raise InputError(f"{option} must be {rest}") from None
         raise InputError(f"{option} {getattr(args, 'camera_' + keys[bad[1]])}: {rest}") from None
@@ -75,10 +81,12 @@ MESH_OPTIONS = ("floor", "units", "up", "places")
 def _world_args(parser: argparse.ArgumentParser, default: str | None) -> None:
     shown = f" (default {default})" if default else " (default: the route's world)"
     parser.add_argument("--world", help=f"world name (see `longslam list`) or a mesh file (PLY, OBJ, GLB/glTF){shown}")
-    parser.add_argument("--floor", type=float, help="floor height of a mesh in metres, once turned z-up (default: found)")
+    parser.add_argument(
+        "--floor", type=float, help="floor height of a mesh in metres, once turned z-up (default: found)"
+    )
     parser.add_argument("--units", choices=("m", "cm", "mm"), help="length unit of a mesh file (default m)")
     parser.add_argument("--up", choices=("z", "y"), help="up axis of a mesh file (default y for GLB/glTF, z otherwise)")
-    parser.add_argument("--places", help="places file of a mesh: JSON {\"name\": [x, y], ...}")
+    parser.add_argument("--places", help='places file of a mesh: JSON {"name": [x, y], ...}')
 
 
 def _world(args: argparse.Namespace, value: str | None) -> str | None:
@@ -117,9 +125,9 @@ def _check_out_file(args: argparse.Namespace, out: str, what: str, inputs: list[
 
 
 def cmd_world(args: argparse.Namespace) -> None:
+    from longslam.io.paths import PLOT_SUFFIXES, check_output_file
     from longslam.sim.drive import drive_route
     from longslam.sim.routes import get_route
-    from longslam.io.paths import PLOT_SUFFIXES, check_output_file
     from longslam.viz.plots import plot_plan
     from longslam.world import load_world
 
@@ -142,12 +150,11 @@ def cmd_world(args: argparse.Namespace) -> None:
 
 def cmd_simulate(args: argparse.Namespace) -> None:
     from longslam.core.odometry_noise import get_noise
-    from longslam.sim.routes import get_route
+    from longslam.io.overwrite_policy import check_not_an_input
     from longslam.io.sequence import SequenceReader
+    from longslam.sim.routes import get_route
     from longslam.sim.simulate import simulate
     from longslam.world import world_label
-
-    from longslam.io.overwrite_policy import check_not_an_input
 
     check_not_an_input(args.out, _given_files([args.route, args.world, args.places]), "sequence folder")
     route = get_route(args.route, _world(args, args.world))
@@ -157,12 +164,21 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     noise = get_noise(args.noise)
     sensor = get_sensor(args.sensor)  # before any rendering: a typo costs nothing
     perturbations = parse_perturbations(args.perturb)
-    out = simulate(route, noise, args.seed, args.out, camera=_camera(args), overwrite=args.overwrite, sensor=sensor,
-                   perturbations=perturbations)
+    out = simulate(
+        route,
+        noise,
+        args.seed,
+        args.out,
+        camera=_camera(args),
+        overwrite=args.overwrite,
+        sensor=sensor,
+        perturbations=perturbations,
+    )
     meta = SequenceReader(out).meta  # renders cached before meta had world_name: the route's world
     name = meta.get("world_name") or world_label(route.world)
-    perturbed = (f", perturbed by {meta['perturbation']} ({meta['frames_dropped']} frames dropped)"
-                 if perturbations else "")
+    perturbed = (
+        f", perturbed by {meta['perturbation']} ({meta['frames_dropped']} frames dropped)" if perturbations else ""
+    )
     print(f"wrote sequence {out}: route {route.name} in {_describe_world(name, meta.get('mesh_floor_z'))}{perturbed}")
 
 
@@ -199,10 +215,12 @@ def cmd_run(args: argparse.Namespace) -> None:
 
         check_not_an_input(args.out, {"--config": args.config}, "run folder")
     method, sequence = _run_inputs(args)
-    log.info("run: method %s on %s into %s, parameters %s", method.name, sequence, args.out,
-             method.params or "the defaults")
-    measurements = run_sequence(method, sequence, args.out, overwrite=args.overwrite,
-                                intrinsics=args.intrinsics, viz=args.viz, prepare=True)
+    log.info(
+        "run: method %s on %s into %s, parameters %s", method.name, sequence, args.out, method.params or "the defaults"
+    )
+    measurements = run_sequence(
+        method, sequence, args.out, overwrite=args.overwrite, intrinsics=args.intrinsics, viz=args.viz, prepare=True
+    )
     from longslam.run.speed import describe_real_time_factor
 
     print(
@@ -217,8 +235,13 @@ def cmd_run(args: argparse.Namespace) -> None:
 
 
 # evaluate's library fields -> its options, for the checks that can only run on the poses
-EVALUATE_OPTIONS = {"n_to_align": "--n-to-align", "max_diff": "--t-max-diff", "min_step": "--min-step",
-                    "rpe_delta": "--delta", "delta_tol": "--delta-tol"}
+EVALUATE_OPTIONS = {
+    "n_to_align": "--n-to-align",
+    "max_diff": "--t-max-diff",
+    "min_step": "--min-step",
+    "rpe_delta": "--delta",
+    "delta_tol": "--delta-tol",
+}
 
 
 def _as_options(message: str) -> str:
@@ -229,11 +252,13 @@ def _as_options(message: str) -> str:
 def _check_evaluate_options(args: argparse.Namespace) -> list[str]:
     """The evaluate options' values, checked before any file is read and named as options (the
     library's checks name its fields); returns warnings for options that will have no effect."""
-    numbers = (("--delta", args.delta, lambda v: v > 0, "a number > 0 (in --delta-unit)"),
-               ("--delta-tol", args.delta_tol, lambda v: v >= 0, "a share of --delta >= 0"),
-               ("--t-max-diff", args.t_max_diff, lambda v: v >= 0, "a time difference >= 0 s"),
-               ("--t-offset", args.t_offset, lambda v: True, "a number of seconds"),
-               ("--min-step", args.min_step, lambda v: v > 0, "a length > 0 m"))
+    numbers = (
+        ("--delta", args.delta, lambda v: v > 0, "a number > 0 (in --delta-unit)"),
+        ("--delta-tol", args.delta_tol, lambda v: v >= 0, "a share of --delta >= 0"),
+        ("--t-max-diff", args.t_max_diff, lambda v: v >= 0, "a time difference >= 0 s"),
+        ("--t-offset", args.t_offset, lambda v: True, "a number of seconds"),
+        ("--min-step", args.min_step, lambda v: v > 0, "a length > 0 m"),
+    )
     for option, value, ok, expected in numbers:
         if not (math.isfinite(value) and ok(value)):
             raise InputError(f"{option} {value:g}: expected a finite {expected.removeprefix('a ')}")
@@ -256,8 +281,11 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     for warning in _check_evaluate_options(args):
         print(f"warning: {warning}", file=sys.stderr)
 
-    for option, path, suffix in (("--save-plot", args.save_plot, None), ("--save-results", args.save_results, ".zip"),
-                                 ("--save-rpe-results", args.save_rpe_results, ".zip")):
+    for option, path, suffix in (
+        ("--save-plot", args.save_plot, None),
+        ("--save-results", args.save_results, ".zip"),
+        ("--save-rpe-results", args.save_rpe_results, ".zip"),
+    ):
         if path is not None:  # before any work, as every output
             from longslam.io.paths import check_output_file
             from longslam.viz.evaluation_plots import SAVE_SUFFIXES as SAVE_PLOT_SUFFIXES
@@ -273,11 +301,24 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     align = "se3" if args.align_flag and args.align == "none" else args.align
     try:
         evaluation = score_files_full(
-            args.estimate, args.groundtruth, align=align, max_diff=args.t_max_diff, min_step=args.min_step,
-            warnings=warnings, offset=args.t_offset, estimate_topic=args.est_topic, truth_topic=args.ref_topic,
-            delta=args.delta, delta_unit=args.delta_unit, all_pairs=args.all_pairs, delta_tol=args.delta_tol,
-            pairs_from_reference=args.pairs_from_reference, pose_relation=args.pose_relation,
-            correct_scale=args.correct_scale, align_origin=args.align_origin, n_to_align=args.n_to_align,
+            args.estimate,
+            args.groundtruth,
+            align=align,
+            max_diff=args.t_max_diff,
+            min_step=args.min_step,
+            warnings=warnings,
+            offset=args.t_offset,
+            estimate_topic=args.est_topic,
+            truth_topic=args.ref_topic,
+            delta=args.delta,
+            delta_unit=args.delta_unit,
+            all_pairs=args.all_pairs,
+            delta_tol=args.delta_tol,
+            pairs_from_reference=args.pairs_from_reference,
+            pose_relation=args.pose_relation,
+            correct_scale=args.correct_scale,
+            align_origin=args.align_origin,
+            n_to_align=args.n_to_align,
         )
     except InputError as err:  # the checks that need the poses name the library's fields
         raise InputError(_as_options(str(err))) from None
@@ -301,8 +342,11 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
         print(json.dumps(scores_json(evaluation.scores), allow_nan=False))
     else:
         print(format_text(evaluation.scores, min_step=args.min_step))
-    for option, path in (("--save-results", args.save_results), ("--save-rpe-results", args.save_rpe_results),
-                         ("--save-plot", args.save_plot)):
+    for option, path in (
+        ("--save-results", args.save_results),
+        ("--save-rpe-results", args.save_rpe_results),
+        ("--save-plot", args.save_plot),
+    ):
         if path:
             print(f"wrote {path} ({option})", file=sys.stderr)
     if args.plot:
@@ -370,14 +414,25 @@ def cmd_export(args: argparse.Namespace) -> None:
     bar, update = _progress_bar("export")
     with bar:
         summary = export_sequence(
-            args.sequence, args.out, fmt=args.format, depth_encoding=args.depth_encoding, storage=args.storage,
-            compress=args.compress, odom_noise=args.odom_noise, camera_height=args.camera_height,
-            overwrite=args.overwrite, progress=update, distro=args.distro, topics=args.topics,
+            args.sequence,
+            args.out,
+            fmt=args.format,
+            depth_encoding=args.depth_encoding,
+            storage=args.storage,
+            compress=args.compress,
+            odom_noise=args.odom_noise,
+            camera_height=args.camera_height,
+            overwrite=args.overwrite,
+            progress=update,
+            distro=args.distro,
+            topics=args.topics,
         )
     line = f"wrote {summary.path}: {summary.frames} frames, {summary.messages} messages, {summary.bytes / 1e6:.1f} MB"
     if summary.linear_variance is not None:
-        line += (f"; odometry covariance per step: forward {summary.linear_variance:.3g} m^2, "
-                 f"yaw {summary.yaw_variance:.3g} rad^2")
+        line += (
+            f"; odometry covariance per step: forward {summary.linear_variance:.3g} m^2, "
+            f"yaw {summary.yaw_variance:.3g} rad^2"
+        )
     print(line)
     for text in summary.notes:
         note(f"{args.sequence}: {text}")
@@ -389,14 +444,24 @@ def cmd_import(args: argparse.Namespace) -> None:
     topics = Topics(args.rgb, args.depth, args.camera_info, args.odom, args.groundtruth)
     bar, update = _progress_bar("import")
     with bar:
-        summary = import_bag(args.bag, args.out, topics, max_diff=args.max_diff, max_depth=args.max_depth,
-                             groundtruth_frame=args.groundtruth_frame, overwrite=args.overwrite, progress=update,
-                             intrinsics=args.intrinsics)
+        summary = import_bag(
+            args.bag,
+            args.out,
+            topics,
+            max_diff=args.max_diff,
+            max_depth=args.max_depth,
+            groundtruth_frame=args.groundtruth_frame,
+            overwrite=args.overwrite,
+            progress=update,
+            intrinsics=args.intrinsics,
+        )
     t = summary.topics
-    print(f"wrote sequence {summary.path}: {summary.frames} frames from {t.rgb} ({summary.rgb_messages} messages) "
-          f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info or '--intrinsics'}; "
-          f"odometry {'from ' + str(t.odom) if summary.odometry else 'none'}; "
-          f"ground truth {'from ' + str(t.groundtruth) if summary.groundtruth else 'none'}")
+    print(
+        f"wrote sequence {summary.path}: {summary.frames} frames from {t.rgb} ({summary.rgb_messages} messages) "
+        f"and {t.depth} ({summary.depth_messages}); camera from {t.camera_info or '--intrinsics'}; "
+        f"odometry {'from ' + str(t.odom) if summary.odometry else 'none'}; "
+        f"ground truth {'from ' + str(t.groundtruth) if summary.groundtruth else 'none'}"
+    )
     for text in summary.notes:
         note(text)
 
@@ -411,8 +476,16 @@ def cmd_demo(args: argparse.Namespace) -> None:
     from longslam.core import progress
 
     # bars only where the command draws them: on a terminal, without --quiet or --no-progress
-    rows, plot = run_demo(args.out, args.route, args.noise, args.seed, camera=_camera(args), viz=args.viz,
-                          overwrite=args.overwrite, progress=progress.enabled())
+    rows, plot = run_demo(
+        args.out,
+        args.route,
+        args.noise,
+        args.seed,
+        camera=_camera(args),
+        viz=args.viz,
+        overwrite=args.overwrite,
+        progress=progress.enabled(),
+    )
     print(f"\nroute {args.route}, noise {args.noise}, seed {args.seed}\n")
     print(format_table(rows))
     print(f"\ntrajectories over the floor plan: {plot}")
@@ -428,8 +501,11 @@ def _list_params(method: str) -> None:
         print(f"{method}: takes its parameters as given (no typed config to describe)")
         return
     rows = [(p.name, _toml_text(p.default), p.allowed, p.doc) for p in describe(spec.config_type)]
-    print(f"{method}: {len(rows)} parameters (--param NAME=VALUE, or [params.{method}] in a study file)"
-          if rows else f"{method}: no parameters")
+    print(
+        f"{method}: {len(rows)} parameters (--param NAME=VALUE, or [params.{method}] in a study file)"
+        if rows
+        else f"{method}: no parameters"
+    )
     if rows:
         widths = [max(len(row[i]) for row in rows) for i in range(3)]
         for row in rows:
@@ -459,15 +535,25 @@ def cmd_list(args: argparse.Namespace) -> None:
 
     print("worlds:      ", ", ".join(WORLDS.names()), "(or a mesh file: --world FILE)")
     print("routes:      ", ", ".join(ROUTES.names()))
-    print("long routes:  NAME-xN (a route N times over), tour-<L>km or tour-<L>m[-seed<S>] (a seeded random tour "
-          "of the world's places), e.g. " + ", ".join(TOUR_EXAMPLES))
-    print("noise levels:", ", ".join(f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)" for n in NOISE_LEVELS))
+    print(
+        "long routes:  NAME-xN (a route N times over), tour-<L>km or tour-<L>m[-seed<S>] (a seeded random tour "
+        "of the world's places), e.g. " + ", ".join(TOUR_EXAMPLES)
+    )
+    print(
+        "noise levels:",
+        ", ".join(
+            f"{n} ({NOISE_LEVELS.get(n).linear_std} m, {NOISE_LEVELS.get(n).angular_std_deg} deg per frame)"
+            for n in NOISE_LEVELS
+        ),
+    )
     print("methods:     ", ", ".join(method_names()), "(parameters: longslam list --params METHOD)")
     from longslam.sim.sensors.catalog import sensor_problem
 
     problems = {name: sensor_problem(name) for name in sensor_names()}
-    print("sensors:     ", ", ".join(name + (f" (broken: {problems[name]})" if problems[name] else "")
-                                     for name in sensor_names()))
+    print(
+        "sensors:     ",
+        ", ".join(name + (f" (broken: {problems[name]})" if problems[name] else "") for name in sensor_names()),
+    )
     from longslam.sim.perturbations.catalog import describe_levels
 
     print("perturbations:", "; ".join(describe_levels()), "(--perturb NAME[=LEVEL])")
@@ -481,8 +567,14 @@ def cmd_study(args: argparse.Namespace) -> None:
         raise LongslamError(f"--jobs must be at least 1, got {args.jobs}")
     config = load_study(args.file)
     summary = run_study(
-        config, args.out, executor=args.executor, address=args.address, jobs=args.jobs,
-        retry_failed=args.retry_failed, retry_starved=args.retry_starved, report=not args.no_report,
+        config,
+        args.out,
+        executor=args.executor,
+        address=args.address,
+        jobs=args.jobs,
+        retry_failed=args.retry_failed,
+        retry_starved=args.retry_starved,
+        report=not args.no_report,
         extend=args.extend,
     )
     print(
@@ -493,8 +585,10 @@ def cmd_study(args: argparse.Namespace) -> None:
         print(f"report: {summary.report} and {summary.report.with_suffix('.md')}")
     if summary.ran and summary.failed == summary.ran:
         # a study none of whose runs worked is a failure of the command, for a script or CI to see
-        raise LongslamError(f"every run of the study failed ({summary.failed} of {summary.ran}); why is in the "
-                            f"report's failures and each run's log under {args.out}")
+        raise LongslamError(
+            f"every run of the study failed ({summary.failed} of {summary.ran}); why is in the "
+            f"report's failures and each run's log under {args.out}"
+        )
 
 
 def cmd_report(args: argparse.Namespace) -> None:
@@ -509,8 +603,13 @@ def cmd_report(args: argparse.Namespace) -> None:
 
 def cmd_vocabulary_build(args: argparse.Namespace) -> None:
     from longslam.sim.routes import get_route
-    from longslam.vocabulary.build import (build_vocabulary_file, check_features, check_output, check_tree_size,
-                                           rendered_route)
+    from longslam.vocabulary.build import (
+        build_vocabulary_file,
+        check_features,
+        check_output,
+        check_tree_size,
+        rendered_route,
+    )
 
     check_tree_size(args.k, args.levels)  # all before a route is rendered
     check_features(args.features)
@@ -524,69 +623,152 @@ def cmd_vocabulary_build(args: argparse.Namespace) -> None:
     check_seed(args.seed, "--seed")  # the same range wherever a seed enters
     world = _world(args, args.world)
     if args.sequence is not None:
-        camera = [f"--{k[len('camera_'):].replace('_', '-')}" for k, v in vars(args).items() if k.startswith("camera_") and v is not None]
+        camera = [
+            f"--{k[len('camera_'):].replace('_', '-')}"
+            for k, v in vars(args).items()
+            if k.startswith("camera_") and v is not None
+        ]
         if world is not None or camera:
-            raise LongslamError(f"{(camera or ['--world'])[0]} describes the route to render; a --sequence has its frames already")
+            raise LongslamError(
+                f"{(camera or ['--world'])[0]} describes the route to render; a --sequence has its frames already"
+            )
         sequence, source = args.sequence, f"sequence {args.sequence}"
     else:
         route = get_route(args.route, world)
         sequence, source = rendered_route(route, _camera(args)), f"route {route.name}"
     summary = build_vocabulary_file(
-        sequence, args.out, k=args.k, levels=args.levels, seed=args.seed, features=args.features,
-        every=args.frames_every, max_frames=args.max_frames, overwrite=args.overwrite,
+        sequence,
+        args.out,
+        k=args.k,
+        levels=args.levels,
+        seed=args.seed,
+        features=args.features,
+        every=args.frames_every,
+        max_frames=args.max_frames,
+        overwrite=args.overwrite,
     )
-    print(f"wrote {summary.path}: {summary.words} words ({summary.nodes - 1} nodes, k={args.k}, L={args.levels}) "
-          f"from {summary.descriptors} ORB descriptors of {summary.frames} frames of {source}, "
-          f"{summary.bytes / 1e6:.1f} MB in {summary.seconds:.0f} s")
+    print(
+        f"wrote {summary.path}: {summary.words} words ({summary.nodes - 1} nodes, k={args.k}, L={args.levels}) "
+        f"from {summary.descriptors} ORB descriptors of {summary.frames} frames of {source}, "
+        f"{summary.bytes / 1e6:.1f} MB in {summary.seconds:.0f} s"
+    )
 
 
 def _evaluate_args(p: argparse.ArgumentParser) -> None:
     from longslam.eval.metrics import DELTA_UNITS
     from longslam.eval.relations import RPE_RELATIONS
 
-    p.add_argument("estimate", help="estimated trajectory: a TUM or KITTI file, a run folder, a ROS bag "
-                                    "(see --est-topic), or - for TUM text on stdin")
-    p.add_argument("groundtruth", help="ground truth: a TUM or KITTI file, a sequence folder, a ROS bag "
-                                       "(see --ref-topic), or - for stdin")
-    p.add_argument("--est-topic", metavar="TOPIC", help="the estimate's topic when it is a bag (PoseStamped, "
-                                                         "PoseWithCovarianceStamped, TransformStamped or Odometry; "
-                                                         "default: the bag's only pose topic)")
+    p.add_argument(
+        "estimate",
+        help="estimated trajectory: a TUM or KITTI file, a run folder, a ROS bag "
+        "(see --est-topic), or - for TUM text on stdin",
+    )
+    p.add_argument(
+        "groundtruth",
+        help="ground truth: a TUM or KITTI file, a sequence folder, a ROS bag " "(see --ref-topic), or - for stdin",
+    )
+    p.add_argument(
+        "--est-topic",
+        metavar="TOPIC",
+        help="the estimate's topic when it is a bag (PoseStamped, "
+        "PoseWithCovarianceStamped, TransformStamped or Odometry; "
+        "default: the bag's only pose topic)",
+    )
     p.add_argument("--ref-topic", metavar="TOPIC", help="the ground truth's topic when it is a bag (as --est-topic)")
     align = p.add_argument_group("alignment (evo's -a, -s, --align_origin, --n_to_align)")
-    align.add_argument("--align", nargs="?", const="se3", default="none", choices=("none", "se3", "sim3"),
-                       metavar="none|se3|sim3",
-                       help="Umeyama alignment of the estimate for APE and RPE: --align alone is se3 (evo's -a); "
-                            "sim3 also scales (evo's -as); default none")
+    align.add_argument(
+        "--align",
+        nargs="?",
+        const="se3",
+        default="none",
+        choices=("none", "se3", "sim3"),
+        metavar="none|se3|sim3",
+        help="Umeyama alignment of the estimate for APE and RPE: --align alone is se3 (evo's -a); "
+        "sim3 also scales (evo's -as); default none",
+    )
     align.add_argument("-a", dest="align_flag", action="store_true", help="the same as --align (se3), as evo's -a")
-    align.add_argument("-s", "--correct-scale", action="store_true",
-                       help="correct the scale: with --align a Sim(3) fit, alone the scale only (evo's -s)")
-    align.add_argument("--align-origin", action="store_true",
-                       help="move the estimate's first pose onto the reference's (evo's --align_origin)")
-    align.add_argument("--n-to-align", type=int, default=-1, metavar="N",
-                       help="fit the alignment on the first N poses only (default -1: all)")
+    align.add_argument(
+        "-s",
+        "--correct-scale",
+        action="store_true",
+        help="correct the scale: with --align a Sim(3) fit, alone the scale only (evo's -s)",
+    )
+    align.add_argument(
+        "--align-origin",
+        action="store_true",
+        help="move the estimate's first pose onto the reference's (evo's --align_origin)",
+    )
+    align.add_argument(
+        "--n-to-align",
+        type=int,
+        default=-1,
+        metavar="N",
+        help="fit the alignment on the first N poses only (default -1: all)",
+    )
     rel = p.add_argument_group("pose relation and RPE pairs (evo's -r, -d, -u, -t, --all_pairs)")
-    rel.add_argument("-r", "--pose-relation", default="trans_part", choices=RPE_RELATIONS, metavar="RELATION",
-                     help=f"what APE and RPE measure: {', '.join(RPE_RELATIONS)} (default trans_part, metres; "
-                          "angle_deg: degrees; point_distance_error_ratio is RPE only, APE then uses trans_part)")
-    rel.add_argument("-d", "--delta", type=float, default=1.0, help="RPE distance between the poses of a pair, "
-                                                                    "in --delta-unit (default 1)")
-    rel.add_argument("-u", "--delta-unit", default="m", choices=DELTA_UNITS,
-                     help="unit of --delta: f frames, m metres of path (default; evo's default is f), "
-                          "d degrees, r radians of rotation")
-    rel.add_argument("-t", "--delta-tol", type=float, default=0.1,
-                     help="with --all-pairs, the share of delta a pair may be off (default 0.1)")
+    rel.add_argument(
+        "-r",
+        "--pose-relation",
+        default="trans_part",
+        choices=RPE_RELATIONS,
+        metavar="RELATION",
+        help=f"what APE and RPE measure: {', '.join(RPE_RELATIONS)} (default trans_part, metres; "
+        "angle_deg: degrees; point_distance_error_ratio is RPE only, APE then uses trans_part)",
+    )
+    rel.add_argument(
+        "-d",
+        "--delta",
+        type=float,
+        default=1.0,
+        help="RPE distance between the poses of a pair, " "in --delta-unit (default 1)",
+    )
+    rel.add_argument(
+        "-u",
+        "--delta-unit",
+        default="m",
+        choices=DELTA_UNITS,
+        help="unit of --delta: f frames, m metres of path (default; evo's default is f), "
+        "d degrees, r radians of rotation",
+    )
+    rel.add_argument(
+        "-t",
+        "--delta-tol",
+        type=float,
+        default=0.1,
+        help="with --all-pairs, the share of delta a pair may be off (default 0.1)",
+    )
     rel.add_argument("--all-pairs", action="store_true", help="every pair delta apart instead of consecutive ones")
-    rel.add_argument("--pairs-from-reference", action=argparse.BooleanOptionalAction, default=True,
-                     help="choose RPE pairs on the reference (default; evo's default is the estimate)")
+    rel.add_argument(
+        "--pairs-from-reference",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="choose RPE pairs on the reference (default; evo's default is the estimate)",
+    )
     sync = p.add_argument_group("timestamp matching (evo's --t_max_diff, --t_offset)")
-    sync.add_argument("--t-max-diff", "--max-diff", dest="t_max_diff", type=float, default=0.01, metavar="SECONDS",
-                      help="largest stamp difference of a matched pair (default 0.01 s)")
-    sync.add_argument("--t-offset", type=float, default=0.0, metavar="SECONDS",
-                      help="added to the estimate's stamps for matching (default 0 s)")
-    p.add_argument("--min-step", type=float, default=0.01,
-                   help="E_trans and E_rot leave out ground-truth steps shorter than this, in metres (default 0.01)")
+    sync.add_argument(
+        "--t-max-diff",
+        "--max-diff",
+        dest="t_max_diff",
+        type=float,
+        default=0.01,
+        metavar="SECONDS",
+        help="largest stamp difference of a matched pair (default 0.01 s)",
+    )
+    sync.add_argument(
+        "--t-offset",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="added to the estimate's stamps for matching (default 0 s)",
+    )
+    p.add_argument(
+        "--min-step",
+        type=float,
+        default=0.01,
+        help="E_trans and E_rot leave out ground-truth steps shorter than this, in metres (default 0.01)",
+    )
     out = p.add_argument_group("output (evo's -p, --save_plot, --save_results)")
-    out.add_argument("--json", action="store_true", help="print one JSON object, with a \"units\" object")
+    out.add_argument("--json", action="store_true", help='print one JSON object, with a "units" object')
     out.add_argument("-p", "--plot", action="store_true", help="show the APE figures in a window (needs a display)")
     out.add_argument("--save-plot", metavar="FILE", help="save the APE figures to FILE (.png or .pdf)")
     out.add_argument("--save-results", metavar="FILE.zip", help="save the APE result as evo_res reads it")
@@ -596,8 +778,9 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="longslam", description="RGB-D SLAM on long routes through large indoor buildings")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
-                        help="print longslam's version and exit")
+    parser.add_argument(
+        "--version", action="version", version=f"%(prog)s {_version()}", help="print longslam's version and exit"
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("world", help="draw a world's floor plan, optionally with a route")
@@ -613,11 +796,20 @@ def build_parser() -> argparse.ArgumentParser:
     _world_args(p, None)
     p.add_argument("--noise", default="none", help="odometry noise level (none, small, medium, large, xlarge)")
     p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise and of the sensor's")
-    p.add_argument("--sensor", default="ideal", help="sensor model: ideal (perfect colour and depth), kinect-v1, "
-                                                     "realsense-d435, or a plugin's (see `longslam list`)")
-    p.add_argument("--perturb", action="append", default=[], metavar="NAME[=LEVEL]",
-                   help="a perturbation after the sensor model: drop, drop-burst, depth-offset, exposure, blur, "
-                        "depth-dropout, or a plugin's (see `longslam list`); repeatable, applied in order")
+    p.add_argument(
+        "--sensor",
+        default="ideal",
+        help="sensor model: ideal (perfect colour and depth), kinect-v1, "
+        "realsense-d435, or a plugin's (see `longslam list`)",
+    )
+    p.add_argument(
+        "--perturb",
+        action="append",
+        default=[],
+        metavar="NAME[=LEVEL]",
+        help="a perturbation after the sensor model: drop, drop-burst, depth-offset, exposure, blur, "
+        "depth-dropout, or a plugin's (see `longslam list`); repeatable, applied in order",
+    )
     p.add_argument("--out", required=True, help="sequence folder to write")
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     _camera_args(p)
@@ -625,50 +817,92 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="run a SLAM method over a sequence")
     p.add_argument("--method", help="method name (see `longslam list`); required without --config")
-    p.add_argument("sequence", nargs="?", help="sequence folder (TUM RGB-D layout); default with --config: its [run] sequence")
-    p.add_argument("--config", metavar="CONFIG.toml",
-                   help="a run folder's config.toml: run its method with its parameters again (--param overrides them)")
+    p.add_argument(
+        "sequence", nargs="?", help="sequence folder (TUM RGB-D layout); default with --config: its [run] sequence"
+    )
+    p.add_argument(
+        "--config",
+        metavar="CONFIG.toml",
+        help="a run folder's config.toml: run its method with its parameters again (--param overrides them)",
+    )
     p.add_argument("--out", required=True, help="run folder to write")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="method parameter (repeatable)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing run folder (and --viz file)")
-    p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
-                   help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)")
-    p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
-                   help="show the run live in a rerun viewer, or record it to FILE.rrd (needs longslam[viz])")
+    p.add_argument(
+        "--intrinsics",
+        metavar="FX,FY,CX,CY",
+        help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)",
+    )
+    p.add_argument(
+        "--viz",
+        nargs="?",
+        const="viewer",
+        metavar="FILE.rrd",
+        help="show the run live in a rerun viewer, or record it to FILE.rrd (needs longslam[viz])",
+    )
     p.set_defaults(func=cmd_run)
 
-    p = sub.add_parser("evaluate", help="score a trajectory against ground truth (evo's APE / RPE and the paper's metrics)",
-                       description="Score an estimated trajectory against the ground truth: the paper's ATE, "
-                                   "E_trans, E_rot and evo's APE and RPE. Options carry evo_ape's / evo_rpe's names "
-                                   "(with dashes: --pose-relation is evo's --pose_relation).")
+    p = sub.add_parser(
+        "evaluate",
+        help="score a trajectory against ground truth (evo's APE / RPE and the paper's metrics)",
+        description="Score an estimated trajectory against the ground truth: the paper's ATE, "
+        "E_trans, E_rot and evo's APE and RPE. Options carry evo_ape's / evo_rpe's names "
+        "(with dashes: --pose-relation is evo's --pose_relation).",
+    )
     _evaluate_args(p)
     p.set_defaults(func=cmd_evaluate)
 
-    p = sub.add_parser("diagnose", help="where along the route a run's error comes from: heading, along and across "
-                                        "track, per stretch, with its loop constraints and front-end factors")
+    p = sub.add_parser(
+        "diagnose",
+        help="where along the route a run's error comes from: heading, along and across "
+        "track, per stretch, with its loop constraints and front-end factors",
+    )
     p.add_argument("run", help="a run folder (trajectory.txt; loops.csv and frontend.csv where the method wrote them)")
     p.add_argument("sequence", help="the sequence folder the run ran on (groundtruth.txt)")
     p.add_argument("--stretch", type=float, default=50.0, help="length of a stretch of route, in metres (default 50)")
-    p.add_argument("--plot", metavar="FILE.png", help="save the picture: the route coloured by error, the error "
-                                                      "parts and the factors against distance")
+    p.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="save the picture: the route coloured by error, the error " "parts and the factors against distance",
+    )
     p.add_argument("--json", metavar="FILE.json", help="save the diagnosis as JSON (units in its 'units' key)")
     p.add_argument("--overwrite", action="store_true", help="replace --plot and --json files that exist")
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("export", help="write a sequence as a ROS 1 or ROS 2 bag (needs longslam[ros])")
     p.add_argument("sequence", help="sequence folder (TUM RGB-D layout)")
-    p.add_argument("--format", default="ros2", choices=("ros1", "ros2"), help="ros2: a bag folder (default); ros1: a .bag file")
+    p.add_argument(
+        "--format", default="ros2", choices=("ros1", "ros2"), help="ros2: a bag folder (default); ros1: a .bag file"
+    )
     p.add_argument("--out", required=True, help="bag to write: a folder for ros2, a file ending in .bag for ros1")
-    p.add_argument("--depth-encoding", default="32FC1", choices=("32FC1", "16UC1"),
-                   help="32FC1: metres, lossless (default); 16UC1: millimetres, half the size")
+    p.add_argument(
+        "--depth-encoding",
+        default="32FC1",
+        choices=("32FC1", "16UC1"),
+        help="32FC1: metres, lossless (default); 16UC1: millimetres, half the size",
+    )
     p.add_argument("--storage", default="sqlite3", choices=("sqlite3", "mcap"), help="ROS 2 storage (default sqlite3)")
-    p.add_argument("--compress", action="store_true",
-                   help="compress: zstd chunks (ros2 mcap), zstd per message (ros2 sqlite3), lz4 chunks (ros1)")
-    p.add_argument("--distro", choices=("humble", "jazzy"),
-                   help="the ROS 2 distribution whose rosbag2 plays the bag (default humble: Jazzy plays it too)")
-    p.add_argument("--topics", default="default", choices=("default", "rtabmap", "realsense", "openni"),
-                   help="camera topic names and optical frame as that driver or SLAM system names them (default: longslam's)")
-    p.add_argument("--odom-noise", metavar="LEVEL", help="noise level for the odometry covariance (default: the sequence's meta.json)")
+    p.add_argument(
+        "--compress",
+        action="store_true",
+        help="compress: zstd chunks (ros2 mcap), zstd per message (ros2 sqlite3), lz4 chunks (ros1)",
+    )
+    p.add_argument(
+        "--distro",
+        choices=("humble", "jazzy"),
+        help="the ROS 2 distribution whose rosbag2 plays the bag (default humble: Jazzy plays it too)",
+    )
+    p.add_argument(
+        "--topics",
+        default="default",
+        choices=("default", "rtabmap", "realsense", "openni"),
+        help="camera topic names and optical frame as that driver or SLAM system names them (default: longslam's)",
+    )
+    p.add_argument(
+        "--odom-noise",
+        metavar="LEVEL",
+        help="noise level for the odometry covariance (default: the sequence's meta.json)",
+    )
     p.add_argument("--camera-height", type=float, help="camera above base_link in metres (default: the sequence's)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing bag")
     p.set_defaults(func=cmd_export)
@@ -677,26 +911,49 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("bag", help="a .bag file (ROS 1) or a bag folder (ROS 2)")
     p.add_argument("--out", required=True, help="sequence folder to write")
     p.add_argument("--rgb", metavar="TOPIC", help="colour images (sensor_msgs/Image or CompressedImage)")
-    p.add_argument("--depth", metavar="TOPIC", help="depth images registered to the colour camera (32FC1 m or 16UC1 mm)")
+    p.add_argument(
+        "--depth", metavar="TOPIC", help="depth images registered to the colour camera (32FC1 m or 16UC1 mm)"
+    )
     p.add_argument("--camera-info", metavar="TOPIC", help="the colour camera's sensor_msgs/CameraInfo")
     p.add_argument("--odom", metavar="TOPIC", help="wheel odometry (nav_msgs/Odometry)")
-    p.add_argument("--groundtruth", metavar="TOPIC", help="ground truth (nav_msgs/Odometry or geometry_msgs/PoseStamped)")
-    p.add_argument("--groundtruth-frame", metavar="FRAME",
-                   help="the frame a PoseStamped ground truth is the pose of (default: the odometry's child frame)")
-    p.add_argument("--max-diff", type=float, default=0.02, help="colour-depth pairing tolerance in seconds (default 0.02)")
-    p.add_argument("--max-depth", type=float, help="depth range in metres; farther is 'no return' (default 13.107, the 16-bit limit)")
-    p.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
-                   help="the colour camera's intrinsics in pixels, for a bag without CameraInfo (instead of --camera-info)")
+    p.add_argument(
+        "--groundtruth", metavar="TOPIC", help="ground truth (nav_msgs/Odometry or geometry_msgs/PoseStamped)"
+    )
+    p.add_argument(
+        "--groundtruth-frame",
+        metavar="FRAME",
+        help="the frame a PoseStamped ground truth is the pose of (default: the odometry's child frame)",
+    )
+    p.add_argument(
+        "--max-diff", type=float, default=0.02, help="colour-depth pairing tolerance in seconds (default 0.02)"
+    )
+    p.add_argument(
+        "--max-depth",
+        type=float,
+        help="depth range in metres; farther is 'no return' (default 13.107, the 16-bit limit)",
+    )
+    p.add_argument(
+        "--intrinsics",
+        metavar="FX,FY,CX,CY",
+        help="the colour camera's intrinsics in pixels, for a bag without CameraInfo (instead of --camera-info)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     p.set_defaults(func=cmd_import)
 
     p = sub.add_parser("demo", help="the demo route at large noise with every method: a table and a plot")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("--route", default="demo", help="route name (see `longslam list`) or a waypoint file (default demo)")
-    p.add_argument("--noise", default="large", help="odometry noise level: none, small, medium, large, xlarge (default large)")
+    p.add_argument(
+        "--noise", default="large", help="odometry noise level: none, small, medium, large, xlarge (default large)"
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the odometry noise (default 0)")
-    p.add_argument("--viz", nargs="?", const="viewer", metavar="FILE.rrd",
-                   help="show each method's run live in a rerun viewer, or record FILE-<method>.rrd (needs longslam[viz])")
+    p.add_argument(
+        "--viz",
+        nargs="?",
+        const="viewer",
+        metavar="FILE.rrd",
+        help="show each method's run live in a rerun viewer, or record FILE-<method>.rrd (needs longslam[viz])",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace existing FILE-<method>.rrd recordings")
     _camera_args(p)
     p.set_defaults(func=cmd_demo)
@@ -704,25 +961,42 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("study", help="run a study file (routes x noise levels x methods x seeds) and write its report")
     p.add_argument("file", help="study file (TOML), e.g. studies/quick.toml")
     p.add_argument("--out", required=True, help="study folder: results database, runs, report (resumes if it exists)")
-    p.add_argument("--executor", default="local", choices=("local", "ray"), help="local processes (default) or a Ray cluster")
-    p.add_argument("--address", help="Ray cluster address (e.g. ray://head:10001 or head:6379); default: start Ray locally")
-    p.add_argument("--jobs", type=int, help="cores the study's runs may keep busy at once (default: this machine's cores, or the Ray "
-                        "cluster's CPUs); a run takes its method's cores (1 for keyframe, submap and odometry; "
-                        "3, capped at --jobs, for orbslam3), so nothing runs beside a run that needs them all")
+    p.add_argument(
+        "--executor", default="local", choices=("local", "ray"), help="local processes (default) or a Ray cluster"
+    )
+    p.add_argument(
+        "--address", help="Ray cluster address (e.g. ray://head:10001 or head:6379); default: start Ray locally"
+    )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        help="cores the study's runs may keep busy at once (default: this machine's cores, or the Ray "
+        "cluster's CPUs); a run takes its method's cores (1 for keyframe, submap and odometry; "
+        "3, capped at --jobs, for orbslam3), so nothing runs beside a run that needs them all",
+    )
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded with an error")
-    p.add_argument("--retry-starved", action="store_true",
-                   help="run again the runs whose threads waited for a CPU for more than 10%% of their time "
-                        "(cpu_wait_share over 0.10: the report marks them starved)")
+    p.add_argument(
+        "--retry-starved",
+        action="store_true",
+        help="run again the runs whose threads waited for a CPU for more than 10%% of their time "
+        "(cpu_wait_share over 0.10: the report marks them starved)",
+    )
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
-    p.add_argument("--extend", action="store_true",
-                   help="add this study's runs to a folder that holds another study (another name, routes, noise "
-                        "levels, methods or seeds); without it such a folder is refused")
+    p.add_argument(
+        "--extend",
+        action="store_true",
+        help="add this study's runs to a folder that holds another study (another name, routes, noise "
+        "levels, methods or seeds); without it such a folder is refused",
+    )
     p.set_defaults(func=cmd_study)
 
     p = sub.add_parser("report", help="write report.md and report.html of a study folder")
     p.add_argument("dir", help="study folder (holds results.sqlite)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace a report.md or report.html that longslam did not write (its own are always rewritten)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a report.md or report.html that longslam did not write (its own are always rewritten)",
+    )
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("vocabulary", help="ORB vocabularies (DBoW2 text format) for ORB-SLAM3")
@@ -736,17 +1010,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--k", type=int, default=10, help="branching factor (default 10)")
     p.add_argument("--levels", type=int, default=5, help="depth levels L (default 5: up to k^L = 100000 words)")
     p.add_argument("--seed", type=int, default=0, help="seed of the k-means++ draws (default 0)")
-    p.add_argument("--features", type=int, default=1000, help="ORB features per frame (default 1000, as ORB-SLAM3's TUM settings)")
+    p.add_argument(
+        "--features", type=int, default=1000, help="ORB features per frame (default 1000, as ORB-SLAM3's TUM settings)"
+    )
     p.add_argument("--frames-every", type=int, default=1, metavar="N", help="take every N-th frame (default 1)")
-    p.add_argument("--max-frames", type=int, default=1000,
-                   help="at most this many frames, spread evenly over the sequence (default 1000)")
+    p.add_argument(
+        "--max-frames",
+        type=int,
+        default=1000,
+        help="at most this many frames, spread evenly over the sequence (default 1000)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing file")
     _camera_args(p)
     p.set_defaults(func=cmd_vocabulary_build)
 
-    p = sub.add_parser("list", help="list worlds, routes, noise levels, methods, sensors and perturbations, or a method's parameters")
-    p.add_argument("--params", dest="params_of", metavar="METHOD",
-                   help="list the method's parameters: default, allowed values and what each does")
+    p = sub.add_parser(
+        "list", help="list worlds, routes, noise levels, methods, sensors and perturbations, or a method's parameters"
+    )
+    p.add_argument(
+        "--params",
+        dest="params_of",
+        metavar="METHOD",
+        help="list the method's parameters: default, allowed values and what each does",
+    )
     p.set_defaults(func=cmd_list)
     add_common_options(parser)  # last, so that every subcommand has them (also after the command)
     from longslam.cli.complete import attach_completers
@@ -785,8 +1071,13 @@ def _value_options(parser: argparse.ArgumentParser) -> set[str]:
         if isinstance(action, argparse._SubParsersAction):
             for sub in action.choices.values():
                 found |= _value_options(sub)
-        elif action.option_strings and action.nargs is None and not isinstance(
-                action, (argparse._StoreTrueAction, argparse._StoreFalseAction, argparse._StoreConstAction)):
+        elif (
+            action.option_strings
+            and action.nargs is None
+            and not isinstance(
+                action, (argparse._StoreTrueAction, argparse._StoreFalseAction, argparse._StoreConstAction)
+            )
+        ):
             found.update(action.option_strings)
     return found
 
@@ -798,8 +1089,13 @@ def _glue_negative_values(argv: list[str], options: set[str]) -> list[str]:
     i = 0
     while i < len(argv):
         token = argv[i]
-        if token in options and i + 1 < len(argv) and len(argv[i + 1]) > 1 and argv[i + 1][0] == "-" \
-                and (argv[i + 1][1].isdigit() or argv[i + 1][1] == "."):
+        if (
+            token in options
+            and i + 1 < len(argv)
+            and len(argv[i + 1]) > 1
+            and argv[i + 1][0] == "-"
+            and (argv[i + 1][1].isdigit() or argv[i + 1][1] == ".")
+        ):
             out.append(f"{token}={argv[i + 1]}")
             i += 2
             continue

@@ -23,10 +23,21 @@ _REQUIRED = "the following arguments are required"
 
 COMMON_OPTIONS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
     (("--debug",), {"action": "store_true", "help": "show the full traceback of an error"}),
-    (("-v", "--verbose"), {"action": "count", "help": "say more: -v where a route's frames come from and what a run uses, -vv debugging detail"}),
-    (("--quiet",), {"action": "store_true", "help": "print only results, warnings and errors: no progress bars, no notes"}),
-    (("--no-progress",), {"action": "store_true",
-                          "help": "draw no progress bars (they are never drawn when stderr is not a terminal)"}),
+    (
+        ("-v", "--verbose"),
+        {
+            "action": "count",
+            "help": "say more: -v where a route's frames come from and what a run uses, -vv debugging detail",
+        },
+    ),
+    (
+        ("--quiet",),
+        {"action": "store_true", "help": "print only results, warnings and errors: no progress bars, no notes"},
+    ),
+    (
+        ("--no-progress",),
+        {"action": "store_true", "help": "draw no progress bars (they are never drawn when stderr is not a terminal)"},
+    ),
 ]
 
 
@@ -41,7 +52,9 @@ class Parser(argparse.ArgumentParser):
             hint = did_you_mean(value, [str(c) for c in action.choices])
             raise argparse.ArgumentError(action, f"invalid choice: {value!r}{hint}; choose from {choices}")
 
-    def parse_known_args(self, args: Any = None, namespace: Any = None) -> tuple[Any, list[str]]:  # Any: the namespace given, or a new one
+    def parse_known_args(
+        self, args: Any = None, namespace: Any = None
+    ) -> tuple[Any, list[str]]:  # Any: the namespace given, or a new one
         # Kept for `error`: argparse checks required options before it reports unknown ones.
         self._given = list(args) if args is not None else []
         return super().parse_known_args(args, namespace)

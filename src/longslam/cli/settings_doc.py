@@ -48,8 +48,11 @@ def describe(cls: type, prefix: str = "") -> list[Parameter]:
             nested.extend(describe(kind, f"{prefix}{f.name}."))
             continue
         default = getattr(base, f.name)
-        out.append(Parameter(f"{prefix}{f.name}", default, allowed_values(cls, base, f.name, kind, optional),
-                             docs.get(f.name, "")))
+        out.append(
+            Parameter(
+                f"{prefix}{f.name}", default, allowed_values(cls, base, f.name, kind, optional), docs.get(f.name, "")
+            )
+        )
     return out + nested
 
 
@@ -100,7 +103,7 @@ def field_docs(cls: type) -> dict[str, str]:
 
 def _first_sentence(text: str) -> str:
     match = re.search(r"(?<=[a-z0-9)\]])[.:;](\s|$)", text)
-    return text[:match.start()].strip() if match else text.strip()
+    return text[: match.start()].strip() if match else text.strip()
 
 
 # --- the allowed values: asked of the config -------------------------------------------------

@@ -24,8 +24,10 @@ class UnknownNameError(InputError, KeyError):
         self.valid = sorted(valid)
         from longslam.core.suggest import did_you_mean
 
-        super().__init__(f"unknown {kind} {name!r}{did_you_mean(name, [*self.valid, *close])}; "
-                         f"valid {kind} names: {', '.join(self.valid)}" + (f"; {hint}" if hint else ""))
+        super().__init__(
+            f"unknown {kind} {name!r}{did_you_mean(name, [*self.valid, *close])}; "
+            f"valid {kind} names: {', '.join(self.valid)}" + (f"; {hint}" if hint else "")
+        )
 
     def __str__(self) -> str:  # KeyError would otherwise quote the message
         return self.args[0]

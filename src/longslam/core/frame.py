@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -42,8 +41,12 @@ class Intrinsics:
     def from_dict(cls, data: dict, source: str = "intrinsics") -> "Intrinsics":
         try:
             return cls(
-                int(data["width"]), int(data["height"]), float(data["fx"]), float(data["fy"]),
-                float(data["cx"]), float(data["cy"]),
+                int(data["width"]),
+                int(data["height"]),
+                float(data["fx"]),
+                float(data["fy"]),
+                float(data["cx"]),
+                float(data["cy"]),
             )
         except KeyError as missing:
             raise InputError(f"{source}: missing field {missing} (expected width, height, fx, fy, cx, cy)") from None

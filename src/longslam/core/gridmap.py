@@ -7,7 +7,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
 UNKNOWN, FREE, OCCUPIED = -1, 0, 100
 
 

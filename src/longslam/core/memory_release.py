@@ -15,7 +15,6 @@ import functools
 import gc
 import sys
 
-
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters (malloc.h)
 LARGE_BLOCK = 1 << 20  # bytes: blocks this large or larger get pages of their own
 # Bytes of free memory at the heap's top kept for the next allocations rather than returned.

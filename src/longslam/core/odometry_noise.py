@@ -59,8 +59,12 @@ def noise_of_meta(meta: dict, where: Path) -> BiasNoise:
     """The noise model the sequence's odometry was drawn with, from meta.json."""
     if "noise_linear_std" in meta and "noise_angular_std_deg" in meta:
         try:
-            return BiasNoise(str(meta.get("noise", "sequence")), float(meta["noise_linear_std"]),
-                             float(meta["noise_angular_std_deg"]), float(meta.get("noise_redraw_period_s", 10.0)))
+            return BiasNoise(
+                str(meta.get("noise", "sequence")),
+                float(meta["noise_linear_std"]),
+                float(meta["noise_angular_std_deg"]),
+                float(meta.get("noise_redraw_period_s", 10.0)),
+            )
         except (TypeError, ValueError):
             raise InputError(f"{where}/meta.json: noise_linear_std and noise_angular_std_deg must be numbers") from None
     if "noise" in meta:

@@ -45,8 +45,7 @@ def failure(err: BaseException) -> str:
 
 
 class Registry(Generic[T]):
-    def __init__(self, kind: str, entry_point_group: str | None = None,
-                 accept: Callable[[str, Any], T] | None = None):
+    def __init__(self, kind: str, entry_point_group: str | None = None, accept: Callable[[str, Any], T] | None = None):
         """`kind` names an item in messages ("method", "sensor"); `entry_point_group` is where
         plugins declare theirs (None: built-ins only); `accept(name, loaded)` turns what a
         plugin's entry point loads into an item, raising for what it cannot use."""
@@ -80,8 +79,9 @@ class Registry(Generic[T]):
         # Keyed on sys.path: a package made importable later (a test, a notebook) is then found.
         key = tuple(sys.path)
         if key not in self._plugins_by_path:
-            self._plugins_by_path[key] = {ep.name: ep for ep in entry_points(group=self.entry_point_group)
-                                          if ep.name not in self._items}
+            self._plugins_by_path[key] = {
+                ep.name: ep for ep in entry_points(group=self.entry_point_group) if ep.name not in self._items
+            }
         return self._plugins_by_path[key]
 
     def builtin_names(self) -> list[str]:
@@ -120,8 +120,9 @@ class Registry(Generic[T]):
         try:
             loaded = entry.load()
         except (Exception, SystemExit) as err:
-            raise InputError(f"{self.kind} {name!r}: entry point {entry.value} cannot be loaded "
-                             f"({failure(err)})") from None
+            raise InputError(
+                f"{self.kind} {name!r}: entry point {entry.value} cannot be loaded " f"({failure(err)})"
+            ) from None
         if self._accept is None:
             return loaded  # type: ignore[no-any-return]
         return self._accept(name, loaded)

@@ -121,7 +121,9 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
         kind, optional = _field_type(cls, key)
         if typed and isinstance(raw, str) and kind in (int, float, bool):
             expected = {bool: "true or false", int: "a whole number"}.get(kind, "a finite number")
-            raise InputError(f"{what}: parameter {key}={raw!r}: expected {expected}, got a string (write it without quotes)")
+            raise InputError(
+                f"{what}: parameter {key}={raw!r}: expected {expected}, got a string (write it without quotes)"
+            )
         try:
             converted[key] = convert(raw, kind, optional)
         except ValueError as err:
@@ -129,7 +131,9 @@ def from_mapping(cls: type[C], values: Mapping[str, Any], what: str, base: C | N
     if nested:
         start = base if base is not None else cls()
         for head, sub in nested.items():
-            converted[head] = from_mapping(type(getattr(start, head)), sub, f"{what}: {head}", getattr(start, head), typed)
+            converted[head] = from_mapping(
+                type(getattr(start, head)), sub, f"{what}: {head}", getattr(start, head), typed
+            )
     if base is not None:
         return dataclasses.replace(base, **converted)
     return cls(**converted)
@@ -226,5 +230,7 @@ def check_limits(config: Any, limits: Mapping[str, tuple[float, float, str, str]
     for name, (least, most, unit, why) in limits.items():
         value = getattr(config, name)
         if not least <= value <= most:
-            raise InputError(f"{what}: parameter {name} must be from {least:g} to {most:g}"
-                             f"{' ' + unit if unit else ''} ({why}), got {value:g}")
+            raise InputError(
+                f"{what}: parameter {name} must be from {least:g} to {most:g}"
+                f"{' ' + unit if unit else ''} ({why}), got {value:g}"
+            )

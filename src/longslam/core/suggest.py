@@ -1,4 +1,4 @@
-""""Did you mean" for a name a user typed: the closest valid names, by difflib's ratio."""
+""" "Did you mean" for a name a user typed: the closest valid names, by difflib's ratio."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ def close_names(name: str, valid: Iterable[str], n: int = 3) -> list[str]:
 
 
 def did_you_mean(name: str, valid: Iterable[str], quote: bool = True) -> str:
-    """" (did you mean 'x'?)" (or "'x' or 'y'"), or "" when no valid name is close."""
+    """ " (did you mean 'x'?)" (or "'x' or 'y'"), or "" when no valid name is close."""
     close = close_names(name, valid)
     if not close:
         return ""

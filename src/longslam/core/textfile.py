@@ -13,8 +13,9 @@ from longslam.core.file_kinds import special_file_kind
 _CHUNK = 1 << 20
 
 
-def read_text(path: Path, what: str, hint: str = "", encoding: str = "utf-8",
-              error: type[InputError] = InputError) -> str:
+def read_text(
+    path: Path, what: str, hint: str = "", encoding: str = "utf-8", error: type[InputError] = InputError
+) -> str:
     """The file's text; a missing or unreadable file is an `error` (an InputError) naming `what`
     and the path."""
     try:
@@ -25,8 +26,9 @@ def read_text(path: Path, what: str, hint: str = "", encoding: str = "utf-8",
         raise error(f"{what} {path} cannot be read: {err}") from None
 
 
-def read_bounded_text(path: Path, what: str, max_bytes: int, max_line: int, stream: BinaryIO | None = None,
-                      name: str | None = None) -> str:
+def read_bounded_text(
+    path: Path, what: str, max_bytes: int, max_line: int, stream: BinaryIO | None = None, name: str | None = None
+) -> str:
     """The UTF-8 text of a file (or of `stream`, stdin say, `name` naming it), read a block at a
     time and refused as soon as it is not a text of this kind: a NUL byte, a line longer than
     `max_line` bytes, or more than `max_bytes` in all. So `/dev/zero`, or a stream that never
@@ -58,8 +60,10 @@ def read_bounded_text(path: Path, what: str, max_bytes: int, max_line: int, stre
             block = block.encode("utf-8", "surrogateescape")
         size += len(block)
         if size > max_bytes:
-            raise InputError(f"{what} {name} is larger than {max_bytes / 1e6:g} MB; expected a {what} "
-                             f"(stopped reading at line {line})")
+            raise InputError(
+                f"{what} {name} is larger than {max_bytes / 1e6:g} MB; expected a {what} "
+                f"(stopped reading at line {line})"
+            )
         nul = block.find(b"\0")
         if nul >= 0:
             at = line + block.count(b"\n", 0, nul)

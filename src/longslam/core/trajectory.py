@@ -25,9 +25,7 @@ class Trajectory:
         if poses.ndim != 3 or poses.shape[1:] != (4, 4):
             raise TrajectoryError(f"poses{where} must have shape (N, 4, 4), got {poses.shape}")
         if len(stamps) != len(poses):
-            raise TrajectoryError(
-                f"trajectory{where} has {len(stamps)} timestamps but {len(poses)} poses"
-            )
+            raise TrajectoryError(f"trajectory{where} has {len(stamps)} timestamps but {len(poses)} poses")
         if not np.all(np.isfinite(stamps)):
             raise TrajectoryError(f"trajectory{where} has non-finite timestamps (NaN or inf)")
         bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=(1, 2)))

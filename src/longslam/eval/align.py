@@ -18,10 +18,10 @@ from __future__ import annotations
 import numpy as np
 
 from longslam.core.errors import InputError, UnknownNameError
-from longslam.eval.sync import require_same_length
 from longslam.core.geometry import invert
 from longslam.core.geometry.fit import umeyama  # noqa: F401  (re-exported: evaluation's alignment)
 from longslam.core.trajectory import Trajectory
+from longslam.eval.sync import require_same_length
 
 ALIGN_MODES = ("none", "se3", "sim3", "scale", "origin")
 
@@ -35,8 +35,10 @@ def alignment_mode(align: str | bool = "none", correct_scale: bool = False, alig
     if align_origin:
         if mode not in ("none", "origin") or correct_scale:
             # evo refuses the same: an origin alignment and a least-squares one contradict.
-            raise InputError(f"align_origin cannot be combined with align={mode!r}"
-                             f"{' and correct_scale' if correct_scale else ''}; choose one alignment")
+            raise InputError(
+                f"align_origin cannot be combined with align={mode!r}"
+                f"{' and correct_scale' if correct_scale else ''}; choose one alignment"
+            )
         return "origin"
     if correct_scale:
         if mode == "origin":
@@ -70,8 +72,9 @@ def alignment(
         to_origin = reference.poses[0] @ invert(estimate.poses[0])
         return to_origin[:3, :3], to_origin[:3, 3], 1.0
     n = _checked_n(n_to_align, len(estimate))
-    rotation, translation, scale = umeyama(estimate.positions[:n], reference.positions[:n],
-                                           with_scale=mode in ("sim3", "scale"))
+    rotation, translation, scale = umeyama(
+        estimate.positions[:n], reference.positions[:n], with_scale=mode in ("sim3", "scale")
+    )
     if mode == "scale":
         return np.eye(3), np.zeros(3), scale
     return rotation, translation, scale

@@ -28,7 +28,7 @@ def pairs_by_angle(
         firsts, seconds = [], []
         for i in range(len(rotations) - 1):
             # One row of the O(N^2) search at a time: memory stays O(N).
-            angle = rotation_angle_rad(np.swapaxes(rotations[i], 0, 1)[None] @ rotations[i + 1:])
+            angle = rotation_angle_rad(np.swapaxes(rotations[i], 0, 1)[None] @ rotations[i + 1 :])
             js = np.flatnonzero((delta - tol <= angle) & (angle <= delta + tol)) + i + 1
             firsts.append(np.full(len(js), i))
             seconds.append(js)

@@ -58,8 +58,12 @@ def error_parts(truth_xyyaw: np.ndarray, estimate_xyyaw: np.ndarray) -> ErrorPar
     d = estimate[:, :2] - truth[:, :2]
     c, s = np.cos(truth[:, 2]), np.sin(truth[:, 2])
     distance = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(truth[:, :2], axis=0), axis=1))])
-    return ErrorParts(distance, np.degrees(wrap_angle(estimate[:, 2] - truth[:, 2])),
-                      d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c)
+    return ErrorParts(
+        distance,
+        np.degrees(wrap_angle(estimate[:, 2] - truth[:, 2])),
+        d[:, 0] * c + d[:, 1] * s,
+        -d[:, 0] * s + d[:, 1] * c,
+    )
 
 
 @dataclass(frozen=True)
@@ -83,7 +87,7 @@ def held_translation_error(delta: np.ndarray, error_in_i: np.ndarray, informatio
     covariance = np.linalg.inv(information + 1e-12 * np.eye(3))[:2, :2]
     variances, directions = np.linalg.eigh(0.5 * (covariance + covariance.T))
     for variance, direction in zip(variances, directions.T):
-        if variance > FREE_SIGMA_M ** 2:
+        if variance > FREE_SIGMA_M**2:
             error = error - (error @ direction) * direction
     return float(np.hypot(error[0], error[1]))
 
@@ -128,9 +132,13 @@ class Stretch:
     dominant: str  # loops, scans, visual or wheels (see the module's docstring); "" if unknown
 
 
-def stretches(parts: ErrorParts, length_m: float, regions: list[str] | None = None,
-              frame_table: dict[str, np.ndarray] | None = None,
-              loops: list[LoopError] | None = None) -> list[Stretch]:
+def stretches(
+    parts: ErrorParts,
+    length_m: float,
+    regions: list[str] | None = None,
+    frame_table: dict[str, np.ndarray] | None = None,
+    loops: list[LoopError] | None = None,
+) -> list[Stretch]:
     """The route cut every `length_m` of distance travelled (the last stretch may be shorter).
 
     `regions` names each frame's place (see `regions_of`); `frame_table` holds the front end's
@@ -147,13 +155,17 @@ def stretches(parts: ErrorParts, length_m: float, regions: list[str] | None = No
         frames = slice(a, b + 1)
         region = ""
         if regions is not None:
-            names, counts = np.unique(np.asarray(regions[a:b + 1], dtype=object).astype(str), return_counts=True)
+            names, counts = np.unique(np.asarray(regions[a : b + 1], dtype=object).astype(str), return_counts=True)
             region = str(names[np.argmax(counts)]) if len(names) else ""
         shares: tuple[float | None, float | None, float | None, float | None] = (None, None, None, None)
         if frame_table is not None:
             scan = frame_table["scan"][frames]
-            shares = (float(np.mean(scan > 0)), float(np.mean(scan < 0)),
-                      float(np.mean(frame_table["visual"][frames] > 0)), float(np.sum(frame_table["scan_shift_m"][frames])))
+            shares = (
+                float(np.mean(scan > 0)),
+                float(np.mean(scan < 0)),
+                float(np.mean(frame_table["visual"][frames] > 0)),
+                float(np.sum(frame_table["scan_shift_m"][frames])),
+            )
         here = [lp for lp in (loops or []) if a <= lp.frame_i <= b or a <= lp.frame_j <= b]
         dominant = ""
         if here:
@@ -161,13 +173,20 @@ def stretches(parts: ErrorParts, length_m: float, regions: list[str] | None = No
         elif frame_table is not None:
             assert shares[0] is not None and shares[2] is not None  # set from the front-end table above
             dominant = "scans" if shares[0] >= 0.5 else "visual" if shares[2] >= 0.5 else "wheels"
-        out.append(Stretch(
-            float(start), float(end), region,
-            float(abs(parts.heading_deg[b]) - abs(parts.heading_deg[a])),
-            float(abs(parts.along_m[b]) - abs(parts.along_m[a])),
-            float(abs(parts.across_m[b]) - abs(parts.across_m[a])),
-            *shares, len(here), sum(lp.wrong for lp in here), dominant,
-        ))
+        out.append(
+            Stretch(
+                float(start),
+                float(end),
+                region,
+                float(abs(parts.heading_deg[b]) - abs(parts.heading_deg[a])),
+                float(abs(parts.along_m[b]) - abs(parts.along_m[a])),
+                float(abs(parts.across_m[b]) - abs(parts.across_m[a])),
+                *shares,
+                len(here),
+                sum(lp.wrong for lp in here),
+                dominant,
+            )
+        )
     return out
 
 

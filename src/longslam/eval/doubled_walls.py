@@ -38,7 +38,7 @@ def _near(mask: np.ndarray, radius_cells: float) -> np.ndarray:
     dilation by the disk of that radius, what thresholding the distance transform gives, at a
     tenth of its time for the few cells of a tolerance."""
     reach = int(np.floor(radius_cells + 1e-9))
-    di, dj = np.mgrid[-reach:reach + 1, -reach:reach + 1]
+    di, dj = np.mgrid[-reach : reach + 1, -reach : reach + 1]
     disk = np.sqrt(di * di + dj * dj) <= radius_cells + 1e-9
     return ndimage.binary_dilation(mask, structure=disk)
 
@@ -93,7 +93,8 @@ def doubled_walls(
     if not (tolerance > 0 and 0 < min_gap < max_gap and run_length > 0 and 0 < support <= 1):
         raise InputError(
             f"doubled_walls needs tolerance > 0, 0 < min_gap < max_gap, run_length > 0 and 0 < support <= 1; "
-            f"got tolerance={tolerance}, min_gap={min_gap}, max_gap={max_gap}, run_length={run_length}, support={support}"
+            f"got tolerance={tolerance}, min_gap={min_gap}, max_gap={max_gap}, run_length={run_length}, "
+            f"support={support}"
         )
     true_walls = truth.data == OCCUPIED
     if observed is not None:
@@ -120,9 +121,9 @@ def doubled_walls(
     truth_flat = np.append(truth_near.ravel(), False)
     doubled = np.zeros(len(cells), bool)
     for start in range(0, len(cells), chunk):
-        rc = cells[start:start + chunk]
+        rc = cells[start : start + chunk]
         cx, cy = truth.cell_to_world(rc).T  # (C,) each
-        nx, ny = normals[start:start + chunk].T
+        nx, ny = normals[start : start + chunk].T
         tx, ty = -ny, nx
         # Sample points (C, offsets, along), per coordinate.
         x = (cx[:, None, None] + offsets[None, :, None] * nx[:, None, None]) + along[None, None, :] * tx[:, None, None]
@@ -140,5 +141,5 @@ def doubled_walls(
             order = order[np.argsort(np.abs(offsets[order]))]  # outwards from the wall
             fake |= _unexplained_run(map_run[:, order], true_run[:, order], np.abs(offsets[order]) >= min_gap)
         defined = (nx != 0) | (ny != 0)
-        doubled[start:start + chunk] = shown & fake & defined
+        doubled[start : start + chunk] = shown & fake & defined
     return float(doubled.mean()), truth.cell_to_world(cells[doubled])

@@ -12,20 +12,26 @@ estimate), so an estimate that stalls or jumps does not change which segments ar
 from __future__ import annotations
 
 import inspect
-
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from longslam.core.errors import InputError
+from longslam.core.trajectory import Trajectory
 from longslam.eval.align import alignment, alignment_mode, transform_trajectory
 from longslam.eval.metrics import (
-    MIN_STEP, _local_steps, ate, delta_unit_letter, relative_errors, rpe_errors, rpe_pairs, statistics,
+    MIN_STEP,
+    _local_steps,
+    ate,
+    delta_unit_letter,
+    relative_errors,
+    rpe_errors,
+    rpe_pairs,
+    statistics,
 )
 from longslam.eval.relations import ape_relation_errors, check_relation, rpe_relation_errors
 from longslam.eval.sync import associate, require_same_length
-from longslam.core.trajectory import Trajectory
 
 DEFAULT_T_MAX_DIFF = 0.01  # seconds, evo's --t_max_diff default
 
@@ -69,8 +75,9 @@ def evaluate_full(
 ) -> Evaluation:
     """`evaluate` with the arrays behind its scores."""
     if t_max_diff is not None or t_offset != 0.0:
-        reference, estimate = associate(reference, estimate, DEFAULT_T_MAX_DIFF if t_max_diff is None else t_max_diff,
-                                        t_offset)
+        reference, estimate = associate(
+            reference, estimate, DEFAULT_T_MAX_DIFF if t_max_diff is None else t_max_diff, t_offset
+        )
     require_same_length(reference, estimate, minimum=2)
     if not min_step > 0.0:
         raise InputError(f"min_step must be a length > 0 m, got {min_step}")
@@ -133,8 +140,16 @@ def evaluate_full(
         "align_scale": float(scale),
         "n_to_align": int(n_to_align) if mode not in ("none", "origin") else -1,
     }
-    return Evaluation(scores, reference, estimate, aligned, ape_errors, rpe_values, rpe_ids,
-                      None if mode == "none" else _sim3(rotation, translation, scale))
+    return Evaluation(
+        scores,
+        reference,
+        estimate,
+        aligned,
+        ape_errors,
+        rpe_values,
+        rpe_ids,
+        None if mode == "none" else _sim3(rotation, translation, scale),
+    )
 
 
 def evaluate(reference: Trajectory, estimate: Trajectory, *args: Any, **options: Any) -> dict:

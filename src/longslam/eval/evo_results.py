@@ -18,13 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
+from longslam.core.trajectory import Trajectory
 from longslam.eval.evaluation import Evaluation
 from longslam.eval.metrics import DELTA_UNIT_LABELS  # evo's Unit values for frames, m, deg, rad
 from longslam.eval.relations import EVO_NAMES, RELATION_UNITS
 from longslam.io.atomic import atomic_path
 from longslam.io.trajectory_files import format_tum
-from longslam.core.trajectory import Trajectory
-
 
 
 def _evo_unit(relation: str) -> str:
@@ -34,8 +33,13 @@ def _evo_unit(relation: str) -> str:
 def _alignment_note(evaluation: Evaluation) -> str:
     """The line evo_ape / evo_rpe add to a title for the alignment."""
     mode, n = evaluation.scores["align"], evaluation.scores["n_to_align"]
-    note = {"se3": "\n(with SE(3) Umeyama alignment)", "sim3": "\n(with Sim(3) Umeyama alignment)",
-            "scale": "\n(scale corrected)", "none": "\n(not aligned)", "origin": "\n(with origin alignment)"}[mode]
+    note = {
+        "se3": "\n(with SE(3) Umeyama alignment)",
+        "sim3": "\n(with Sim(3) Umeyama alignment)",
+        "scale": "\n(scale corrected)",
+        "none": "\n(not aligned)",
+        "origin": "\n(with origin alignment)",
+    }[mode]
     if mode in ("se3", "sim3", "scale") and n != -1:
         note += f" (aligned poses: {n})"
     return note
@@ -44,14 +48,24 @@ def _alignment_note(evaluation: Evaluation) -> str:
 def _stats(errors: np.ndarray) -> dict[str, float]:
     # evo's StatisticsType order; sse as well, which evo_res shows.
     return {
-        "rmse": float(np.sqrt(np.mean(errors**2))), "mean": float(np.mean(errors)),
-        "median": float(np.median(errors)), "std": float(np.std(errors)), "min": float(np.min(errors)),
-        "max": float(np.max(errors)), "sse": float(np.sum(errors**2)),
+        "rmse": float(np.sqrt(np.mean(errors**2))),
+        "mean": float(np.mean(errors)),
+        "median": float(np.median(errors)),
+        "std": float(np.std(errors)),
+        "min": float(np.min(errors)),
+        "max": float(np.max(errors)),
+        "sse": float(np.sum(errors**2)),
     }
 
 
-def _write_zip(out: str | Path, info: dict, stats: dict, arrays: dict[str, np.ndarray],
-               trajectories: dict[str, Trajectory], overwrite: bool) -> Path:
+def _write_zip(
+    out: str | Path,
+    info: dict,
+    stats: dict,
+    arrays: dict[str, np.ndarray],
+    trajectories: dict[str, Trajectory],
+    overwrite: bool,
+) -> Path:
     out = Path(out)
     with atomic_path(out, overwrite=overwrite) as tmp:
         with zipfile.ZipFile(tmp, "w") as archive:
@@ -66,13 +80,18 @@ def _write_zip(out: str | Path, info: dict, stats: dict, arrays: dict[str, np.nd
     return out
 
 
-def save_ape_result(evaluation: Evaluation, out: str | Path, ref_name: str, est_name: str,
-                    overwrite: bool = False) -> Path:
+def save_ape_result(
+    evaluation: Evaluation, out: str | Path, ref_name: str, est_name: str, overwrite: bool = False
+) -> Path:
     """Write the APE of `evaluation` as `evo_ape --save_results` would."""
     relation = evaluation.scores["ape_pose_relation"]
     unit = _evo_unit(relation)
-    info = {"title": f"APE w.r.t. {EVO_NAMES[relation]} ({unit})" + _alignment_note(evaluation),
-            "ref_name": ref_name, "est_name": est_name, "label": f"APE ({unit})"}
+    info = {
+        "title": f"APE w.r.t. {EVO_NAMES[relation]} ({unit})" + _alignment_note(evaluation),
+        "ref_name": ref_name,
+        "est_name": est_name,
+        "label": f"APE ({unit})",
+    }
     est = evaluation.aligned
     arrays = {
         "error_array": evaluation.ape_errors,
@@ -87,8 +106,9 @@ def save_ape_result(evaluation: Evaluation, out: str | Path, ref_name: str, est_
     return _write_zip(out, info, _stats(evaluation.ape_errors), arrays, trajectories, overwrite)
 
 
-def save_rpe_result(evaluation: Evaluation, out: str | Path, ref_name: str, est_name: str,
-                    overwrite: bool = False) -> Path:
+def save_rpe_result(
+    evaluation: Evaluation, out: str | Path, ref_name: str, est_name: str, overwrite: bool = False
+) -> Path:
     """Write the RPE of `evaluation` as `evo_rpe --save_results` would (pairs' poses only)."""
     from longslam.core.errors import TrajectoryError
 
@@ -98,8 +118,11 @@ def save_rpe_result(evaluation: Evaluation, out: str | Path, ref_name: str, est_
     relation = s["pose_relation"]
     unit = _evo_unit(relation)
     delta = s["rpe_delta"]
-    title = (f"RPE w.r.t. {EVO_NAMES[relation]} ({unit})\nfor delta = {delta} ({DELTA_UNIT_LABELS[s['rpe_delta_unit']]})"
-             + (" using all pairs" if s["rpe_all_pairs"] else " using consecutive pairs") + _alignment_note(evaluation))
+    title = (
+        f"RPE w.r.t. {EVO_NAMES[relation]} ({unit})\nfor delta = {delta} ({DELTA_UNIT_LABELS[s['rpe_delta_unit']]})"
+        + (" using all pairs" if s["rpe_all_pairs"] else " using consecutive pairs")
+        + _alignment_note(evaluation)
+    )
     info = {"title": title, "ref_name": ref_name, "est_name": est_name, "label": f"RPE ({unit})"}
     # As evo: the trajectories reduced to pose 0 and each pair's second pose; the arrays skip pose 0.
     ids = np.concatenate([[0], evaluation.rpe_ids]).astype(int)

@@ -137,8 +137,11 @@ def align_map(
     # ICP minimises squared distances, the score counts points within the tolerance: keep
     # whichever of the start, the coarse optimum and the ICP result scores best.
     coarse_rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
-    candidates = [(np.eye(2), np.zeros(2)), (coarse_rotation, centre - coarse_rotation @ centre + shift),
-                  (rotation, translation)]
+    candidates = [
+        (np.eye(2), np.zeros(2)),
+        (coarse_rotation, centre - coarse_rotation @ centre + shift),
+        (rotation, translation),
+    ]
     best_share, best_fit = -1.0, candidates[0]
     for rot, trans in candidates:
         distance, _ = tree.query(points @ rot.T + trans, distance_upper_bound=tolerance + 1e-9)
@@ -146,5 +149,6 @@ def align_map(
         if share > best_share + 1e-12:
             best_share, best_fit = share, (rot, trans)
     rotation, translation = best_fit
-    return PlanarAlignment(float(translation[0]), float(translation[1]),
-                           float(math.atan2(rotation[1, 0], rotation[0, 0])), best_share)
+    return PlanarAlignment(
+        float(translation[0]), float(translation[1]), float(math.atan2(rotation[1, 0], rotation[0, 0])), best_share
+    )

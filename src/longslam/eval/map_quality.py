@@ -87,7 +87,7 @@ def observed_walls(
     rows, cols = truth.data.shape
     ox, oy = truth.origin
     for start in range(0, len(poses), chunk):
-        p = poses[start:start + chunk]
+        p = poses[start : start + chunk]
         angles = p[:, 2:3] + offsets[None, :]  # (P, R)
         x = p[:, 0, None, None] + np.cos(angles)[:, :, None] * radii[None, None, :]
         y = p[:, 1, None, None] + np.sin(angles)[:, :, None] * radii[None, None, :]
@@ -194,15 +194,16 @@ def map_scores(
     aligned_walls = planar.apply(walls)
     aligned = score_points(aligned_walls, truth, tolerance, observed)
     share, places = doubled_walls(aligned_walls, truth, observed, search)
-    scores.update({
-        "map_precision_aligned": aligned["map_precision"],
-        "map_recall_aligned": aligned["map_recall"],
-        "map_f1_aligned": aligned["map_f1"],
-        "map_alignment": [planar.x, planar.y, math.degrees(planar.yaw)],
-        "map_doubled_walls": share,
-        "map_doubled_wall_cells": int(len(places)),
-    })
+    scores.update(
+        {
+            "map_precision_aligned": aligned["map_precision"],
+            "map_recall_aligned": aligned["map_recall"],
+            "map_f1_aligned": aligned["map_f1"],
+            "map_alignment": [planar.x, planar.y, math.degrees(planar.yaw)],
+            "map_doubled_walls": share,
+            "map_doubled_wall_cells": int(len(places)),
+        }
+    )
     if with_places:
         scores["map_doubled_places"] = places
     return scores
-

@@ -18,12 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.core.errors import InputError, TrajectoryError, UnknownNameError
+from longslam.core.geometry import invert
+from longslam.core.trajectory import Trajectory
 from longslam.eval.align import align_trajectory
 from longslam.eval.angle_pairs import pairs_by_angle
 from longslam.eval.pairs import consecutive_pairs
 from longslam.eval.sync import require_same_length
-from longslam.core.geometry import invert
-from longslam.core.trajectory import Trajectory
 
 MIN_STEP = 0.01  # metres: ground-truth steps shorter than this are turning in place
 # An estimated step shorter than this has no direction: positions written with 9 decimals cannot
@@ -48,9 +48,7 @@ def rotation_angle_deg(rotations: np.ndarray) -> np.ndarray:
     there too, and the tests compare to 1e-9.
     """
     r = np.asarray(rotations, dtype=np.float64)
-    skew = np.stack(
-        [r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], axis=-1
-    )
+    skew = np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], axis=-1)
     trace = np.trace(r, axis1=-2, axis2=-1)
     return np.degrees(np.arctan2(np.linalg.norm(skew, axis=-1), trace - 1.0))
 
@@ -110,9 +108,7 @@ class RelativeErrors:
     step_e_rot: np.ndarray  # (M,) angle(a_t, a~_t) / ||p_t - p_{t-1}||, degrees per metre
 
 
-def relative_errors(
-    reference: Trajectory, estimate: Trajectory, min_step: float = MIN_STEP
-) -> RelativeErrors:
+def relative_errors(reference: Trajectory, estimate: Trajectory, min_step: float = MIN_STEP) -> RelativeErrors:
     """The paper's E_trans and E_rot between associated ground truth and estimate (no alignment).
 
     Raises TrajectoryError if no ground-truth step is at least `min_step` long.

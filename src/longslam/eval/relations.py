@@ -25,14 +25,23 @@ from longslam.core.trajectory import Trajectory
 APE_RELATIONS = ("trans_part", "rot_part", "full", "angle_deg", "angle_rad", "point_distance")
 RPE_RELATIONS = APE_RELATIONS + ("point_distance_error_ratio",)
 RELATION_UNITS = {
-    "trans_part": "m", "rot_part": "", "full": "", "angle_deg": "deg", "angle_rad": "rad",
-    "point_distance": "m", "point_distance_error_ratio": "%",
+    "trans_part": "m",
+    "rot_part": "",
+    "full": "",
+    "angle_deg": "deg",
+    "angle_rad": "rad",
+    "point_distance": "m",
+    "point_distance_error_ratio": "%",
 }
 # evo's PoseRelation values, which evo writes into a result's title.
 EVO_NAMES = {
-    "trans_part": "translation part", "rot_part": "rotation part", "full": "full transformation",
-    "angle_deg": "rotation angle in degrees", "angle_rad": "rotation angle in radians",
-    "point_distance": "point distance", "point_distance_error_ratio": "point distance error ratio",
+    "trans_part": "translation part",
+    "rot_part": "rotation part",
+    "full": "full transformation",
+    "angle_deg": "rotation angle in degrees",
+    "angle_rad": "rotation angle in radians",
+    "point_distance": "point distance",
+    "point_distance_error_ratio": "point distance error ratio",
 }
 
 
@@ -46,9 +55,7 @@ def check_relation(relation: str, kind: str = "RPE") -> str:
 def rotation_angle_rad(rotations: np.ndarray) -> np.ndarray:
     """Rotation angle in radians of (..., 3, 3) matrices; atan2 keeps it accurate near 0 and pi."""
     r = np.asarray(rotations, dtype=np.float64)
-    skew = np.stack(
-        [r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], axis=-1
-    )
+    skew = np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], axis=-1)
     return np.arctan2(np.linalg.norm(skew, axis=-1), np.trace(r, axis1=-2, axis2=-1) - 1.0)
 
 
@@ -86,7 +93,9 @@ def rpe_relation_errors(
             return error, second
         nonzero = ref_distance != 0
         if not np.any(nonzero):
-            raise InputError("point_distance_error_ratio: every pair's reference distance is 0 (a reference standing still)")
+            raise InputError(
+                "point_distance_error_ratio: every pair's reference distance is 0 (a reference standing still)"
+            )
         return error[nonzero] / ref_distance[nonzero] * 100, second[nonzero]
     ref_rel = invert(reference.poses[first]) @ reference.poses[second]
     est_rel = invert(estimate.poses[first]) @ estimate.poses[second]

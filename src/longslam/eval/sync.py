@@ -9,7 +9,6 @@ KITTI files, which carry no timestamps.
 
 from __future__ import annotations
 
-
 from longslam.core.errors import InputError, TrajectoryError
 from longslam.core.timestamps import one_to_one_nearest
 from longslam.core.trajectory import Trajectory

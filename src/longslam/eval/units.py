@@ -17,10 +17,21 @@ from longslam.eval.relations import RELATION_UNITS
 STATISTICS = ("rmse", "mean", "median", "std", "min", "max")
 
 FIXED = {
-    "ate": "m", "e_trans": "m/m", "e_rot": "deg/m", "rpe_trans": "m", "rpe_rot": "deg",
-    "used_steps": "count", "skipped_steps": "count", "zero_estimate_steps": "count", "rpe_pairs": "count",
-    "matched_poses": "count", "path_length": "m", "align_scale": "", "n_to_align": "count",
-    "matched_share_estimate": "", "matched_share_groundtruth_span": "",
+    "ate": "m",
+    "e_trans": "m/m",
+    "e_rot": "deg/m",
+    "rpe_trans": "m",
+    "rpe_rot": "deg",
+    "used_steps": "count",
+    "skipped_steps": "count",
+    "zero_estimate_steps": "count",
+    "rpe_pairs": "count",
+    "matched_poses": "count",
+    "path_length": "m",
+    "align_scale": "",
+    "n_to_align": "count",
+    "matched_share_estimate": "",
+    "matched_share_groundtruth_span": "",
 }
 
 

@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from longslam.core.errors import InputError
-from longslam.io.partials import partial_path
 from longslam.core.file_kinds import special_file_kind
+from longslam.io.partials import partial_path
 
 _AT_FDCWD, _RENAME_NOREPLACE = -100, 1
 # Text files are UTF-8 whatever the locale (under LANG=C without UTF-8 mode Python would write
@@ -24,8 +24,9 @@ PATH_BYTES = "surrogateescape"
 
 
 @contextmanager
-def atomic_path(path: str | Path, overwrite: bool = True,
-                may_replace: Callable[[Path], None] | None = None) -> Iterator[Path]:
+def atomic_path(
+    path: str | Path, overwrite: bool = True, may_replace: Callable[[Path], None] | None = None
+) -> Iterator[Path]:
     """Yield a temporary sibling path; on success rename it to `path`, on failure remove it.
 
     With `overwrite=False` an existing `path` is never replaced, even one that another process
@@ -88,10 +89,17 @@ def check_same_kind(tmp: Path, path: Path) -> None:
         return  # the link itself is replaced, never what it points to
     if stat.S_ISDIR(mode) == tmp.is_dir() and (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
         return
-    kind = ("a symbolic link" if stat.S_ISLNK(mode) else "a folder" if stat.S_ISDIR(mode)
-            else special_file_kind(path) or "a file")
-    raise InputError(f"{path} is {kind}, not a {'folder' if tmp.is_dir() else 'regular file'} longslam may "
-                     "replace; it was left as it is and this output discarded")
+    kind = (
+        "a symbolic link"
+        if stat.S_ISLNK(mode)
+        else "a folder"
+        if stat.S_ISDIR(mode)
+        else special_file_kind(path) or "a file"
+    )
+    raise InputError(
+        f"{path} is {kind}, not a {'folder' if tmp.is_dir() else 'regular file'} longslam may "
+        "replace; it was left as it is and this output discarded"
+    )
 
 
 def replace_file(tmp: str | Path, path: str | Path) -> None:
@@ -151,7 +159,7 @@ def name_final_folder(figures: Any, tmp: Path, out: Path) -> Any:
 
     def rename(value: Any) -> Any:
         if isinstance(value, str) and (value == prefix or value.startswith(prefix + "/")):
-            return str(out) + value[len(prefix):]
+            return str(out) + value[len(prefix) :]
         if isinstance(value, dict):
             return {k: rename(v) for k, v in value.items()}
         if isinstance(value, (list, tuple)):

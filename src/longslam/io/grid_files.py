@@ -25,8 +25,14 @@ def read_grid(path: str | Path) -> GridMap:
     path = Path(path)
     try:
         with np.load(path) as npz:
-            return GridMap(npz["data"].astype(np.int8), float(npz["resolution"]), (float(npz["origin"][0]), float(npz["origin"][1])))
+            return GridMap(
+                npz["data"].astype(np.int8),
+                float(npz["resolution"]),
+                (float(npz["origin"][0]), float(npz["origin"][1])),
+            )
     except FileNotFoundError:
         raise InputError(f"grid map file {path} does not exist") from None
     except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile) as err:  # a truncated or foreign file
-        raise InputError(f"grid map file {path} is not a longslam grid (.npz with data, resolution, origin): {err}") from None
+        raise InputError(
+            f"grid map file {path} is not a longslam grid (.npz with data, resolution, origin): {err}"
+        ) from None

@@ -36,13 +36,15 @@ def grid_pixels(grid: GridMap) -> np.ndarray:
 def map_yaml(image_name: str, grid: GridMap) -> str:
     """The map's YAML text: map_server's keys, in map_saver's order."""
     x, y = (float(v) for v in grid.origin)
-    return (f"image: {image_name}\n"
-            f"mode: trinary\n"
-            f"resolution: {float(grid.resolution)!r}\n"
-            f"origin: [{x!r}, {y!r}, 0.0]\n"
-            f"negate: 0\n"
-            f"occupied_thresh: {OCCUPIED_THRESH}\n"
-            f"free_thresh: {FREE_THRESH}\n")
+    return (
+        f"image: {image_name}\n"
+        f"mode: trinary\n"
+        f"resolution: {float(grid.resolution)!r}\n"
+        f"origin: [{x!r}, {y!r}, 0.0]\n"
+        f"negate: 0\n"
+        f"occupied_thresh: {OCCUPIED_THRESH}\n"
+        f"free_thresh: {FREE_THRESH}\n"
+    )
 
 
 def write_map_server(grid: GridMap, yaml_path: str | Path) -> tuple[Path, Path]:

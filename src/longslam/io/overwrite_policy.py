@@ -17,9 +17,18 @@ from longslam.core.file_kinds import special_file_kind
 
 # What each kind of folder holds when longslam made it. A folder with anything else in it is not
 # replaced: the extra entry may be the user's (a run kept inside a sequence, notes, a dataset).
-SEQUENCE_ENTRIES = frozenset({
-    "rgb", "depth", "rgb.txt", "depth.txt", "groundtruth.txt", "odometry.txt", "camera.json", "meta.json",
-})
+SEQUENCE_ENTRIES = frozenset(
+    {
+        "rgb",
+        "depth",
+        "rgb.txt",
+        "depth.txt",
+        "groundtruth.txt",
+        "odometry.txt",
+        "camera.json",
+        "meta.json",
+    }
+)
 SEQUENCE_MARKERS = ("meta.json", "rgb.txt")
 RUN_MARKERS = ("stats.json", "config.toml")
 BAG_MARKERS = ("metadata.yaml",)
@@ -33,8 +42,9 @@ def _real(path: str | Path) -> Path:
     return Path(os.path.realpath(os.fspath(path)))
 
 
-def check_not_an_input(out: str | Path, inputs: Mapping[str, str | Path | None], what: str,
-                       inside: bool = True) -> None:
+def check_not_an_input(
+    out: str | Path, inputs: Mapping[str, str | Path | None], what: str, inside: bool = True
+) -> None:
     """Refuse an output path that is one of the command's inputs, holds one, or (with `inside`)
     lies inside one.
 
@@ -49,8 +59,7 @@ def check_not_an_input(out: str | Path, inputs: Mapping[str, str | Path | None],
         if target == source:
             raise InputError(f"{what} {out} is the {named} itself; choose another --out")
         if target in source.parents:
-            raise InputError(f"{what} {out} holds the {named}; writing there would delete it; "
-                             "choose another --out")
+            raise InputError(f"{what} {out} holds the {named}; writing there would delete it; " "choose another --out")
         if inside and source in target.parents:
             raise InputError(f"{what} {out} is inside the {named}; write beside the input, not into it")
 
@@ -122,8 +131,10 @@ def check_replaceable(out: str | Path, kind: str, overwrite: bool, what: str | N
         raise InputError(f"{what} {out} exists already; choose another path or pass --overwrite")
     reason = why_not_replaceable(out, kind)
     if reason is not None:
-        raise InputError(f"{what} {out} exists and --overwrite replaces only a {kind} longslam made: {reason}; "
-                         "nothing was deleted; remove it yourself or choose another --out")
+        raise InputError(
+            f"{what} {out} exists and --overwrite replaces only a {kind} longslam made: {reason}; "
+            "nothing was deleted; remove it yourself or choose another --out"
+        )
 
 
 def replace_guard(kind: str, what: str | None = None):
@@ -162,8 +173,11 @@ def replaced_file_problem(path: Path, kind: str | None = None) -> str | None:
     not recognised by content)."""
     try:
         if kind == VOCABULARY:
-            return None if _looks_like_vocabulary(path) else \
-                "not a vocabulary (its first line is not 'k L scoring weighting')"
+            return (
+                None
+                if _looks_like_vocabulary(path)
+                else "not a vocabulary (its first line is not 'k L scoring weighting')"
+            )
         signature = FILE_SIGNATURES.get(path.suffix.lower())
         if signature is None:
             return None
@@ -177,7 +191,9 @@ def replaced_file_problem(path: Path, kind: str | None = None) -> str | None:
     return f"not {label}"
 
 
-def check_output_file_free(path: str | Path, overwrite: bool, what: str = "output file", kind: str | None = None) -> None:
+def check_output_file_free(
+    path: str | Path, overwrite: bool, what: str = "output file", kind: str | None = None
+) -> None:
     """An existing file is replaced only with `overwrite`, and only if it is a file of the kind
     the command writes (see `replaced_file_problem`); a folder, a FIFO or a device never (as
     root, replacing /dev/null would leave a regular file in its place)."""
@@ -186,11 +202,15 @@ def check_output_file_free(path: str | Path, overwrite: bool, what: str = "outpu
         raise InputError(f"{what} {path} is a folder; expected a file path")
     special = special_file_kind(path)
     if special is not None:
-        raise InputError(f"{what} {path} is {special}, not a regular file; longslam writes and --overwrite replaces "
-                         "only regular files; choose another path")
+        raise InputError(
+            f"{what} {path} is {special}, not a regular file; longslam writes and --overwrite replaces "
+            "only regular files; choose another path"
+        )
     if (path.exists() or path.is_symlink()) and not overwrite:
         raise InputError(f"{what} {path} exists already; choose another path or pass --overwrite")
     problem = replaced_file_problem(path, kind) if path.is_file() else None
     if problem is not None:
-        raise InputError(f"{what} {path} exists and --overwrite replaces only a file of the kind it writes: this one "
-                         f"is {problem}; nothing was replaced")
+        raise InputError(
+            f"{what} {path} exists and --overwrite replaces only a file of the kind it writes: this one "
+            f"is {problem}; nothing was replaced"
+        )

@@ -18,8 +18,10 @@ def check_output_folder(path: str | Path, what: str = "output folder") -> Path:
     if path.is_symlink():
         raise InputError(f"{what} {path} is a symbolic link; give the path of a folder")
     if path.exists() and not path.is_dir():
-        raise InputError(f"{what} {path} is {special_file_kind(path) or 'a file'}; expected a folder "
-                         "(or a path that does not exist yet)")
+        raise InputError(
+            f"{what} {path} is {special_file_kind(path) or 'a file'}; expected a folder "
+            "(or a path that does not exist yet)"
+        )
     for parent in path.absolute().parents:
         if parent.exists() or parent.is_symlink():
             if not parent.is_dir():

@@ -47,7 +47,9 @@ def _header(vertex: np.dtype, n_vertices: int, n_faces: int | None, comment: str
     return ("\n".join(lines) + "\n").encode("ascii")
 
 
-def write_ply(path: str | Path, chunks: Iterable[tuple[np.ndarray, np.ndarray | None]], comment: str = "") -> tuple[int, int]:
+def write_ply(
+    path: str | Path, chunks: Iterable[tuple[np.ndarray, np.ndarray | None]], comment: str = ""
+) -> tuple[int, int]:
     """Write chunks of (vertex rows, triangles (T, 3) indexing that chunk's rows, or None) as one
     PLY (a point cloud when no chunk has triangles). Atomic: a failure leaves no file.
     Returns (vertices, triangles) written."""

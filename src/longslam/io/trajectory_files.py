@@ -14,10 +14,10 @@ import numpy as np
 
 from longslam.core.errors import InputError, TrajectoryError
 from longslam.core.geometry import poses_from_tum, tum_from_poses
-from longslam.io.atomic import write_text_atomic
-from longslam.io.plain_table import plain_table
 from longslam.core.textfile import read_bounded_text
 from longslam.core.trajectory import Trajectory
+from longslam.io.atomic import write_text_atomic
+from longslam.io.plain_table import plain_table
 
 TUM, KITTI, EUROC = "tum", "kitti", "euroc"
 NANOSECONDS = 1e-9
@@ -124,9 +124,7 @@ def format_tum(trajectory: Trajectory) -> str:
     # Nine decimals on the stamp: evo and the TUM tools match stamps, so they must round-trip.
     rows = tum_from_poses(trajectory.poses)
     lines = ["# timestamp tx ty tz qx qy qz qw"]
-    lines += [
-        f"{t:.9f} " + " ".join(f"{v:.9f}" for v in row) for t, row in zip(trajectory.timestamps, rows)
-    ]
+    lines += [f"{t:.9f} " + " ".join(f"{v:.9f}" for v in row) for t, row in zip(trajectory.timestamps, rows)]
     return "\n".join(lines) + "\n"
 
 

@@ -45,8 +45,13 @@ def native_output_to(path: str | Path) -> Iterator[Path]:
         stream = getattr(sys, name)
         if _fd_of(stream) == fd:
             swapped[name] = stream
-            replacement = os.fdopen(os.dup(saved[fd]), "w", buffering=1, encoding=getattr(stream, "encoding", None),
-                                    errors=getattr(stream, "errors", None))
+            replacement = os.fdopen(
+                os.dup(saved[fd]),
+                "w",
+                buffering=1,
+                encoding=getattr(stream, "encoding", None),
+                errors=getattr(stream, "errors", None),
+            )
             setattr(sys, name, replacement)
     try:
         os.dup2(log_fd, 1)

@@ -44,12 +44,19 @@ def plot_diagnosis(d: Diagnosis, out: str | Path, title: str = "") -> None:
     fig.colorbar(lines, ax=ax_plan, label="position error [m]", fraction=0.03, pad=0.01)
     position_of = {int(f): k for k, f in enumerate(d.frames)}
     for wrong in (False, True):
-        pairs = [(position_of[lp.frame_i], position_of[lp.frame_j]) for lp in d.loops
-                 if lp.wrong == wrong and lp.frame_i in position_of and lp.frame_j in position_of]
+        pairs = [
+            (position_of[lp.frame_i], position_of[lp.frame_j])
+            for lp in d.loops
+            if lp.wrong == wrong and lp.frame_i in position_of and lp.frame_j in position_of
+        ]
         for n, (i, j) in enumerate(pairs):
-            ax_plan.plot(*zip(d.estimate_xy[i], d.estimate_xy[j]), color="tab:red" if wrong else "tab:orange",
-                         lw=1.4 if wrong else 0.6, alpha=0.9 if wrong else 0.5,
-                         label=(f"{'wrong' if wrong else 'right'} loop constraints ({len(pairs)})" if n == 0 else None))
+            ax_plan.plot(
+                *zip(d.estimate_xy[i], d.estimate_xy[j]),
+                color="tab:red" if wrong else "tab:orange",
+                lw=1.4 if wrong else 0.6,
+                alpha=0.9 if wrong else 0.5,
+                label=(f"{'wrong' if wrong else 'right'} loop constraints ({len(pairs)})" if n == 0 else None),
+            )
     ax_plan.plot(*d.truth_xy[0], "o", color="tab:green", ms=7, label="start")
     ax_plan.plot(*d.truth_xy[-1], "s", color="tab:red", ms=7, label="end")
     margin = 3.0
@@ -71,16 +78,32 @@ def plot_diagnosis(d: Diagnosis, out: str | Path, title: str = "") -> None:
     starts = np.array([s.start_m for s in d.stretches])
     widths = np.array([s.end_m - s.start_m for s in d.stretches])
     if d.has_frontend_table:
-        axes[2].bar(starts, [s.scan_share for s in d.stretches], widths, align="edge", color="tab:blue", alpha=0.5,
-                    label="frames with a registered scan")
-        axes[2].step(np.append(starts, starts[-1] + widths[-1]), np.append([s.visual_share for s in d.stretches],
-                     d.stretches[-1].visual_share), where="post", color="tab:green", label="frames with a visual step")
+        axes[2].bar(
+            starts,
+            [s.scan_share for s in d.stretches],
+            widths,
+            align="edge",
+            color="tab:blue",
+            alpha=0.5,
+            label="frames with a registered scan",
+        )
+        axes[2].step(
+            np.append(starts, starts[-1] + widths[-1]),
+            np.append([s.visual_share for s in d.stretches], d.stretches[-1].visual_share),
+            where="post",
+            color="tab:green",
+            label="frames with a visual step",
+        )
     for s in d.stretches:  # the dominant factor as a strip under the bars
         axes[2].axvspan(s.start_m, s.end_m, ymin=0.0, ymax=0.06, color=FACTOR_COLOURS.get(s.dominant, "white"), lw=0)
     for lp in d.loops:
         if lp.frame_j in position_of:
-            axes[2].axvline(p.distance_m[position_of[lp.frame_j]], color="tab:red" if lp.wrong else "tab:orange",
-                            lw=1.2 if lp.wrong else 0.4, alpha=0.8)
+            axes[2].axvline(
+                p.distance_m[position_of[lp.frame_j]],
+                color="tab:red" if lp.wrong else "tab:orange",
+                lw=1.2 if lp.wrong else 0.4,
+                alpha=0.8,
+            )
     handles = [plt.Rectangle((0, 0), 1, 1, color=c) for k, c in FACTOR_COLOURS.items() if k]
     first = axes[2].legend(loc="upper right", fontsize=7)
     axes[2].add_artist(first)
@@ -90,8 +113,18 @@ def plot_diagnosis(d: Diagnosis, out: str | Path, title: str = "") -> None:
     axes[2].set_xlabel("distance travelled [m] (loop constraints as vertical lines, at their later frame)")
     regions = [(s.start_m + (s.end_m - s.start_m) / 2, s.region) for s in d.stretches if s.region]
     for x, name in regions:
-        axes[0].annotate(name, (x, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 2), textcoords="offset points",
-                         ha="center", va="bottom", fontsize=6, rotation=90, color="0.35")
+        axes[0].annotate(
+            name,
+            (x, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(0, 2),
+            textcoords="offset points",
+            ha="center",
+            va="bottom",
+            fontsize=6,
+            rotation=90,
+            color="0.35",
+        )
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()

@@ -8,36 +8,37 @@ study's runs through `study/worker.py` (frames with odometry drawn on the fly).
 from __future__ import annotations
 
 import contextlib
-import logging
 import dataclasses
+import logging
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from longslam.core import progress as bars
 from longslam.core.errors import InputError, LongslamError, MethodError
 from longslam.core.frame import Frame
+from longslam.core.memory_release import map_large_blocks
+from longslam.core.progress import bar
+from longslam.core.settings import to_mapping
 from longslam.io.atomic import atomic_path
-from longslam.io.partials import clean_stale_partials
 from longslam.io.overwrite_policy import RUN, check_not_an_input, check_replaceable, replace_guard
+from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
-from longslam.core.memory_release import map_large_blocks
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.folder import write_result
-from longslam.core import progress as bars
-from longslam.core.progress import bar
-from longslam.run.observer import RunObserver
 from longslam.run.isolate import prepare_method, run_isolated
 from longslam.run.measurements import RunMeasurements
 from longslam.run.meter import RunMeter
+from longslam.run.observer import RunObserver
 from longslam.run.process_tree import TreeUsage
 from longslam.run.provenance import provenance
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes
-from longslam.core.settings import to_mapping
 from longslam.slam.api import Closable, MethodChoice, MethodContext, Result, wanted_images
+
 
 def run_frames(
     method: MethodChoice,
@@ -66,8 +67,15 @@ def run_frames(
         return _run_method(method, frames, context, total, progress, observer, baseline_rss)
 
 
-def _run_method(choice: MethodChoice, frames: Iterable[Frame], context: MethodContext, total: int | None,
-                progress: bool, observer: RunObserver | None, baseline_rss: int) -> tuple[Result, RunMeasurements]:
+def _run_method(
+    choice: MethodChoice,
+    frames: Iterable[Frame],
+    context: MethodContext,
+    total: int | None,
+    progress: bool,
+    observer: RunObserver | None,
+    baseline_rss: int,
+) -> tuple[Result, RunMeasurements]:
     method = choice.spec.build(context, choice.config)
     try:
         return _feed(choice, method, frames, context, total, progress, observer, baseline_rss)
@@ -94,8 +102,16 @@ def _method_code(method_name: str, call: str) -> Iterator[None]:
         raise MethodError(f"method {method_name!r}: {call} raised {type(err).__name__}: {err}") from err
 
 
-def _feed(choice: MethodChoice, method: Any, frames: Iterable[Frame], context: MethodContext, total: int | None,
-          progress: bool, observer: RunObserver | None, baseline_rss: int) -> tuple[Result, RunMeasurements]:
+def _feed(
+    choice: MethodChoice,
+    method: Any,
+    frames: Iterable[Frame],
+    context: MethodContext,
+    total: int | None,
+    progress: bool,
+    observer: RunObserver | None,
+    baseline_rss: int,
+) -> tuple[Result, RunMeasurements]:
     method_name = choice.name
     wanted = set(wanted_images(method)) | set(getattr(observer, "images_every_frame", ()))
     images = tuple(name for name in IMAGES if name in wanted)
@@ -110,8 +126,10 @@ def _feed(choice: MethodChoice, method: Any, frames: Iterable[Frame], context: M
             with meter.step(), _method_code(method_name, f"step() of frame {frame.index}"):
                 pose = method.step(frame)
             if np.shape(pose) != (4, 4):
-                raise MethodError(f"method {method_name!r} returned a pose of shape {np.shape(pose)} for frame "
-                                  f"{frame.index}; expected (4, 4)")
+                raise MethodError(
+                    f"method {method_name!r} returned a pose of shape {np.shape(pose)} for frame "
+                    f"{frame.index}; expected (4, 4)"
+                )
             meter.frame_done(frame.timestamp)
             if observer is not None:
                 with meter.observer():
@@ -128,8 +146,9 @@ def _feed(choice: MethodChoice, method: Any, frames: Iterable[Frame], context: M
     return result, _measurements(choice, meter, usage, baseline_rss, result, observer is not None)
 
 
-def _measurements(choice: MethodChoice, meter: RunMeter, usage: TreeUsage, baseline_rss: int, result: Result,
-                  observed: bool) -> RunMeasurements:
+def _measurements(
+    choice: MethodChoice, meter: RunMeter, usage: TreeUsage, baseline_rss: int, result: Result, observed: bool
+) -> RunMeasurements:
     wall_time = meter.wall_time()
     steps = meter.steps()
     method_time = float(steps.sum() + meter.finish_time)
@@ -188,8 +207,9 @@ def run_into_folder(
     with atomic_path(out, overwrite=overwrite, may_replace=may_replace) as tmp:
         tmp.mkdir(parents=True)
         context = MethodContext(reader.intrinsics, reader.max_depth, str(tmp))
-        result, measurements = run_frames(method, frames, context, total=len(reader),
-                                          progress=progress, observer=observer)
+        result, measurements = run_frames(
+            method, frames, context, total=len(reader), progress=progress, observer=observer
+        )
         measurements.about.update(about)
         measurements = measurements.in_folder(tmp, out)
         write_result(tmp, result, measurements)
@@ -225,19 +245,32 @@ def run_sequence(
         check_not_an_input(viz, {"input sequence": sequence, "run folder": out}, "--viz")
     reader = SequenceReader(sequence, intrinsics=intrinsics)
     if prepare and method.spec.prepare is not None:
-        run_isolated(prepare_method, method.spec, method.config, bars.setting() if progress else False,
-                     logging.getLogger("longslam").getEffectiveLevel())
+        run_isolated(
+            prepare_method,
+            method.spec,
+            method.config,
+            bars.setting() if progress else False,
+            logging.getLogger("longslam").getEffectiveLevel(),
+        )
     if viz is not None:
         from longslam.viz.live import LiveView  # rerun is imported only when a view is asked for
 
-        with LiveView(viz, f"{method.name} on {Path(sequence).name}", truth=reader.ground_truth,
-                      overwrite=overwrite) as view:
+        with LiveView(
+            viz, f"{method.name} on {Path(sequence).name}", truth=reader.ground_truth, overwrite=overwrite
+        ) as view:
             return _run_into(method, sequence, reader, out, overwrite, progress, view)
     return _run_into(method, sequence, reader, out, overwrite, progress, None)
 
 
-def _run_into(method: MethodChoice, sequence: str | Path, reader: SequenceReader, out: Path, overwrite: bool,
-              progress: bool, observer: RunObserver | None) -> RunMeasurements:
+def _run_into(
+    method: MethodChoice,
+    sequence: str | Path,
+    reader: SequenceReader,
+    out: Path,
+    overwrite: bool,
+    progress: bool,
+    observer: RunObserver | None,
+) -> RunMeasurements:
     clean_stale_partials(out.parent)  # run folders of runs that were killed
     about: dict[str, Any] = {
         "sequence": str(Path(sequence).resolve()),
@@ -246,6 +279,15 @@ def _run_into(method: MethodChoice, sequence: str | Path, reader: SequenceReader
     if reader.notes:
         about["sequence_notes"] = list(reader.notes)
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
-    _, measurements = run_into_folder(out, method, reader, reader, about, progress=progress, observer=observer,
-                                      overwrite=overwrite, may_replace=replace_guard(RUN))
+    _, measurements = run_into_folder(
+        out,
+        method,
+        reader,
+        reader,
+        about,
+        progress=progress,
+        observer=observer,
+        overwrite=overwrite,
+        may_replace=replace_guard(RUN),
+    )
     return measurements

@@ -1,17 +1,17 @@
 """A run folder: the names of its files, and writing a method's result into it.
 
-    trajectory.txt  final trajectory (TUM), one pose per frame
-    online.txt      what the method returned frame by frame (TUM)
-    stats.json      the harness's measurements (times, memory) and the method's own stats
-    config.toml     the method and the parameters it ran with (every field, defaults included)
-    grid.npz        2D occupancy grid, if the method builds one
-    grid.pgm        the same grid as ROS map_server opens it, with grid.yaml (io/map_server.py)
-    map.ply         3D map points, if the method builds them
-    NAME.csv        rows that grow with the route, one file per table of the result
-                    (loops.csv: every loop constraint; nodes.csv: keyframe's time per node)
-    events.csv      what explains the run's course (tracking lost, new maps, loops), if the method
-                    reports events: kind, first and last frame and stamp, a note
-    record.json     a study run's scores (study runs only)
+trajectory.txt  final trajectory (TUM), one pose per frame
+online.txt      what the method returned frame by frame (TUM)
+stats.json      the harness's measurements (times, memory) and the method's own stats
+config.toml     the method and the parameters it ran with (every field, defaults included)
+grid.npz        2D occupancy grid, if the method builds one
+grid.pgm        the same grid as ROS map_server opens it, with grid.yaml (io/map_server.py)
+map.ply         3D map points, if the method builds them
+NAME.csv        rows that grow with the route, one file per table of the result
+                (loops.csv: every loop constraint; nodes.csv: keyframe's time per node)
+events.csv      what explains the run's course (tracking lost, new maps, loops), if the method
+                reports events: kind, first and last frame and stamp, a note
+record.json     a study run's scores (study runs only)
 """
 
 from __future__ import annotations
@@ -25,17 +25,17 @@ from typing import Any
 
 import numpy as np
 
+from longslam.core.errors import InputError
+from longslam.core.jsonable import json_default
+from longslam.core.settings import to_toml
 from longslam.io.atomic import write_text
+from longslam.io.grid_files import write_grid
 from longslam.io.map_server import write_map_server
 from longslam.io.ply import vertex_rows, write_ply
 from longslam.io.trajectory_files import write_tum
-from longslam.core.jsonable import json_default
-from longslam.run.resources import peak_rss_bytes
-from longslam.core.settings import to_toml
-from longslam.core.errors import InputError
-from longslam.slam.api import Event, Result, Table
-from longslam.io.grid_files import write_grid
 from longslam.run.measurements import RunMeasurements
+from longslam.run.resources import peak_rss_bytes
+from longslam.slam.api import Event, Result, Table
 
 TRAJECTORY = "trajectory.txt"
 ONLINE = "online.txt"
@@ -61,7 +61,7 @@ def write_point_cloud(path: Path, points: np.ndarray) -> None:
     float64 copy, the rows and their bytes of a whole cloud at once came to 48 bytes a point,
     84 MB for keyframe's 1.7 million at 3 km."""
     points = np.asarray(points).reshape(-1, 3)
-    chunks = ((vertex_rows(points[start:start + CLOUD_CHUNK]), None) for start in range(0, len(points), CLOUD_CHUNK))
+    chunks = ((vertex_rows(points[start : start + CLOUD_CHUNK]), None) for start in range(0, len(points), CLOUD_CHUNK))
     write_ply(path, chunks, comment="made by longslam")
 
 

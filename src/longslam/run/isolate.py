@@ -22,8 +22,7 @@ def _child(queue: mp.Queue, function: Callable[..., Any], args: tuple, kwargs: d
         queue.put(("error", f"{type(err).__name__}: {err}"))
 
 
-def prepare_method(spec: Any, config: Any, bars: bool | None = None,
-                   log_level: int = logging.WARNING) -> None:
+def prepare_method(spec: Any, config: Any, bars: bool | None = None, log_level: int = logging.WARNING) -> None:
     """A method's once-per-machine work (see `MethodSpec.prepare`), for `run_isolated`. A spawned
     process starts with no settings of its parent's: `bars` and `log_level` carry the command's
     --no-progress / --quiet / -v to it."""
@@ -57,7 +56,9 @@ def run_isolated(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any
                 break
             except Empty:
                 proc.join()
-                raise RuntimeError(f"run failed in its process: it died with exit code {proc.exitcode} before reporting") from None
+                raise RuntimeError(
+                    f"run failed in its process: it died with exit code {proc.exitcode} before reporting"
+                ) from None
     proc.join()
     if status == "input":
         raise InputError(payload)

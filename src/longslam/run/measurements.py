@@ -64,5 +64,6 @@ class RunMeasurements:
     def in_folder(self, tmp: Path, out: Path) -> RunMeasurements:
         """These figures with every path into the temporary run folder `tmp` (a method's database,
         say) named by where it will be once the folder is renamed to `out`."""
-        return RunMeasurements(**{f.name: name_final_folder(getattr(self, f.name), tmp, out)
-                                  for f in dataclasses.fields(self)})
+        return RunMeasurements(
+            **{f.name: name_final_folder(getattr(self, f.name), tmp, out) for f in dataclasses.fields(self)}
+        )

@@ -176,7 +176,9 @@ class TreeMonitor:
                 totals[0] += max(0, cpu - base_cpu)
                 totals[1] += max(0, wait - base_wait)
             by_thread = {name: (c * 1e-9, w * 1e-9) for name, (c, w) in sorted(named.items(), key=lambda kv: -kv[1][1])}
-            return TreeUsage(cpu_ns * 1e-9, wait_ns * 1e-9, self._peak_rss, len(self._children), self._samples, by_thread)
+            return TreeUsage(
+                cpu_ns * 1e-9, wait_ns * 1e-9, self._peak_rss, len(self._children), self._samples, by_thread
+            )
 
 
 def schedstat_available() -> bool:

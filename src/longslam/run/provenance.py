@@ -16,9 +16,11 @@ SOURCE_ROOT = Path(longslam.__file__).resolve().parents[2]  # the checkout, for 
 def source_commit() -> str | None:
     """The checkout's commit ('abc1234', or 'abc1234+dirty' with changes under src/ or plugins/);
     None outside a git checkout (an installed wheel) or without git."""
+
+    def run(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(["git", "-C", str(SOURCE_ROOT), *args], capture_output=True, text=True, timeout=10)
+
     try:
-        run = lambda *args: subprocess.run(["git", "-C", str(SOURCE_ROOT), *args], capture_output=True,  # noqa: E731
-                                           text=True, timeout=10)
         head = run("rev-parse", "--short=7", "HEAD")
         if head.returncode != 0:
             return None

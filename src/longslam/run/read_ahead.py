@@ -27,7 +27,9 @@ def _load(frame: Frame, images: tuple[str, ...]) -> None:
         getattr(frame, name)
 
 
-def read_ahead(frames: Iterable[Frame], images: tuple[str, ...] = IMAGES, ahead: int = DEFAULT_AHEAD) -> Iterator[Frame]:
+def read_ahead(
+    frames: Iterable[Frame], images: tuple[str, ...] = IMAGES, ahead: int = DEFAULT_AHEAD
+) -> Iterator[Frame]:
     """The same frames in the same order, each with the named images ("rgb", "depth") loaded.
 
     A read error (a missing or corrupt image) is raised here, for the frame it belongs to, as

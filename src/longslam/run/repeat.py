@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from longslam.core.errors import InputError
-from longslam.core.textfile import read_text
 from longslam.core.suggest import did_you_mean
+from longslam.core.textfile import read_text
 from longslam.slam.api import MethodChoice
 from longslam.slam.catalog import choose_method
 
@@ -42,14 +42,18 @@ def read_run_config(path: str | Path) -> RunConfig:
     unknown = sorted(set(data) - set(TABLES))
     keys = [k for k in unknown if not isinstance(data[k], dict)]
     if keys:  # a key outside any table: method = ... above [run], say
-        raise InputError(f"run config {path}: key(s) {', '.join(keys)} outside a table; expected them under "
-                         "[run] (method, sequence) or [params]")
+        raise InputError(
+            f"run config {path}: key(s) {', '.join(keys)} outside a table; expected them under "
+            "[run] (method, sequence) or [params]"
+        )
     if unknown:
-        raise InputError(f"run config {path}: unknown table(s) {', '.join(f'[{k}]' for k in unknown)}"
-                         f"{did_you_mean(unknown[0], TABLES)}; expected [run] and [params]")
+        raise InputError(
+            f"run config {path}: unknown table(s) {', '.join(f'[{k}]' for k in unknown)}"
+            f"{did_you_mean(unknown[0], TABLES)}; expected [run] and [params]"
+        )
     run, params = data.get("run", {}), data.get("params", {})
     if not isinstance(run, dict) or not isinstance(run.get("method"), str) or not run["method"]:
-        raise InputError(f"run config {path}: expected [run] with method = \"NAME\"")
+        raise InputError(f'run config {path}: expected [run] with method = "NAME"')
     sequence = run.get("sequence")
     if sequence is not None and not isinstance(sequence, str):
         raise InputError(f"run config {path}: [run] sequence must be a folder path, got {sequence!r}")

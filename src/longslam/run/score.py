@@ -12,12 +12,12 @@ from typing import Any
 import numpy as np
 
 from longslam.core.errors import InputError
+from longslam.core.trajectory import Trajectory
 from longslam.eval.evaluation import Evaluation, evaluate_full
 from longslam.eval.metrics import MIN_STEP
 from longslam.eval.sync import associate, associate_by_index
 from longslam.io.trajectory_files import KITTI, read_trajectory
 from longslam.run.folder import TRAJECTORY
-from longslam.core.trajectory import Trajectory
 
 BAG = "bag"  # the format read_source names for a bag topic
 
@@ -25,14 +25,23 @@ MAX_DIFF = 0.01  # seconds between matched stamps (the CLI's --max-diff default)
 
 
 def score_full(
-    truth: Trajectory, estimate: Trajectory, align: str | bool = "none", max_diff: float = MAX_DIFF,
-    by_index: bool = False, what: str = "the estimate", min_step: float = MIN_STEP, offset: float = 0.0,
+    truth: Trajectory,
+    estimate: Trajectory,
+    align: str | bool = "none",
+    max_diff: float = MAX_DIFF,
+    by_index: bool = False,
+    what: str = "the estimate",
+    min_step: float = MIN_STEP,
+    offset: float = 0.0,
     **options: Any,
 ) -> Evaluation:
     """The evaluation behind `score`: its scores and the arrays (per-pose errors, the aligned
     estimate) that plots and result files need. `options` are `evaluate`'s keyword options."""
-    ref, est = (associate_by_index(truth, estimate) if by_index
-                else associate(truth, estimate, max_diff=max_diff, offset=offset))
+    ref, est = (
+        associate_by_index(truth, estimate)
+        if by_index
+        else associate(truth, estimate, max_diff=max_diff, offset=offset)
+    )
     with np.errstate(all="ignore"):  # overflow is reported below, as one error
         evaluation = evaluate_full(ref, est, align=align, min_step=min_step, **options)
     bad = [key for key, value in evaluation.scores.items() if isinstance(value, float) and not math.isfinite(value)]
@@ -45,8 +54,14 @@ def score_full(
 
 
 def score(
-    truth: Trajectory, estimate: Trajectory, align: str | bool = "none", max_diff: float = MAX_DIFF,
-    by_index: bool = False, what: str = "the estimate", min_step: float = MIN_STEP, offset: float = 0.0,
+    truth: Trajectory,
+    estimate: Trajectory,
+    align: str | bool = "none",
+    max_diff: float = MAX_DIFF,
+    by_index: bool = False,
+    what: str = "the estimate",
+    min_step: float = MIN_STEP,
+    offset: float = 0.0,
     **options: Any,
 ) -> dict[str, Any]:
     """The paper's metrics and the field's (see `eval.evaluation.evaluate`) of `estimate` against
@@ -76,12 +91,16 @@ def _span(stamps: np.ndarray) -> float:
     return float(stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
 
 
-def coverage(truth: Trajectory, estimate: Trajectory, max_diff: float, by_index: bool,
-             offset: float = 0.0) -> dict[str, Any]:
+def coverage(
+    truth: Trajectory, estimate: Trajectory, max_diff: float, by_index: bool, offset: float = 0.0
+) -> dict[str, Any]:
     """How much of each trajectory the scores rest on: poses matched, their share of the
     estimate's poses, and the share of the ground truth's time span they cover."""
-    ref, est = (associate_by_index(truth, estimate) if by_index
-                else associate(truth, estimate, max_diff=max_diff, offset=offset))
+    ref, est = (
+        associate_by_index(truth, estimate)
+        if by_index
+        else associate(truth, estimate, max_diff=max_diff, offset=offset)
+    )
     truth_span = _span(truth.timestamps)
     return {
         "matched_poses": len(est),
@@ -95,12 +114,16 @@ def coverage_warnings(shares: dict[str, Any], poses: int, est_file: str, ref_fil
     evaluate's and diagnose's (a run diagnosed against a shorter sequence) check."""
     found = []
     if shares["matched_share_estimate"] < COVERAGE_WARNING:
-        found.append(f"only {shares['matched_poses']} of {poses} poses of {est_file} "
-                     f"({shares['matched_share_estimate']:.0%}) have a ground-truth pose within {max_diff} s; "
-                     "the scores cover that part only")
+        found.append(
+            f"only {shares['matched_poses']} of {poses} poses of {est_file} "
+            f"({shares['matched_share_estimate']:.0%}) have a ground-truth pose within {max_diff} s; "
+            "the scores cover that part only"
+        )
     if shares["matched_share_groundtruth_span"] < COVERAGE_WARNING:
-        found.append(f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
-                     f"of {ref_file}; the scores cover that part of the route only")
+        found.append(
+            f"the matched poses cover {shares['matched_share_groundtruth_span']:.0%} of the time span "
+            f"of {ref_file}; the scores cover that part of the route only"
+        )
     return found
 
 
@@ -137,8 +160,14 @@ def _is_camera_frame(frame: str) -> bool:
     return "cam" in frame.lower() or "optical" in frame.lower()
 
 
-def body_frame_warning(est_frames: dict[str, str], est_format: str, est_file: str,
-                       ref_frames: dict[str, str], ref_format: str, ref_file: str) -> str | None:
+def body_frame_warning(
+    est_frames: dict[str, str],
+    est_format: str,
+    est_file: str,
+    ref_frames: dict[str, str],
+    ref_format: str,
+    ref_file: str,
+) -> str | None:
     """A bag topic of a robot's body frame (an /odom of base_link) scored against camera poses
     (a TUM or KITTI file, longslam's, or a camera frame's topic): the fixed body-to-camera
     transform then enters every error, which reads as drift of the method."""
@@ -149,14 +178,21 @@ def body_frame_warning(est_frames: dict[str, str], est_format: str, est_file: st
         camera = _is_camera_frame(other_frame) if other_frame is not None else other_format != BAG
         if camera:
             what = f"the camera frame {other_frame}" if other_frame else "camera poses"
-            return (f"{name} holds poses of {frame} (its child_frame_id), {other_name} of {what}: the fixed transform "
-                    "between the two enters every error; score a topic of the camera's poses, or both of one frame")
+            return (
+                f"{name} holds poses of {frame} (its child_frame_id), {other_name} of {what}: the fixed transform "
+                "between the two enters every error; score a topic of the camera's poses, or both of one frame"
+            )
     return None
 
 
-def read_source(source: str | Path, names: tuple[str, ...], topic: str | None = None,
-                topic_option: str = "--topic", stdin_text: str | None = None,
-                frames: dict[str, str] | None = None) -> tuple[Trajectory, str, str]:
+def read_source(
+    source: str | Path,
+    names: tuple[str, ...],
+    topic: str | None = None,
+    topic_option: str = "--topic",
+    stdin_text: str | None = None,
+    frames: dict[str, str] | None = None,
+) -> tuple[Trajectory, str, str]:
     """A trajectory, its format (tum, kitti or bag) and a name for messages, from a file, a run
     or sequence folder, a ROS bag's topic, or `-` (stdin, given as `stdin_text` or read here).
     `frames` is told a bag topic's pose frame (see `read_bag_trajectory`)."""
@@ -177,25 +213,45 @@ def read_source(source: str | Path, names: tuple[str, ...], topic: str | None = 
         trajectory = read_bag_trajectory(source, topic, topic_option, frames)
         return trajectory, BAG, trajectory.source
     if topic is not None:
-        raise InputError(f"{topic_option} {topic}: {source} is not a ROS bag (a .bag or .mcap file, "
-                         "or a folder holding metadata.yaml)")
+        raise InputError(
+            f"{topic_option} {topic}: {source} is not a ROS bag (a .bag or .mcap file, "
+            "or a folder holding metadata.yaml)"
+        )
     path = trajectory_file(source, names)
     trajectory, fmt = read_trajectory(path)
     return trajectory, fmt, str(path)
 
 
-def score_files(estimate: str | Path, truth: str | Path, align: str | bool = "none", max_diff: float = MAX_DIFF,
-                min_step: float = MIN_STEP, warnings: list[str] | None = None, offset: float = 0.0,
-                estimate_topic: str | None = None, truth_topic: str | None = None, **options: Any) -> dict[str, Any]:
+def score_files(
+    estimate: str | Path,
+    truth: str | Path,
+    align: str | bool = "none",
+    max_diff: float = MAX_DIFF,
+    min_step: float = MIN_STEP,
+    warnings: list[str] | None = None,
+    offset: float = 0.0,
+    estimate_topic: str | None = None,
+    truth_topic: str | None = None,
+    **options: Any,
+) -> dict[str, Any]:
     """`score_files_full`'s scores."""
-    return score_files_full(estimate, truth, align, max_diff, min_step, warnings, offset, estimate_topic,
-                            truth_topic, **options).scores
+    return score_files_full(
+        estimate, truth, align, max_diff, min_step, warnings, offset, estimate_topic, truth_topic, **options
+    ).scores
 
 
-def score_files_full(estimate: str | Path, truth: str | Path, align: str | bool = "none", max_diff: float = MAX_DIFF,
-                     min_step: float = MIN_STEP, warnings: list[str] | None = None, offset: float = 0.0,
-                     estimate_topic: str | None = None, truth_topic: str | None = None,
-                     **options: Any) -> Evaluation:
+def score_files_full(
+    estimate: str | Path,
+    truth: str | Path,
+    align: str | bool = "none",
+    max_diff: float = MAX_DIFF,
+    min_step: float = MIN_STEP,
+    warnings: list[str] | None = None,
+    offset: float = 0.0,
+    estimate_topic: str | None = None,
+    truth_topic: str | None = None,
+    **options: Any,
+) -> Evaluation:
     """Score trajectory files (TUM or KITTI), run / sequence folders, topics of ROS bags or `-`
     (stdin, for one of the two). KITTI files have no stamps, so they are matched by index. The
     scores include how much was matched (`coverage`); what makes them doubtful (part of a route
@@ -209,10 +265,21 @@ def score_files_full(estimate: str | Path, truth: str | Path, align: str | bool 
     ref, ref_format, ref_file = read_source(truth, ("groundtruth.txt",), truth_topic, "--ref-topic", frames=ref_frames)
     by_index = KITTI in (est_format, ref_format)
     if by_index and offset != 0.0:
-        raise InputError(f"--t-offset {offset}: {est_file if est_format == KITTI else ref_file} is a KITTI file, "
-                         "without timestamps, so poses are paired by index; drop --t-offset")
-    evaluation = score_full(ref, est, align, max_diff, by_index=by_index, what=f"{estimate} against {truth}",
-                            min_step=min_step, offset=offset, **options)
+        raise InputError(
+            f"--t-offset {offset}: {est_file if est_format == KITTI else ref_file} is a KITTI file, "
+            "without timestamps, so poses are paired by index; drop --t-offset"
+        )
+    evaluation = score_full(
+        ref,
+        est,
+        align,
+        max_diff,
+        by_index=by_index,
+        what=f"{estimate} against {truth}",
+        min_step=min_step,
+        offset=offset,
+        **options,
+    )
     shares = coverage(ref, est, max_diff, by_index, offset)
     evaluation.scores.update(shares)
     if warnings is not None:

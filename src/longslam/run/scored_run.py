@@ -17,20 +17,26 @@ from longslam.run.score import score
 from longslam.slam.catalog import choose_method
 
 
-def run_named(method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None,
-              **kwargs: Any) -> RunMeasurements:
+def run_named(
+    method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None, **kwargs: Any
+) -> RunMeasurements:
     """`run_sequence` of method `method` with `params` (command-line text or values), checked here."""
     return run_sequence(choose_method(method, params), sequence, out, **kwargs)
 
 
-def run_sequence_isolated(method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None,
-                          **kwargs: Any) -> RunMeasurements:
+def run_sequence_isolated(
+    method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None, **kwargs: Any
+) -> RunMeasurements:
     """`run_named` in a fresh process, so its peak memory is the run's alone."""
     return run_isolated(run_named, method, sequence, out, params, **kwargs)
 
 
 def run_and_score(
-    method: str, sequence: str | Path, out: str | Path, params: dict[str, Any] | None = None, progress: bool = False,
+    method: str,
+    sequence: str | Path,
+    out: str | Path,
+    params: dict[str, Any] | None = None,
+    progress: bool = False,
     viz: str | None = None,
 ) -> tuple[dict[str, Any], RunMeasurements]:
     """Run a method over a sequence in its own process, then score its final trajectory against the

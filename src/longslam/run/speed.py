@@ -14,7 +14,7 @@ CEILING = 1000.0
 
 
 def format_real_time_factor(value: float | None) -> str:
-    """"12.3", "0.85", "> 1000", or "–" when there is no figure."""
+    """ "12.3", "0.85", "> 1000", or "–" when there is no figure."""
     if value is None or math.isnan(value):
         return "–"
     if value >= CEILING:

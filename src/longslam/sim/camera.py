@@ -28,7 +28,13 @@ _AMBIENT, _DIFFUSE, _HEADLIGHT = 0.4, 0.3, 0.3  # sum 1: the brightest surface s
 
 # The user-facing names of the camera settings (CLI options --width ... --camera-height, a study
 # file's [camera] keys) -> CameraSettings fields.
-CAMERA_KEYS = {"width": "width", "height": "height", "fov": "hfov_deg", "max_depth": "max_depth", "camera_height": "camera_height"}
+CAMERA_KEYS = {
+    "width": "width",
+    "height": "height",
+    "fov": "hfov_deg",
+    "max_depth": "max_depth",
+    "camera_height": "camera_height",
+}
 # Errors name a setting as the user gives it (fov), not by its field (hfov_deg).
 _KEY_OF_FIELD = {field: key if key == field else f"{key} ({field})" for key, field in CAMERA_KEYS.items()}
 # A sequence stores depth as 16-bit PNGs scaled by DEPTH_SCALE: a camera that sees farther could
@@ -58,20 +64,28 @@ class CameraSettings:
             if value > MAX_SIDE:
                 raise InputError(f"camera setting {name} must be at most {MAX_SIDE} pixels, got {value!r}")
         if self.width * self.height > MAX_PIXELS:
-            raise InputError(f"camera {self.width} x {self.height} = {self.width * self.height} pixels is more than "
-                             f"{MAX_PIXELS} (3840 x 2160) a frame; the renderer would need about "
-                             f"{self.width * self.height * 60 / 1e9:.1f} GB")
+            raise InputError(
+                f"camera {self.width} x {self.height} = {self.width * self.height} pixels is more than "
+                f"{MAX_PIXELS} (3840 x 2160) a frame; the renderer would need about "
+                f"{self.width * self.height * 60 / 1e9:.1f} GB"
+            )
         checks = {
             "hfov_deg": (lambda v: 0.0 < v < 180.0, "a number in (0, 180) degrees"),
-            "max_depth": (lambda v: 0.0 < v <= MAX_STORABLE_DEPTH,
-                          f"a positive number of metres, at most {MAX_STORABLE_DEPTH:.3f} (the largest depth "
-                          f"16-bit depth images scaled by {DEPTH_SCALE:g} store)"),
+            "max_depth": (
+                lambda v: 0.0 < v <= MAX_STORABLE_DEPTH,
+                f"a positive number of metres, at most {MAX_STORABLE_DEPTH:.3f} (the largest depth "
+                f"16-bit depth images scaled by {DEPTH_SCALE:g} store)",
+            ),
             "camera_height": (lambda v: v > 0.0, "a positive number of metres"),
         }
         for name, (ok, expected) in checks.items():
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-                    or not math.isfinite(value) or not ok(value):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float, np.floating, np.integer))
+                or not math.isfinite(value)
+                or not ok(value)
+            ):
                 raise InputError(f"camera setting {_KEY_OF_FIELD[name]} must be {expected}, got {value!r}")
 
     @property
@@ -137,7 +151,9 @@ class RGBDCamera:
             self._corner_colors = None
         else:
             colors = mesh.vertex_colors if mesh.vertex_colors is not None else np.full((len(mesh.vertices), 3), 160)
-            self._corner_colors = np.vstack([colors[mesh.triangles].reshape(n_tri, 9), np.zeros((1, 9))]).astype(np.float32)
+            self._corner_colors = np.vstack([colors[mesh.triangles].reshape(n_tri, 9), np.zeros((1, 9))]).astype(
+                np.float32
+            )
 
     def render(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """rgb (H, W, 3) uint8 and depth (H, W) float32 metres (camera-frame z, 0 for no return)

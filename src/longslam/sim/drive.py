@@ -7,10 +7,10 @@ import logging
 import numpy as np
 
 from longslam.core.geometry import camera_poses_from_planar
+from longslam.core.trajectory import Trajectory
 from longslam.sim.follower import DrivenPath, FollowerSettings, follow_paths
 from longslam.sim.navigation import NavigationGrid
 from longslam.sim.routes import Route
-from longslam.core.trajectory import Trajectory
 from longslam.world.model import World
 
 log = logging.getLogger(__name__)
@@ -28,8 +28,10 @@ def drive_route(
     """The robot's true planar path along the route's waypoints, one pose per camera frame."""
     nav = NavigationGrid(world.occupancy, robot_radius=robot_radius)
     waypoints = route.resolve(world.places)
-    labels = [f"route {route.name!r} waypoint {i}" + (f" {given!r}" if isinstance(given, str) else "")
-              for i, given in enumerate(route.waypoints)]
+    labels = [
+        f"route {route.name!r} waypoint {i}" + (f" {given!r}" if isinstance(given, str) else "")
+        for i, given in enumerate(route.waypoints)
+    ]
     for wp, label in zip(waypoints, labels):
         nav.check_waypoint(wp, label)
     nav.check_reachable(waypoints, labels)
@@ -48,6 +50,8 @@ def drive_route(
     return follow_paths(paths, follower, progress=long_route)
 
 
-def camera_trajectory(timestamps: np.ndarray, xyyaw: np.ndarray, camera_height: float, floor_z: float = 0.0, source: str = "") -> Trajectory:
+def camera_trajectory(
+    timestamps: np.ndarray, xyyaw: np.ndarray, camera_height: float, floor_z: float = 0.0, source: str = ""
+) -> Trajectory:
     """Camera-in-world poses for robot base poses on the floor."""
     return Trajectory(timestamps, camera_poses_from_planar(xyyaw, camera_height, floor_z), source=source)

@@ -71,8 +71,12 @@ class _Polyline:
         return max(s_from, float(self.cum[lo + k] + f[k] * self.seg_len[lo + k]))
 
 
-def follow_paths(paths: list[np.ndarray], settings: FollowerSettings = FollowerSettings(), max_frames: int = 10_000_000,
-                 progress: bool = False) -> DrivenPath:
+def follow_paths(
+    paths: list[np.ndarray],
+    settings: FollowerSettings = FollowerSettings(),
+    max_frames: int = 10_000_000,
+    progress: bool = False,
+) -> DrivenPath:
     """Drive along consecutive polylines (each (N, 2) world metres), recording a pose per tick;
     `progress` shows a bar of the legs driven."""
     if not paths:

@@ -10,7 +10,9 @@ import numpy as np
 from longslam.core.errors import InputError
 
 
-def checked_images(where: str, call: str, rgb: Any, depth: Any, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+def checked_images(
+    where: str, call: str, rgb: Any, depth: Any, shape: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
     """(rgb, depth) as arrays if they are uint8 (H, W, 3) and finite float32 (H, W) metres >= 0;
     otherwise InputError "`where`: `call` returned ...; expected ..."."""
     try:
@@ -22,6 +24,7 @@ def checked_images(where: str, call: str, rgb: Any, depth: Any, shape: tuple[int
     if depth.dtype != np.float32 or depth.shape != shape:
         raise InputError(f"{where}: {call} returned depth {depth.dtype} {depth.shape}; expected float32 {shape}")
     if not np.all(np.isfinite(depth)) or (depth.size and depth.min() < 0):
-        raise InputError(f"{where}: {call} returned depth with NaN, inf or negative values; "
-                         "expected metres >= 0, 0 for no return")
+        raise InputError(
+            f"{where}: {call} returned depth with NaN, inf or negative values; " "expected metres >= 0, 0 for no return"
+        )
     return rgb, depth

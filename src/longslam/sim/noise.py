@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
-from longslam.core.odometry_noise import BiasNoise
 from longslam.core.geometry import wrap_angle
+from longslam.core.odometry_noise import BiasNoise
 
 # Below this forward step (metres) a frame counts as turning in place: no linear bias is added.
 TRANSLATING_STEP = 1e-4

@@ -7,19 +7,26 @@ corridor and the hall several times, which gives the loop closures the paper dep
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
-
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 from longslam.core.errors import InputError, UnknownNameError
-from longslam.core.textfile import read_text
 from longslam.core.registry import Registry
+from longslam.core.textfile import read_text
 from longslam.sim.tours import MAX_REPEAT, REPEAT, TOUR, repeated, tour_length_m, tour_waypoints
-from longslam.world.reference import is_mesh_ref, load_world, places_label, same_world, world_key, world_label, world_ref
+from longslam.world.reference import (
+    is_mesh_ref,
+    load_world,
+    places_label,
+    same_world,
+    world_key,
+    world_label,
+    world_ref,
+)
 
 Waypoint = tuple[float, float] | str
 
@@ -50,21 +57,26 @@ class Route:
                 if wp not in places:
                     hint = "" if places or not is_mesh_ref(self.world) else " (give a places file: --places FILE)"
                     raise InputError(
-                        f"route {self.name!r}: waypoint {i} names place {wp!r}, which world {world_label(self.world)!r} "
+                        f"route {self.name!r}: waypoint {i} names place {wp!r}, which world "
+                        f"{world_label(self.world)!r} "
                         f"does not have; places: {', '.join(sorted(places)) or '(none)'}{hint}"
                     )
                 out.append((float(places[wp][0]), float(places[wp][1])))
             else:
                 x, y = float(wp[0]), float(wp[1])
                 if not (math.isfinite(x) and math.isfinite(y)):
-                    raise InputError(f"route {self.name!r}: waypoint {i} ({x}, {y}) is not a point: expected finite "
-                                     "x and y in metres")
+                    raise InputError(
+                        f"route {self.name!r}: waypoint {i} ({x}, {y}) is not a point: expected finite "
+                        "x and y in metres"
+                    )
                 out.append((x, y))
         if len(out) < 2:
             raise InputError(f"route {self.name!r} needs at least two waypoints, has {len(out)}")
         if all(p == out[0] for p in out):  # would drive nowhere: a sequence of one frame
-            raise InputError(f"route {self.name!r}: its {len(out)} waypoints are all the same point {out[0]}; "
-                             "a route needs at least two different points")
+            raise InputError(
+                f"route {self.name!r}: its {len(out)} waypoints are all the same point {out[0]}; "
+                "a route needs at least two different points"
+            )
         return out
 
 
@@ -83,16 +95,47 @@ _named("demo", "hall_entry", (114.0, 24.5), (114.0, 38.0), (120.5, 38.0), (120.5
 # the target length, visiting the classroom, a side branch and the hall more than once).
 _named(
     "paper-300m",
-    "hall_sw", "hall_center", "hall_entry", "hall_nw", "office_3", "junction_c",
-    "classroom", "office_3", "junction_b", "office_2", "office_4", "hall_se",
+    "hall_sw",
+    "hall_center",
+    "hall_entry",
+    "hall_nw",
+    "office_3",
+    "junction_c",
+    "classroom",
+    "office_3",
+    "junction_b",
+    "office_2",
+    "office_4",
+    "hall_se",
 )
 
 _named(
     "paper-1km",
-    "hall_center", "branch_c_end", "hall_entry", "lobby", "seminar", "office_2", "classroom_front",
-    "spine_w", "junction_a", "junction_c", "spine_e", "office_4", "branch_b_end", "spine_e",
-    "junction_b", "hall_nw", "branch_a_end", "spine_mid", "classroom_front", "office_3", "spine_e",
-    "hall_center", "hall_entry", "hall_sw", "spine_e",
+    "hall_center",
+    "branch_c_end",
+    "hall_entry",
+    "lobby",
+    "seminar",
+    "office_2",
+    "classroom_front",
+    "spine_w",
+    "junction_a",
+    "junction_c",
+    "spine_e",
+    "office_4",
+    "branch_b_end",
+    "spine_e",
+    "junction_b",
+    "hall_nw",
+    "branch_a_end",
+    "spine_mid",
+    "classroom_front",
+    "office_3",
+    "spine_e",
+    "hall_center",
+    "hall_entry",
+    "hall_sw",
+    "spine_e",
 )
 
 
@@ -141,7 +184,9 @@ def load_route_file(path: str | Path, world: str | None = None) -> Route:
                 try:
                     waypoints.append((float(fields[0]), float(fields[1])))
                 except ValueError:
-                    raise InputError(f"{path}:{number}: expected 'x y' in metres or a place name, got {line!r}") from None
+                    raise InputError(
+                        f"{path}:{number}: expected 'x y' in metres or a place name, got {line!r}"
+                    ) from None
             else:
                 raise InputError(f"{path}:{number}: expected 'x y' in metres or a place name, got {line!r}")
     if len(waypoints) < 2:
@@ -157,8 +202,10 @@ def is_route_name(name: str) -> bool:
     return repeat is not None and is_route_name(repeat["base"])
 
 
-LONG_FORMS = ("a long route is NAME-xN (a route N times over, N from 1 to "
-              f"{MAX_REPEAT}, e.g. paper-1km-x3) or tour-<L>km / tour-<L>m[-seed<S>] (e.g. tour-3km)")
+LONG_FORMS = (
+    "a long route is NAME-xN (a route N times over, N from 1 to "
+    f"{MAX_REPEAT}, e.g. paper-1km-x3) or tour-<L>km / tour-<L>m[-seed<S>] (e.g. tour-3km)"
+)
 
 
 def _unknown_route(name: str) -> InputError:
@@ -167,8 +214,11 @@ def _unknown_route(name: str) -> InputError:
     path = Path(name)
     if path.suffix and not TOUR.fullmatch(name.lower()) or os.sep in name:
         repeat = re.fullmatch(r"(?P<stem>.+)-x(?P<times>\d+)", path.stem)
-        how = (f"; a route file driven N times over is FILE-xN, e.g. {repeat['stem']}{path.suffix}-x{repeat['times']}"
-               if repeat else "")
+        how = (
+            f"; a route file driven N times over is FILE-xN, e.g. {repeat['stem']}{path.suffix}-x{repeat['times']}"
+            if repeat
+            else ""
+        )
         return InputError(f"route file {name}: no such file (a route is a route name or an existing route file){how}")
     close = [name.lower()] if TOUR.fullmatch(name.lower()) else []
     return UnknownNameError("route", name, ROUTES.names(), hint=LONG_FORMS, close=close)
@@ -184,8 +234,9 @@ def get_route(name_or_path: str, world: str | None = None) -> Route:
     repeat = REPEAT.fullmatch(name_or_path)
     if repeat and name_or_path not in ROUTES:
         base = get_route(repeat["base"], world)
-        return Route(f"{base.name}-x{repeat['times']}", base.world,
-                     repeated(base.waypoints, int(repeat["times"]), name_or_path))
+        return Route(
+            f"{base.name}-x{repeat['times']}", base.world, repeated(base.waypoints, int(repeat["times"]), name_or_path)
+        )
     tour = TOUR.fullmatch(name_or_path)
     if tour and name_or_path not in ROUTES:
         ref = world or "university"
@@ -202,6 +253,7 @@ def get_route(name_or_path: str, world: str | None = None) -> Route:
         )
     return route
 
+
 _TOURS: dict[tuple[str, float, int], tuple[str, ...]] = {}
 
 
@@ -217,7 +269,25 @@ def _tour(ref: str, length_m: float, seed: int) -> tuple[str, ...]:
 # ORB vocabulary is trained on, so that appearance-based loop closure is not tuned to `university`.
 _named(
     "annex-tour",
-    "sw", "south_mid", "hall_center", "hall_w", "hall_e", "north_mid", "ne", "library", "se", "sw",
-    "workshop", "nw", "office", "north_mid", "hall_center", "south_mid", "se", "ne", "nw", "sw",
+    "sw",
+    "south_mid",
+    "hall_center",
+    "hall_w",
+    "hall_e",
+    "north_mid",
+    "ne",
+    "library",
+    "se",
+    "sw",
+    "workshop",
+    "nw",
+    "office",
+    "north_mid",
+    "hall_center",
+    "south_mid",
+    "se",
+    "ne",
+    "nw",
+    "sw",
     world="annex",
 )

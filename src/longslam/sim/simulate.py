@@ -24,23 +24,23 @@ import longslam
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.geometry import camera_poses_from_planar, planar_from_camera_poses
+from longslam.core.odometry_noise import BiasNoise
+from longslam.core.progress import bar
+from longslam.core.trajectory import Trajectory
 from longslam.io.overwrite_policy import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader, SequenceWriter, derive_sequence
-from longslam.core.progress import bar
 from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
-from longslam.core.odometry_noise import BiasNoise
+from longslam.sim.noise import apply_noise
 from longslam.sim.perturbations import Perturbation, canonical
 from longslam.sim.perturbations.stream import perturbed_frames
 from longslam.sim.routes import Route
 from longslam.sim.sensors import IDEAL, SensorModel, get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
-from longslam.core.trajectory import Trajectory
 from longslam.world import load_world, world_key
 from longslam.world.reference import MeshSpec, is_mesh_ref, world_identity
-from longslam.sim.noise import apply_noise
 
 # Bump when rendering or driving changes in a way that makes cached frames stale.
 RENDER_VERSION = 1
@@ -48,14 +48,17 @@ RENDER_VERSION = 1
 
 log = logging.getLogger(__name__)  # -v shows where frames come from (longslam/cli/output.py)
 
+
 def cache_root() -> Path:
     """The render cache: LONGSLAM_CACHE, or ~/.cache/longslam if it is unset or empty (an empty
     value would otherwise put the cache in the current folder)."""
     given = os.environ.get("LONGSLAM_CACHE", "")
     root = Path(given) if given.strip() else Path.home() / ".cache" / "longslam"
     if root.exists() and not root.is_dir():
-        raise InputError(f"LONGSLAM_CACHE={given}: {root} is a file; expected a folder for the render cache "
-                         "(or leave LONGSLAM_CACHE unset for ~/.cache/longslam)")
+        raise InputError(
+            f"LONGSLAM_CACHE={given}: {root} is a file; expected a folder for the render cache "
+            "(or leave LONGSLAM_CACHE unset for ~/.cache/longslam)"
+        )
     for parent in root.absolute().parents:
         if parent.exists():
             if not parent.is_dir():
@@ -68,8 +71,10 @@ def check_camera_in_world(world, camera: CameraSettings) -> None:
     """Refuse a camera mounted above the top of the building: it would render the roof."""
     top = float(np.max(world.mesh.vertices[:, 2])) - world.floor_z if len(world.mesh.vertices) else 0.0
     if camera.camera_height >= top:
-        raise InputError(f"camera height {camera.camera_height:g} m is at or above the top of world {world.name!r} "
-                         f"({top:.2f} m above its floor): the camera would be over the ceiling")
+        raise InputError(
+            f"camera height {camera.camera_height:g} m is at or above the top of world {world.name!r} "
+            f"({top:.2f} m above its floor): the camera would be over the ceiling"
+        )
 
 
 def cache_key(route: Route, camera: CameraSettings, follower: FollowerSettings) -> str:
@@ -103,7 +108,9 @@ def rendered_sequence(
     root = Path(root) if root is not None else cache_root()
     path = root / cache_key(route, camera, follower)
     if path.is_dir():
-        log.info("route %s at %d x %d: rendered frames from the cache, %s", route.name, camera.width, camera.height, path)
+        log.info(
+            "route %s at %d x %d: rendered frames from the cache, %s", route.name, camera.width, camera.height, path
+        )
         return path
     log.info("route %s at %d x %d: rendering into the cache, %s", route.name, camera.width, camera.height, path)
     world = load_world(route.world)
@@ -125,7 +132,13 @@ def rendered_sequence(
         "longslam_version": longslam.__version__,
     }
     with SequenceWriter(path, camera.intrinsics, camera.max_depth, meta, overwrite=True) as writer:
-        frames = bar(range(len(truth)), desc=f"render {route.name} ({camera.width} x {camera.height})", unit="frame", disable=not progress, leave=False)
+        frames = bar(
+            range(len(truth)),
+            desc=f"render {route.name} ({camera.width} x {camera.height})",
+            unit="frame",
+            disable=not progress,
+            leave=False,
+        )
         for i in frames:
             rgb, depth = renderer.render(truth.poses[i])
             writer.add(float(truth.timestamps[i]), rgb, depth)
@@ -203,13 +216,25 @@ def simulate(
         longslam_version=longslam.__version__,
     )
     if perturbations:  # absent without them, so an unperturbed sequence's meta.json is unchanged
-        meta.update(perturbation=canonical(perturbations), perturbations=[p.describe() for p in perturbations],
-                    frames_dropped=len(dropped_frames(reader, perturbations, seed)))
+        meta.update(
+            perturbation=canonical(perturbations),
+            perturbations=[p.describe() for p in perturbations],
+            frames_dropped=len(dropped_frames(reader, perturbations, seed)),
+        )
     if sensor.is_ideal and not perturbations:
         derive_sequence(rendered, out, odometry, meta, overwrite=overwrite)
     else:
-        write_sensed_sequence(reader, out, sensor, seed, odometry, meta, overwrite=overwrite, progress=progress,
-                              perturbations=perturbations)
+        write_sensed_sequence(
+            reader,
+            out,
+            sensor,
+            seed,
+            odometry,
+            meta,
+            overwrite=overwrite,
+            progress=progress,
+            perturbations=perturbations,
+        )
     return out
 
 
@@ -221,9 +246,17 @@ def dropped_frames(reader: SequenceReader, perturbations: Sequence[Perturbation]
     return [i for i, t in enumerate(reader.timestamps) if float(t) not in kept]
 
 
-def write_sensed_sequence(reader: SequenceReader, out: Path, sensor: SensorModel, seed: int, odometry: Trajectory,
-                          meta: dict, overwrite: bool = False, progress: bool = True,
-                          perturbations: Sequence[Perturbation] = ()) -> None:
+def write_sensed_sequence(
+    reader: SequenceReader,
+    out: Path,
+    sensor: SensorModel,
+    seed: int,
+    odometry: Trajectory,
+    meta: dict,
+    overwrite: bool = False,
+    progress: bool = True,
+    perturbations: Sequence[Perturbation] = (),
+) -> None:
     """The rendered frames of `reader` as `sensor` delivers them, then perturbed, with `odometry`
     (every pose: a dropped frame is the camera's loss, not the wheels'), into `out`."""
     truth = reader.ground_truth

@@ -51,8 +51,9 @@ def tour_length_m(match: re.Match) -> float:
     """The length a `TOUR` name asks for, in metres (checked)."""
     length = float(match["length"]) * (1000.0 if match["unit"] == "km" else 1.0)
     if not 0 < length <= MAX_TOUR_M:
-        raise InputError(f"route {match[0]!r}: a tour of {length:g} m; expected more than 0 and at most "
-                         f"{MAX_TOUR_M:g} m")
+        raise InputError(
+            f"route {match[0]!r}: a tour of {length:g} m; expected more than 0 and at most " f"{MAX_TOUR_M:g} m"
+        )
     return length
 
 
@@ -80,9 +81,11 @@ def tour_waypoints(world: World, length_m: float, seed: int, places: str | None 
             if not legs[here] and found:
                 near = min(found, key=found.__getitem__)
                 pair = " and ".join(repr(n) for n in sorted((here, near)))
-                raise InputError(f"{places}: places {pair} are {found[near]:.2f} m apart, and no "
-                                 f"other place can be reached from {here!r}; a tour goes between places at least "
-                                 f"{MIN_LEG_M:g} m apart")
+                raise InputError(
+                    f"{places}: places {pair} are {found[near]:.2f} m apart, and no "
+                    f"other place can be reached from {here!r}; a tour goes between places at least "
+                    f"{MIN_LEG_M:g} m apart"
+                )
         if not legs[here]:
             raise InputError(f"world {world.name!r}: no other place can be reached from place {here!r}")
         reachable = sorted(legs[here])

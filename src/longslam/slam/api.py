@@ -7,8 +7,8 @@ a study's parameters builds a config, not a method.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -104,8 +104,7 @@ class Closable(Protocol):
     the engine calls it when a run stops before `finish` has returned (an error, Ctrl-C), so that
     nothing of the method outlives its run. `finish` itself must release what it holds."""
 
-    def close(self) -> None:
-        ...
+    def close(self) -> None: ...
 
 
 def wanted_images(method: Method) -> tuple[str, ...]:
@@ -187,9 +186,11 @@ class MethodSpec:
         """InputError naming each required parameter `params` leaves unset."""
         missing = self.missing(params)
         if missing:
-            raise InputError(f"method {self.name!r} needs the parameter{'s' if len(missing) > 1 else ''} "
-                             f"{', '.join(missing)} (`--param {missing[0]}=...`, or [params.{self.name}] in a study "
-                             f"file; `longslam list --params {self.name}` describes them)")
+            raise InputError(
+                f"method {self.name!r} needs the parameter{'s' if len(missing) > 1 else ''} "
+                f"{', '.join(missing)} (`--param {missing[0]}=...`, or [params.{self.name}] in a study "
+                f"file; `longslam list --params {self.name}` describes them)"
+            )
 
     def cores(self, available: int) -> int:
         """The cores a run takes on a machine (or executor) of `available` cores: all of them, for

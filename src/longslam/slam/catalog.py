@@ -57,7 +57,7 @@ def runnable_alone(name: str, params: dict[str, Any] | None = None) -> bool:
 
 
 def default_method_names() -> list[str]:
-    """"Every method" where no parameters are given (the demo's default): the methods that run
+    """ "Every method" where no parameters are given (the demo's default): the methods that run
     with their defaults, so not `command`, which needs the program to run."""
     return [name for name in method_names() if runnable_alone(name)]
 

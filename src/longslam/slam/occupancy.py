@@ -220,8 +220,14 @@ class GridVotes:
 
     GROW_CELLS = 256  # margin added whenever the arrays must grow, so they grow seldom
 
-    def __init__(self, cell: float = 0.05, prob_hit: float = 0.7, prob_miss: float = 0.4,
-                 clamp_min: float = 0.1192, clamp_max: float = 0.971):
+    def __init__(
+        self,
+        cell: float = 0.05,
+        prob_hit: float = 0.7,
+        prob_miss: float = 0.4,
+        clamp_min: float = 0.1192,
+        clamp_max: float = 0.971,
+    ):
         if not (0.5 < prob_hit < 1.0 and 0.0 < prob_miss < 0.5 and 0.0 < clamp_min < 0.5 < clamp_max < 1.0):
             raise InputError(
                 f"occupancy probabilities need 0.5 < prob_hit < 1, 0 < prob_miss < 0.5 and "
@@ -262,7 +268,7 @@ class GridVotes:
         if self._lo is not None:
             r0, c0 = (self._lo - lo)[::-1]
             h, w = self._odds.shape
-            odds[r0:r0 + h, c0:c0 + w] = self._odds
+            odds[r0 : r0 + h, c0 : c0 + w] = self._odds
         self._lo, self._odds = lo, odds
 
     def reserve(self, lo_xy: np.ndarray, hi_xy: np.ndarray) -> None:

@@ -7,9 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.core.frame import Frame
+from longslam.core.trajectory import Trajectory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, frame_odometry
-from longslam.core.trajectory import Trajectory
 
 
 @dataclass(frozen=True)

@@ -339,7 +339,9 @@ def match_descriptors(a: np.ndarray, b: np.ndarray, ratio: float = 0.8) -> np.nd
     if len(a) == 0 or len(b) < 2:
         return np.zeros((0, 2), np.int64)
     knn = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(a, b, k=2)
-    pairs: list[tuple[int, int]] | np.ndarray = [(m[0].queryIdx, m[0].trainIdx) for m in knn if len(m) == 2 and m[0].distance < ratio * m[1].distance]
+    pairs: list[tuple[int, int]] | np.ndarray = [
+        (m[0].queryIdx, m[0].trainIdx) for m in knn if len(m) == 2 and m[0].distance < ratio * m[1].distance
+    ]
     if not pairs:
         return np.zeros((0, 2), np.int64)
     pairs = np.array(pairs, np.int64)
@@ -378,8 +380,13 @@ def verify(
     image_points = query.keypoints[pairs[:, 0]].astype(np.float64)
     try:
         ok, rvec, tvec, inliers = cv2.solvePnPRansac(
-            object_points, image_points, intrinsics.matrix, None,
-            iterationsCount=iterations, reprojectionError=reprojection_error, confidence=0.99,
+            object_points,
+            image_points,
+            intrinsics.matrix,
+            None,
+            iterationsCount=iterations,
+            reprojectionError=reprojection_error,
+            confidence=0.99,
             flags=cv2.SOLVEPNP_SQPNP,
         )
     except cv2.error as err:
@@ -472,7 +479,12 @@ def refine_3d_checked(
 
 
 def depth_held_transform(
-    query: Features, candidate: Features, transform: np.ndarray, focal: float, polish: bool, min_support: int,
+    query: Features,
+    candidate: Features,
+    transform: np.ndarray,
+    focal: float,
+    polish: bool,
+    min_support: int,
 ) -> np.ndarray | None:
     """The PnP-verified `transform` a loop keeps: polished on the 3D-3D matches if `polish`, or
     None when fewer than `min_support` of them hold it (0: not checked)."""

@@ -47,7 +47,9 @@ class Rows:
         if not 0 <= first <= stop <= self._count:
             raise IndexError(f"rows {first}..{stop - 1} of {self._count}")
         c = self._chunk
-        parts = [self._chunks[i][max(first - i * c, 0):min(stop - i * c, c)] for i in range(first // c, -(-stop // c))]
+        parts = [
+            self._chunks[i][max(first - i * c, 0) : min(stop - i * c, c)] for i in range(first // c, -(-stop // c))
+        ]
         return np.concatenate(parts) if parts else np.zeros((0, *self.shape))
 
     def array(self) -> np.ndarray:

@@ -17,5 +17,17 @@ MAP_BYTES = "map_bytes"  # {part of the map: bytes held in RAM (and on disk wher
 CAMERA_HEIGHT = "camera_height"  # metres above the floor, as used
 NOTES = "notes"  # sentences on what the run could not do, which `longslam run` shows as note: lines
 
-SHARED = (FRAMES, FRAMES_WITHOUT_DEPTH, ODOMETRY_JUMPS, NODES, SUBMAPS, LOOP_HYPOTHESES, LOOPS_ACCEPTED,
-          LOOPS_REJECTED, OPTIMIZATIONS, MAP_BYTES, CAMERA_HEIGHT, NOTES)
+SHARED = (
+    FRAMES,
+    FRAMES_WITHOUT_DEPTH,
+    ODOMETRY_JUMPS,
+    NODES,
+    SUBMAPS,
+    LOOP_HYPOTHESES,
+    LOOPS_ACCEPTED,
+    LOOPS_REJECTED,
+    OPTIMIZATIONS,
+    MAP_BYTES,
+    CAMERA_HEIGHT,
+    NOTES,
+)

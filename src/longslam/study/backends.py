@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import Any, Protocol, cast
 
 from longslam.core.errors import LongslamError
-from longslam.study.record import RunRecord
 from longslam.io.grid_files import read_grid
+from longslam.study.record import RunRecord
 
 EXECUTORS = ("local", "ray")
 
@@ -84,7 +84,6 @@ def _local_child(task: Task, result_path: str, parent_pid: int) -> None:
 
     def load_truth():
         import numpy as np
-
 
         return read_grid(task.grid_path), np.load(task.observed_path)
 
@@ -179,7 +178,7 @@ class LocalExecutor:
         return done
 
     def close(self) -> None:
-        for task, process, result_path in self._running.values():
+        for _task, process, result_path in self._running.values():
             if process.is_alive():
                 process.kill()
             process.join()
@@ -233,8 +232,10 @@ def check_executor_options(kind: str, address: str | None) -> None:
 
         if importlib.util.find_spec("grpc") is None:
             raise LongslamError(
-                f"--address {address}: a ray:// address goes through Ray Client, which needs pip install 'ray[client]'; "
-                "or give the cluster's own address (head:6379) from a machine in the cluster")
+                f"--address {address}: a ray:// address goes through Ray Client, which needs pip install "
+                "'ray[client]'; "
+                "or give the cluster's own address (head:6379) from a machine in the cluster"
+            )
 
 
 def _probe(address: str, timeout: float) -> None:
@@ -249,8 +250,10 @@ def _probe(address: str, timeout: float) -> None:
             pass
     except OSError as err:
         reason = "no answer" if isinstance(err, TimeoutError) else (err.strerror or str(err))
-        raise LongslamError(f"--address {address}: no Ray cluster answered within {timeout:.0f} s ({reason}); "
-                            "check the address and that the cluster is up (`ray status` on its head node)") from None
+        raise LongslamError(
+            f"--address {address}: no Ray cluster answered within {timeout:.0f} s ({reason}); "
+            "check the address and that the cluster is up (`ray status` on its head node)"
+        ) from None
 
 
 def _ray_init(ray: Any, address: str | None, timeout: float) -> None:
@@ -270,8 +273,10 @@ def _ray_init(ray: Any, address: str | None, timeout: float) -> None:
     thread.start()
     thread.join(timeout)
     if not outcome:
-        raise LongslamError(f"Ray at {address or 'a local cluster'} did not start or answer within {timeout:.0f} s; "
-                            "check the address and that the cluster is up (`ray status` on its head node)")
+        raise LongslamError(
+            f"Ray at {address or 'a local cluster'} did not start or answer within {timeout:.0f} s; "
+            "check the address and that the cluster is up (`ray status` on its head node)"
+        )
     err = outcome[0]
     if err is not None:
         if isinstance(err, (ConnectionError, ValueError, RuntimeError, TimeoutError)):
@@ -317,8 +322,10 @@ class RayExecutor:
         if key not in self._truth_refs:
             import numpy as np
 
-
-            self._truth_refs[key] = [self._ray.put(read_grid(task.grid_path)), self._ray.put(np.load(task.observed_path))]
+            self._truth_refs[key] = [
+                self._ray.put(read_grid(task.grid_path)),
+                self._ray.put(np.load(task.observed_path)),
+            ]
         return self._truth_refs[key]
 
     def submit(self, task: Task) -> None:
@@ -330,7 +337,9 @@ class RayExecutor:
             return []
         ready, _ = self._ray.wait(list(self._running), num_returns=1, timeout=timeout)
         if ready:
-            more, _ = self._ray.wait([r for r in self._running if r not in ready], num_returns=len(self._running) - len(ready), timeout=0)
+            more, _ = self._ray.wait(
+                [r for r in self._running if r not in ready], num_returns=len(self._running) - len(ready), timeout=0
+            )
             ready += more
         done = []
         for ref in ready:

@@ -43,29 +43,41 @@ Every mistake is a `StudyConfigError` naming the file, the key and the valid val
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import math
 import re
 import tomllib
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from longslam.core.errors import InputError, UnknownNameError
-from longslam.eval.align import ALIGN_MODES
+from longslam.core.odometry_noise import NOISE_LEVELS
 from longslam.core.settings import from_mapping
 from longslam.core.suggest import did_you_mean
+from longslam.core.textfile import read_text
+from longslam.eval.align import ALIGN_MODES
 from longslam.sim.camera import CAMERA_KEYS, CameraSettings
 from longslam.sim.follower import FollowerSettings
-from longslam.core.odometry_noise import NOISE_LEVELS
 from longslam.sim.routes import ROUTES, Route, get_route, is_route_name, load_route_file
-from longslam.core.textfile import read_text
 from longslam.world.reference import same_world, world_label, world_ref
 
 TOP_KEYS = (
-    "name", "world", "routes", "noise", "methods", "seeds", "align", "map_tolerance_cells",
-    "camera", "cameras", "follower", "params", "variants", "sensors", "repeats",
+    "name",
+    "world",
+    "routes",
+    "noise",
+    "methods",
+    "seeds",
+    "align",
+    "map_tolerance_cells",
+    "camera",
+    "cameras",
+    "follower",
+    "params",
+    "variants",
+    "sensors",
+    "repeats",
     "perturbations",
 )
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
@@ -142,8 +154,16 @@ class StudyConfig:
     @property
     def run_count(self) -> int:
         """How many runs the study plans: one per route, camera, noise level, method and seed."""
-        return (len(self.routes) * len(self.camera_axis()) * len(self.sensor_axis()) * len(self.perturbation_axis())
-                * len(self.noise) * len(self.methods) * len(self.seeds) * self.repeats)
+        return (
+            len(self.routes)
+            * len(self.camera_axis())
+            * len(self.sensor_axis())
+            * len(self.perturbation_axis())
+            * len(self.noise)
+            * len(self.methods)
+            * len(self.seeds)
+            * self.repeats
+        )
 
     def grid_text(self) -> str:
         """The grid and its run count, counted without planning a run: '2 routes x 4 noise levels x
@@ -224,8 +244,10 @@ class _Reader:
         listed = f"; valid values: {_valid(valid)}" if valid else ""
         for i, (_, item) in enumerate(self.strings(data, key, what, valid=listed)):
             if valid is not None and item not in valid:
-                raise self.error(f"{key}[{i}]", f"unknown {what} {item!r}{did_you_mean(item, valid)}; "
-                                                f"valid values: {_valid(valid)}")
+                raise self.error(
+                    f"{key}[{i}]",
+                    f"unknown {what} {item!r}{did_you_mean(item, valid)}; " f"valid values: {_valid(valid)}",
+                )
             if item in out:
                 raise self.error(f"{key}[{i}]", f"{item!r} is listed twice")
             out.append(item)
@@ -288,8 +310,9 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
 
     if "camera" in data and "cameras" in data:
         raise r.error(
-            "camera", "a study has either one [camera] or named [cameras.NAME] tables, not both; "
-            "move [camera] into a [cameras.NAME] table, or drop [cameras]"
+            "camera",
+            "a study has either one [camera] or named [cameras.NAME] tables, not both; "
+            "move [camera] into a [cameras.NAME] table, or drop [cameras]",
         )
     cameras = _cameras(r, data) if "cameras" in data else []
     camera = cameras[0].settings if cameras else _camera(r, r.table(data, "camera", CAMERA_KEYS), "camera")
@@ -303,14 +326,27 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     perturbations = _perturbations(r, data) if "perturbations" in data else []
     repeats = _repeats(r, data.get("repeats", 1))
     config = StudyConfig(
-        name=name, world=world, routes=tuple(routes), noise=tuple(noise), methods=tuple(methods),
-        seeds=tuple(seeds), camera=camera, follower=follower, align=align,
-        map_tolerance_cells=float(tolerance), source=str(path), cameras=tuple(cameras), sensors=tuple(sensors),
-        repeats=repeats, perturbations=tuple(perturbations),
+        name=name,
+        world=world,
+        routes=tuple(routes),
+        noise=tuple(noise),
+        methods=tuple(methods),
+        seeds=tuple(seeds),
+        camera=camera,
+        follower=follower,
+        align=align,
+        map_tolerance_cells=float(tolerance),
+        source=str(path),
+        cameras=tuple(cameras),
+        sensors=tuple(sensors),
+        repeats=repeats,
+        perturbations=tuple(perturbations),
     )
     if config.run_count > MAX_RUNS:
-        raise StudyConfigError(f"study file {path}: {config.grid_text()}, more than a study may plan ({MAX_RUNS}); "
-                               "fewer seeds, routes, noise levels or methods")
+        raise StudyConfigError(
+            f"study file {path}: {config.grid_text()}, more than a study may plan ({MAX_RUNS}); "
+            "fewer seeds, routes, noise levels or methods"
+        )
     return config
 
 
@@ -322,7 +358,7 @@ def _camera(r: _Reader, table: dict, key: str) -> CameraSettings:
         bad = re.match(r"camera setting: parameter (\w+)=", str(err))
         if bad:
             fields = {field: name for name, field in CAMERA_KEYS.items()}
-            raise r.error(f"{key}.{fields.get(bad.group(1), bad.group(1))}", str(err)[bad.end():]) from None
+            raise r.error(f"{key}.{fields.get(bad.group(1), bad.group(1))}", str(err)[bad.end() :]) from None
         raise r.error(key, str(err)) from None
 
 
@@ -336,8 +372,9 @@ def _cameras(r: _Reader, data: dict) -> list[CameraEntry]:
         key = f"cameras.{name}"
         if not CAMERA_NAME.fullmatch(name):
             raise r.error(
-                key, f"a camera name is a folder of the study: 1 to 64 letters, digits, '_', '.' or '-', "
-                f"starting with a letter or digit; got {name!r}"
+                key,
+                f"a camera name is a folder of the study: 1 to 64 letters, digits, '_', '.' or '-', "
+                f"starting with a letter or digit; got {name!r}",
             )
         if not isinstance(table, dict):
             raise r.error(key, f"expected a table of camera settings ({_valid(CAMERA_KEYS)}), got {table!r}")
@@ -355,9 +392,7 @@ def _cameras(r: _Reader, data: dict) -> list[CameraEntry]:
 
 
 def _sensors(r: _Reader, data: dict) -> list[str]:
-    from longslam.sim.sensors import sensor_names
-
-    from longslam.sim.sensors import get_sensor
+    from longslam.sim.sensors import get_sensor, sensor_names
 
     names = sensor_names()
     sensors = r.string_list(data, "sensors", names, "sensor")
@@ -367,8 +402,11 @@ def _sensors(r: _Reader, data: dict) -> list[str]:
         except InputError as err:
             raise r.error(f"sensors[{i}]", str(err)) from None
         if not CAMERA_NAME.fullmatch(name):  # a sensor's name is a folder of the study too
-            raise r.error(f"sensors[{i}]", f"sensor {name!r} cannot be a folder name: 1 to 64 letters, digits, '_', '.' "
-                                           "or '-', starting with a letter or digit")
+            raise r.error(
+                f"sensors[{i}]",
+                f"sensor {name!r} cannot be a folder name: 1 to 64 letters, digits, '_', '.' "
+                "or '-', starting with a letter or digit",
+            )
     return sensors
 
 
@@ -389,8 +427,10 @@ def _perturbations(r: _Reader, data: dict) -> list[str]:
 
 
 def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
-    valid = (f"a route name ({_valid(ROUTES.names())}), a long route (NAME-xN, tour-<L>km[-seed<S>]) or a "
-             "waypoint file relative to the study file")
+    valid = (
+        f"a route name ({_valid(ROUTES.names())}), a long route (NAME-xN, tour-<L>km[-seed<S>]) or a "
+        "waypoint file relative to the study file"
+    )
     routes: list[Route] = []
     for key, item in r.strings(data, "routes", "route", f": {valid}"):
         if is_route_name(item):
@@ -410,7 +450,8 @@ def _routes(r: _Reader, data: dict, world: str, path: Path) -> list[Route]:
                 raise r.error(key, str(err)) from None
         if not same_world(route.world, world):
             raise r.error(
-                key, f"route {route.name!r} is in world {world_label(route.world)!r}, the study in {world_label(world)!r}"
+                key,
+                f"route {route.name!r} is in world {world_label(route.world)!r}, the study in {world_label(world)!r}",
             )
         if any(route.name == other.name for other in routes):
             raise r.error(key, f"a route named {route.name!r} is listed twice (route files are named by their stem)")
@@ -437,7 +478,9 @@ def _seeds(r: _Reader, value: Any) -> list[int]:
             raise r.error("seeds", f"a count of {value} seeds is more runs than a study may plan ({MAX_RUNS})")
         return list(range(value))
     if not isinstance(value, list) or not value or not all(_is_int(s) and s >= 0 for s in value):
-        raise r.error("seeds", f"expected a count (e.g. 5) or a non-empty list of integers >= 0 (e.g. [0, 1]), got {value!r}")
+        raise r.error(
+            "seeds", f"expected a count (e.g. 5) or a non-empty list of integers >= 0 (e.g. [0, 1]), got {value!r}"
+        )
     for i, seed in enumerate(value):
         if seed > MAX_SEED:
             raise r.error(f"seeds[{i}]", f"seed {seed}: {seed_problem(seed)}")
@@ -459,15 +502,21 @@ def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
         variant_labels = data.get("variants", {}) if isinstance(data.get("variants"), dict) else {}
         for i, item in enumerate(value):
             if isinstance(item, str) and item not in available and item in variant_labels:
-                raise r.error(f"methods[{i}]", f"{item!r} is a variant ([variants.{item}]); a variant runs beside the "
-                                               "methods listed without being listed itself: remove it from methods")
+                raise r.error(
+                    f"methods[{i}]",
+                    f"{item!r} is a variant ([variants.{item}]); a variant runs beside the "
+                    "methods listed without being listed itself: remove it from methods",
+                )
         names = r.string_list(data, "methods", available, "method") if value else []
     params = r.table(data, "params", names)
     if value == "all":  # not a method that needs parameters the file does not give (`command`'s program)
         from longslam.slam.catalog import runnable_alone
 
-        names = [name for name in names
-                 if runnable_alone(name, params.get(name) if isinstance(params.get(name), dict) else None)]
+        names = [
+            name
+            for name in names
+            if runnable_alone(name, params.get(name) if isinstance(params.get(name), dict) else None)
+        ]
     entries = []
     for name in names:
         overrides = params.get(name, {})
@@ -484,8 +533,11 @@ def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
                 raise r.error(f"{key}.{sub}", _unknown_key(sub, VARIANT_KEYS))
         method = variant.get("method")
         if method not in available:
-            raise r.error(f"{key}.method", f"unknown method {method!r}{did_you_mean(str(method), available)}; "
-                                           f"valid values: {_valid(available)}")
+            raise r.error(
+                f"{key}.method",
+                f"unknown method {method!r}{did_you_mean(str(method), available)}; "
+                f"valid values: {_valid(available)}",
+            )
         if label in names or any(e.label == label for e in entries):
             raise r.error(key, f"label {label!r} is already a method of this study; choose another label")
         overrides = variant.get("params", {})
@@ -493,7 +545,7 @@ def _methods(r: _Reader, data: dict, available: list[str]) -> list[MethodEntry]:
             raise r.error(f"{key}.params", f"expected a table of parameters, got {overrides!r}")
         entries.append(MethodEntry(label, method, dict(overrides)))
     if not entries:
-        raise r.error("methods", f"no method to run; valid values: \"all\" or a list of {_valid(available)}")
+        raise r.error("methods", f'no method to run; valid values: "all" or a list of {_valid(available)}')
     return entries
 
 

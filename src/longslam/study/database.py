@@ -3,12 +3,14 @@
 Table `runs` has one row per run key (`route/noise/method/seed-N`, or `route/camera/noise/method/
 seed-N` in a study with named cameras; its primary key, so a run is there at most once): its
 configuration (`camera_name` is the camera's name, "camera" for the one camera of a `[camera]`
-study and for every run recorded before cameras had names; `camera` holds its settings; `sensor` is the sensor model, "ideal" for a study without a
+study and for every run recorded before cameras had names; `camera` holds its settings; `sensor` is the sensor model,
+"ideal" for a study without a
 sensors axis and for every run recorded before sensors were one; `perturbation` the perturbations'
 text, "none" likewise), status
 ('ok' or 'error' with the error text), the headline metrics as columns (ate, e_trans, e_rot,
 peak_rss_bytes, map_precision, ...), the full metrics, curves against distance travelled and
-harness figures as JSON text, and the paths of its files relative to the study folder. Table `study` holds the study's configuration.
+harness figures as JSON text, and the paths of its files relative to the study folder. Table `study` holds the
+study's configuration.
 
     sqlite3 DIR/results.sqlite "select method, noise, avg(ate) from runs where status='ok' group by 1, 2"
 """
@@ -23,9 +25,9 @@ from typing import Any
 
 from longslam.core.errors import InputError
 from longslam.run.folder import RUN_FILES
-from longslam.study.record import HEADLINE, JSON_PARTS, RunRecord
 from longslam.sim.perturbations.parse import NONE
 from longslam.sim.sensors.catalog import IDEAL
+from longslam.study.record import HEADLINE, JSON_PARTS, RunRecord
 from longslam.study.spec import DEFAULT_CAMERA
 
 DB_NAME = "results.sqlite"
@@ -35,9 +37,19 @@ SCHEMA_VERSION = 2  # 2: the harness's figures column is `measurements`
 # its record (study/record.py decides which), whole parts of the record as JSON, and its files.
 SPEC_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
-    "study": "TEXT", "world": "TEXT", "route": "TEXT", "noise": "TEXT", "method": "TEXT",
-    "method_name": "TEXT", "params": "TEXT", "seed": "INTEGER", "camera": "TEXT", "follower": "TEXT",
-    "align": "TEXT", "config_hash": "TEXT", "spec": "TEXT",
+    "study": "TEXT",
+    "world": "TEXT",
+    "route": "TEXT",
+    "noise": "TEXT",
+    "method": "TEXT",
+    "method_name": "TEXT",
+    "params": "TEXT",
+    "seed": "INTEGER",
+    "camera": "TEXT",
+    "follower": "TEXT",
+    "align": "TEXT",
+    "config_hash": "TEXT",
+    "spec": "TEXT",
     # `camera` was the settings (JSON) before cameras had names, so the name has a column of its own.
     "camera_name": "TEXT",
     "sensor": "TEXT",
@@ -45,15 +57,23 @@ SPEC_COLUMNS = {
     "repeat": "INTEGER",  # which run of its cell (0 for every run recorded before studies repeated cells)
 }
 OUTCOME_COLUMNS = {
-    "status": "TEXT NOT NULL", "error": "TEXT", "traceback": "TEXT",
-    "finished_at": "TEXT", "elapsed_s": "REAL", "host": "TEXT", "executor": "TEXT",
+    "status": "TEXT NOT NULL",
+    "error": "TEXT",
+    "traceback": "TEXT",
+    "finished_at": "TEXT",
+    "elapsed_s": "REAL",
+    "host": "TEXT",
+    "executor": "TEXT",
     # When the study handed the run to its executor and when it came back (UTC, ISO 8601 with
     # microseconds): which runs overlapped in time.
-    "started_at": "TEXT", "ended_at": "TEXT", "cores": "INTEGER",
+    "started_at": "TEXT",
+    "ended_at": "TEXT",
+    "cores": "INTEGER",
 }
 FILE_COLUMNS = {f"{kind}_path": "TEXT" for kind in RUN_FILES} | {"run_dir": "TEXT", "log_path": "TEXT"}
 RUN_COLUMNS = {
-    **SPEC_COLUMNS, **OUTCOME_COLUMNS,
+    **SPEC_COLUMNS,
+    **OUTCOME_COLUMNS,
     **{c.name: c.sql_type for c in HEADLINE},
     **{part: "TEXT" for part in JSON_PARTS},
     **FILE_COLUMNS,
@@ -128,30 +148,61 @@ class ResultsDB:
 
     def finished(self) -> dict[str, tuple[str, str]]:
         """run key -> (config hash, status) of every recorded run."""
-        return {r["key"]: (r["config_hash"], r["status"]) for r in self._conn.execute("SELECT key, config_hash, status FROM runs")}
+        return {
+            r["key"]: (r["config_hash"], r["status"])
+            for r in self._conn.execute("SELECT key, config_hash, status FROM runs")
+        }
 
-    def record(self, spec: Any, record: RunRecord, run_dir: str | None, executor: str = "",
-               started_at: str | None = None, cores: int | None = None) -> None:
+    def record(
+        self,
+        spec: Any,
+        record: RunRecord,
+        run_dir: str | None,
+        executor: str = "",
+        started_at: str | None = None,
+        cores: int | None = None,
+    ) -> None:
         """Store one finished run (replacing an older row of the same key), committed at once."""
         row: dict[str, Any] = {
-            "key": spec.key, "study": spec.study, "world": spec.world, "route": spec.route, "noise": spec.noise,
-            "method": spec.method, "method_name": spec.method_name, "params": spec.params, "seed": spec.seed,
-            "camera": spec.camera, "camera_name": getattr(spec, "camera_name", "") or DEFAULT_CAMERA,
-            "sensor": getattr(spec, "sensor", "") or IDEAL, "perturbation": getattr(spec, "perturbation", "") or NONE,
+            "key": spec.key,
+            "study": spec.study,
+            "world": spec.world,
+            "route": spec.route,
+            "noise": spec.noise,
+            "method": spec.method,
+            "method_name": spec.method_name,
+            "params": spec.params,
+            "seed": spec.seed,
+            "camera": spec.camera,
+            "camera_name": getattr(spec, "camera_name", "") or DEFAULT_CAMERA,
+            "sensor": getattr(spec, "sensor", "") or IDEAL,
+            "perturbation": getattr(spec, "perturbation", "") or NONE,
             "repeat": getattr(spec, "repeat", 0),
-            "follower": spec.follower, "align": spec.align,
-            "config_hash": spec.config_hash, "spec": spec.describe(),
-            "status": record.status, "error": record.error, "traceback": record.traceback,
+            "follower": spec.follower,
+            "align": spec.align,
+            "config_hash": spec.config_hash,
+            "spec": spec.describe(),
+            "status": record.status,
+            "error": record.error,
+            "traceback": record.traceback,
             "finished_at": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
-            "elapsed_s": record.elapsed_s, "host": record.host, "executor": executor, "log_path": record.log,
-            "started_at": started_at, "ended_at": utc_now(), "cores": cores,
+            "elapsed_s": record.elapsed_s,
+            "host": record.host,
+            "executor": executor,
+            "log_path": record.log,
+            "started_at": started_at,
+            "ended_at": utc_now(),
+            "cores": cores,
         }
         if record.ok:
             row.update({c.name: c.value(record) for c in HEADLINE})
             row.update({part: getattr(record, part) for part in JSON_PARTS})
             row["run_dir"] = run_dir
             row.update({f"{kind}_path": _in(run_dir, record.files.get(kind)) for kind in RUN_FILES})
-        values = {k: (json.dumps(v, default=str) if k in JSON_COLUMNS and v is not None else _finite(v)) for k, v in row.items()}
+        values = {
+            k: (json.dumps(v, default=str) if k in JSON_COLUMNS and v is not None else _finite(v))
+            for k, v in row.items()
+        }
         names = ", ".join(values)
         marks = ", ".join(f":{k}" for k in values)
         with self._conn:
@@ -164,7 +215,11 @@ class ResultsDB:
 
     def runs(self, status: str | None = None) -> list[dict[str, Any]]:
         """Every run (or those with `status`) as dicts, JSON columns decoded, in key order."""
-        query = "SELECT * FROM runs" + (" WHERE status = ?" if status else "") + " ORDER BY route, camera_name, sensor, perturbation, noise, method, seed, repeat"
+        query = (
+            "SELECT * FROM runs"
+            + (" WHERE status = ?" if status else "")
+            + " ORDER BY route, camera_name, sensor, perturbation, noise, method, seed, repeat"
+        )
         out = []
         for row in self._conn.execute(query, (status,) if status else ()):
             item = dict(row)
@@ -181,8 +236,10 @@ class ResultsDB:
                     try:
                         item[column] = json.loads(item[column])
                     except (TypeError, ValueError) as err:
-                        raise InputError(f"results database {self.path}: run {item.get('key')!r}, column {column}: "
-                                         f"not valid JSON ({err})") from None
+                        raise InputError(
+                            f"results database {self.path}: run {item.get('key')!r}, column {column}: "
+                            f"not valid JSON ({err})"
+                        ) from None
             out.append(item)
         return out
 
@@ -196,7 +253,9 @@ def connect_read_only(path: str | Path) -> sqlite3.Connection:
     path = Path(path)
     wal = path.with_name(path.name + "-wal")
     mode = "mode=ro" if wal.exists() else "immutable=1"
-    return sqlite3.connect(f"{path.absolute().as_uri()}?{mode}", uri=True)  # as_uri: a '?' or '#' in the path is escaped
+    return sqlite3.connect(
+        f"{path.absolute().as_uri()}?{mode}", uri=True
+    )  # as_uri: a '?' or '#' in the path is escaped
 
 
 def check_results_tables(path: str | Path) -> None:
@@ -213,8 +272,10 @@ def check_results_tables(path: str | Path) -> None:
         raise InputError(f"results database {path} cannot be read: {err}") from None
     missing = [t for t in ("runs", "study") if t not in tables]
     if missing:
-        raise InputError(f"results database {path} has no table {' and no table '.join(missing)}; it is not a "
-                         "longslam study's database (or was damaged); nothing was written")
+        raise InputError(
+            f"results database {path} has no table {' and no table '.join(missing)}; it is not a "
+            "longslam study's database (or was damaged); nothing was written"
+        )
 
 
 def _in(run_dir: str | None, name: str | None) -> str | None:

@@ -23,14 +23,20 @@ from pathlib import Path
 from tqdm import tqdm
 
 from longslam.core.progress import bar as progress_bar
-from longslam.study.config import StudyConfig, check_method_params
 from longslam.run.process_tree import STARVED_SHARE
-from longslam.study.database import DB_NAME, ResultsDB, utc_now
 from longslam.study.backends import Executor, Task, check_executor_options, make_executor
+from longslam.study.config import StudyConfig, check_method_params
+from longslam.study.database import DB_NAME, ResultsDB, utc_now
 from longslam.study.identity import check_same_study
 from longslam.study.lock import study_lock
 from longslam.study.prepare import (
-    check_out_folder, check_routes, clean_partials, prepare_route, render_once, route_dir, world_grid_path,
+    check_out_folder,
+    check_routes,
+    clean_partials,
+    prepare_route,
+    render_once,
+    route_dir,
+    world_grid_path,
 )
 from longslam.study.spec import RunSpec, plan_runs
 
@@ -57,15 +63,18 @@ def _task(out: Path, spec: RunSpec, cores: int = 1) -> Task:
     )
 
 
-def runs_to_do(specs: list[RunSpec], finished: dict[str, tuple[str, str]], retry_failed: bool = False,
-               again: set[str] | frozenset[str] = frozenset()) -> list[RunSpec]:
+def runs_to_do(
+    specs: list[RunSpec],
+    finished: dict[str, tuple[str, str]],
+    retry_failed: bool = False,
+    again: set[str] | frozenset[str] = frozenset(),
+) -> list[RunSpec]:
     """The planned runs that are not yet in the database with the same configuration (or whose
     keys are in `again`)."""
     todo = []
     for spec in specs:
         done = finished.get(spec.key)
-        if (done is None or done[0] != spec.config_hash or (retry_failed and done[1] != "ok")
-                or spec.key in again):
+        if done is None or done[0] != spec.config_hash or (retry_failed and done[1] != "ok") or spec.key in again:
             todo.append(spec)
     return todo
 
@@ -109,15 +118,25 @@ def run_study(
     try:
         out.mkdir(parents=True, exist_ok=True)
         with study_lock(out):
-            return _run_locked(config, out, specs, start, executor, pool, retry_failed, report, progress, recorded,
-                               retry_starved)
+            return _run_locked(
+                config, out, specs, start, executor, pool, retry_failed, report, progress, recorded, retry_starved
+            )
     finally:
         pool.close()
 
 
 def _run_locked(
-    config: StudyConfig, out: Path, specs: list[RunSpec], start: float, executor: str, pool: Executor,
-    retry_failed: bool, report: bool, progress: bool, recorded: dict | None = None, retry_starved: bool = False,
+    config: StudyConfig,
+    out: Path,
+    specs: list[RunSpec],
+    start: float,
+    executor: str,
+    pool: Executor,
+    retry_failed: bool,
+    report: bool,
+    progress: bool,
+    recorded: dict | None = None,
+    retry_starved: bool = False,
 ) -> StudySummary:
     say = tqdm.write if progress else (lambda *a, **k: None)
 
@@ -152,8 +171,15 @@ def _run_locked(
             # (ORB-SLAM3) waits for the runs before it to end, and nothing starts beside it.
             cores = {name: get_spec(name).cores(pool.capacity) for name in {spec.method_name for spec in todo}}
             started: dict[str, tuple[float, str]] = {}
-            bar = progress_bar(total=len(specs), initial=skipped, unit="run", desc=f"study {config.name}",
-                       disable=not progress, dynamic_ncols=True, smoothing=0.0)
+            bar = progress_bar(
+                total=len(specs),
+                initial=skipped,
+                unit="run",
+                desc=f"study {config.name}",
+                disable=not progress,
+                dynamic_ncols=True,
+                smoothing=0.0,
+            )
             try:
                 while pending or pool.running:
                     while pending and pool.busy_cores + cores[pending[0].method_name] <= pool.capacity:

@@ -38,8 +38,10 @@ def _summary(config: dict[str, Any]) -> str:
     sensors = f"; sensors {', '.join(config['sensors'])}" if config.get("sensors") else ""
     sensors += f"; perturbations {', '.join(config['perturbations'])}" if config.get("perturbations") else ""
     sensors += f"; {config['repeats']} repeats" if config.get("repeats", 1) != 1 else ""
-    return (f"study {config.get('name')!r} (routes {routes}; noise {', '.join(config.get('noise', []))}; "
-            f"methods {methods}{sensors}; {len(seeds)} seed{'' if len(seeds) == 1 else 's'})")
+    return (
+        f"study {config.get('name')!r} (routes {routes}; noise {', '.join(config.get('noise', []))}; "
+        f"methods {methods}{sensors}; {len(seeds)} seed{'' if len(seeds) == 1 else 's'})"
+    )
 
 
 def stored_study(out: Path) -> dict[str, Any] | None:
@@ -84,7 +86,8 @@ def check_same_study(out: Path, config: dict[str, Any], extend: bool) -> dict[st
         raise InputError(
             f"study folder {out} holds {_summary(old)}; {config.get('source') or 'this study'} is "
             f"{_summary(config)}, different in {', '.join(changed)}; choose another --out, or pass --extend to add "
-            "its runs to this folder (its report then covers both)")
+            "its runs to this folder (its report then covers both)"
+        )
     return merged(old, config)
 
 

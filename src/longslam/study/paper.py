@@ -12,10 +12,7 @@ import io
 from dataclasses import dataclass
 from importlib import resources
 
-CITATION = (
-    'A. Muravyev and K. Yakovlev, "Evaluation of RGB-D SLAM in Large Indoor Environments", '
-    "ICR 2022"
-)
+CITATION = 'A. Muravyev and K. Yakovlev, "Evaluation of RGB-D SLAM in Large Indoor Environments", ' "ICR 2022"
 # The paper's systems, as they are named in its tables.
 PAPER_METHODS = {"rtabmap": "RTAB-Map", "voxgraph": "Voxgraph"}
 # longslam route -> the paper's route of the same design.

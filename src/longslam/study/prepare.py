@@ -28,17 +28,17 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.eval.map_quality import observed_walls
 from longslam.core.gridmap import GridMap
+from longslam.core.trajectory import Trajectory
+from longslam.eval.map_quality import observed_walls
 from longslam.io.atomic import atomic_path, write_text_atomic
+from longslam.io.grid_files import read_grid, write_grid
 from longslam.io.trajectory_files import read_tum, write_tum
-from longslam.sim.simulate import cache_key, cache_root, rendered_sequence
 from longslam.sim.camera import CameraSettings
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.routes import Route
-from longslam.core.trajectory import Trajectory
-from longslam.io.grid_files import write_grid, read_grid
+from longslam.sim.simulate import cache_key, cache_root, rendered_sequence
 
 
 @contextlib.contextmanager
@@ -102,14 +102,18 @@ def prepare_route(
     settings = {"camera": asdict(camera), "follower": asdict(follower)}
     if info_path.is_file() and grid_path.is_file():
         info = json.loads(info_path.read_text(encoding="utf-8"))
-        if info.get("settings") == json.loads(json.dumps(settings)) and info.get("waypoints_given") == _waypoints_json(route):
+        if info.get("settings") == json.loads(json.dumps(settings)) and info.get("waypoints_given") == _waypoints_json(
+            route
+        ):
             return
     world = load_world(route.world)
     if not grid_path.is_file():
         grid_path.parent.mkdir(parents=True, exist_ok=True)
         write_grid(world.occupancy, grid_path)
     driven = drive_route(world, route, follower)
-    truth = camera_trajectory(driven.timestamps, driven.xyyaw, camera.camera_height, world.floor_z, source="ground truth")
+    truth = camera_trajectory(
+        driven.timestamps, driven.xyyaw, camera.camera_height, world.floor_z, source="ground truth"
+    )
     folder.mkdir(parents=True, exist_ok=True)
     write_tum(folder / "groundtruth.txt", truth)
     observed = observed_walls(world.occupancy, driven.xyyaw, camera.hfov_deg, camera.max_depth)
@@ -177,7 +181,9 @@ def check_routes(config) -> None:
             try:
                 check_camera_in_world(world, camera)
             except InputError as err:  # name the study file's table the height came from
-                raise InputError(f"study file {config.source}: {f'cameras.{name}' if name else 'camera'}.camera_height: {err}") from None
+                raise InputError(
+                    f"study file {config.source}: {f'cameras.{name}' if name else 'camera'}.camera_height: {err}"
+                ) from None
         drive_route(world, route, config.follower)
 
 

@@ -81,11 +81,22 @@ HEADLINE = (
     # wait's share of wait plus CPU time; a share over 0.10 marks the run as starved.
     Column("cpu_wait_s", "REAL", _measured("cpu_wait_s")),
     Column("cpu_wait_share", "REAL", _measured("cpu_wait_share")),
-    *(Column(key, "REAL", _metric(key)) for key in ("ate", "e_trans", "e_rot", "ape_rmse", "rpe_trans", "rpe_rot", "ate_online")),
-    *(Column(key, "REAL", _quality(key)) for key in (
-        "map_precision", "map_recall", "map_f1",
-        "map_precision_aligned", "map_recall_aligned", "map_f1_aligned", "map_doubled_walls",
-    )),
+    *(
+        Column(key, "REAL", _metric(key))
+        for key in ("ate", "e_trans", "e_rot", "ape_rmse", "rpe_trans", "rpe_rot", "ate_online")
+    ),
+    *(
+        Column(key, "REAL", _quality(key))
+        for key in (
+            "map_precision",
+            "map_recall",
+            "map_f1",
+            "map_precision_aligned",
+            "map_recall_aligned",
+            "map_f1_aligned",
+            "map_doubled_walls",
+        )
+    ),
 )
 # Whole parts of the record, stored as JSON text.
 JSON_PARTS = ("metrics", "map_quality", "measurements", "error_curve", "memory_curve")

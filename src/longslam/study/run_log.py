@@ -15,8 +15,10 @@ from longslam.study.record import RunRecord
 def opening_line(spec: Any) -> str:
     params = " ".join(f"{k}={v}" for k, v in sorted(spec.params.items())) or "default parameters"
     started = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
-    return (f"longslam study run {spec.key}: method {spec.method_name} ({params}), route {spec.route}, "
-            f"noise {spec.noise}, seed {spec.seed}; process {os.getpid()} on {socket.gethostname()}, started {started}")
+    return (
+        f"longslam study run {spec.key}: method {spec.method_name} ({params}), route {spec.route}, "
+        f"noise {spec.noise}, seed {spec.seed}; process {os.getpid()} on {socket.gethostname()}, started {started}"
+    )
 
 
 def closing_line(record: RunRecord, seconds: float) -> str:

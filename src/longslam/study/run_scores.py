@@ -10,15 +10,15 @@ from typing import Any
 
 import numpy as np
 
+from longslam.core.gridmap import GridMap
+from longslam.core.trajectory import Trajectory
 from longslam.eval.align import alignment
 from longslam.eval.map_quality import map_scores
 from longslam.eval.metrics import ape_errors, ate
 from longslam.eval.sync import associate
-from longslam.core.gridmap import GridMap
+from longslam.run.measurements import RunMeasurements
 from longslam.run.score import score
 from longslam.slam.api import Result
-from longslam.core.trajectory import Trajectory
-from longslam.run.measurements import RunMeasurements
 
 CURVE_POINTS = 600  # at most this many points of each curve (error, memory) are kept per run
 TruthLoader = Callable[[], tuple[GridMap, np.ndarray]]
@@ -66,8 +66,15 @@ def score_run(
         grid, observed = load_truth()
         rotation, translation, scale = alignment(est, ref, align)
         quality = map_scores(
-            result.grid, grid, map_tolerance_cells, observed,
-            rotation, translation, scale, height=float(np.mean(est.positions[:, 2])), with_places=True,
+            result.grid,
+            grid,
+            map_tolerance_cells,
+            observed,
+            rotation,
+            translation,
+            scale,
+            height=float(np.mean(est.positions[:, 2])),
+            with_places=True,
         )
         quality["map_doubled_places"] = _thin_places(quality["map_doubled_places"])
     return {"metrics": metrics, "map_quality": quality, "error_curve": error_curve, "memory_curve": memory_curve}

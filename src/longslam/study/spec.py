@@ -12,8 +12,8 @@ from typing import Any
 from longslam.sim.camera import CameraSettings
 from longslam.sim.follower import FollowerSettings
 from longslam.sim.perturbations.parse import NONE
-from longslam.sim.sensors.catalog import IDEAL
 from longslam.sim.routes import Route
+from longslam.sim.sensors.catalog import IDEAL
 from longslam.study.config import StudyConfig
 
 # The name of the one camera of a [camera] study (and of every run recorded before cameras had names).
@@ -111,7 +111,8 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
     for seed, repeat in product(config.seeds, range(config.repeats)):
         for route in config.routes:
             for (camera_name, camera), sensor, perturbation, noise in product(
-                    config.camera_axis(), config.sensor_axis(), config.perturbation_axis(), config.noise):
+                config.camera_axis(), config.sensor_axis(), config.perturbation_axis(), config.noise
+            ):
                 for entry in config.methods:
                     runs.append(
                         RunSpec(

@@ -15,17 +15,17 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from longslam.io.sequence import SequenceReader
 from longslam.core.jsonable import json_default
-from longslam.run.engine import run_into_folder
-from longslam.run.measurements import RunMeasurements
-from longslam.run.folder import RECORD, RUN_FILES
-from longslam.sim.simulate import frames_with_odometry, noisy_odometry
 from longslam.core.odometry_noise import get_noise
+from longslam.io.sequence import SequenceReader
+from longslam.run.engine import run_into_folder
+from longslam.run.folder import RECORD, RUN_FILES
+from longslam.run.measurements import RunMeasurements
 from longslam.sim.perturbations import parse_entry
 from longslam.sim.perturbations.stream import perturbed_frames
 from longslam.sim.sensors import get_sensor
 from longslam.sim.sensors.stream import camera_motions, sensed_frames
+from longslam.sim.simulate import frames_with_odometry, noisy_odometry
 from longslam.slam.api import Result
 from longslam.slam.catalog import choose_method
 from longslam.study.prepare import render_once
@@ -54,11 +54,15 @@ def from_json(text: str) -> RunRecord:
 def error_record(err: BaseException) -> RunRecord:
     """The record of a run that raised."""
     return RunRecord.failed(
-        f"{type(err).__name__}: {err}", traceback="".join(traceback.format_exception(err)), host=socket.gethostname(),
+        f"{type(err).__name__}: {err}",
+        traceback="".join(traceback.format_exception(err)),
+        host=socket.gethostname(),
     )
 
 
-def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | None = None, progress: bool = False) -> RunRecord:
+def execute_run(
+    spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | None = None, progress: bool = False
+) -> RunRecord:
     """Do the run and write its folder `run_dir` (replacing an unfinished one). Returns its record.
 
     `load_truth` gives the world's ground-truth occupancy grid and the mask of observed walls;
@@ -83,8 +87,13 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
         frames = sensed_frames(frames, sensor, spec.seed, motions)
     if perturbations:
         frames = perturbed_frames(frames, perturbations, spec.seed, truth.timestamps, motions)
-    about: dict[str, Any] = {"sequence": str(rendered), "route": spec.route, "noise": spec.noise, "seed": spec.seed,
-                             "label": spec.method}
+    about: dict[str, Any] = {
+        "sequence": str(rendered),
+        "route": spec.route,
+        "noise": spec.noise,
+        "seed": spec.seed,
+        "label": spec.method,
+    }
     if spec.camera_name:
         about["camera"] = spec.camera_name
     if spec.sensor:
@@ -98,7 +107,10 @@ def execute_run(spec: RunSpec, run_dir: str | Path, load_truth: TruthLoader | No
         figures = measurements.to_dict()
         del figures["rss_samples"]
         record = RunRecord(
-            OK, **scores, measurements=figures, host=socket.gethostname(),
+            OK,
+            **scores,
+            measurements=figures,
+            host=socket.gethostname(),
             files={kind: name for kind, name in RUN_FILES.items() if (tmp / name).is_file()},
         )
         (tmp / RECORD).write_text(to_json(record) + "\n", encoding="utf-8", errors="surrogateescape")

@@ -23,8 +23,13 @@ from longslam.io.atomic import atomic_path
 SAVE_SUFFIXES = (".png", ".pdf")
 
 
-ALIGNED = {"none": "not aligned", "se3": "SE(3) Umeyama alignment", "sim3": "Sim(3) Umeyama alignment",
-           "scale": "scale corrected", "origin": "origin alignment"}
+ALIGNED = {
+    "none": "not aligned",
+    "se3": "SE(3) Umeyama alignment",
+    "sim3": "Sim(3) Umeyama alignment",
+    "scale": "scale corrected",
+    "origin": "origin alignment",
+}
 
 
 def _unit(evaluation: Evaluation) -> str:
@@ -45,8 +50,9 @@ def draw(fig: Figure, evaluation: Evaluation, title: str = "") -> Figure:
 
     # The trajectory coloured by error (evo's plot.traj_colormap), the reference dashed (evo's style).
     # Drawn over the estimate: under a thick coloured line a close reference would vanish.
-    left.plot(ref.positions[:, 0], ref.positions[:, 1], ls="--", color="black", lw=0.9, alpha=0.8,
-              label="reference", zorder=3)
+    left.plot(
+        ref.positions[:, 0], ref.positions[:, 1], ls="--", color="black", lw=0.9, alpha=0.8, label="reference", zorder=3
+    )
     xy = est.positions[:, :2]
     segments = np.stack([xy[:-1], xy[1:]], axis=1)
     lines = LineCollection(segments, cmap="jet", linewidths=2.5, zorder=2)
@@ -73,8 +79,13 @@ def draw(fig: Figure, evaluation: Evaluation, title: str = "") -> Figure:
     right.axhline(stats["rmse"], color="tab:blue", lw=1.5, label=f"rmse {stats['rmse']:.4g}{unit}")
     right.axhline(stats["median"], color="tab:green", lw=1.5, label=f"median {stats['median']:.4g}{unit}")
     right.axhline(stats["mean"], color="tab:red", lw=1.5, label=f"mean {stats['mean']:.4g}{unit}")
-    right.axhspan(stats["mean"] - stats["std"], stats["mean"] + stats["std"], color="tab:olive", alpha=0.3,
-                  label=f"mean +- std ({stats['std']:.4g}{unit})")
+    right.axhspan(
+        stats["mean"] - stats["std"],
+        stats["mean"] + stats["std"],
+        color="tab:olive",
+        alpha=0.3,
+        label=f"mean +- std ({stats['std']:.4g}{unit})",
+    )
     right.set_xlabel("time from start [s]")
     right.set_ylabel(label)
     right.set_title("error over time")
@@ -107,8 +118,10 @@ def check_can_show() -> None:
 
     backend = matplotlib.get_backend()
     if backend.lower() in NON_INTERACTIVE:
-        raise InputError(f"--plot needs a display, and matplotlib's backend is {backend!r} (no display found); "
-                         "use --save-plot FILE.png instead")
+        raise InputError(
+            f"--plot needs a display, and matplotlib's backend is {backend!r} (no display found); "
+            "use --save-plot FILE.png instead"
+        )
 
 
 def show_plot(evaluation: Evaluation, title: str = "") -> None:

@@ -46,18 +46,23 @@ import numpy as np
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.jsonable import json_default
+from longslam.core.timestamps import nearest_indices
+from longslam.core.trajectory import Trajectory
 from longslam.io.atomic import rename_no_replace, replace_file
 from longslam.io.overwrite_policy import check_output_file_free
 from longslam.io.partials import partial_path
-from longslam.slam.api import MethodContext, Result
-from longslam.slam.api import pose_graph
+from longslam.slam.api import MethodContext, Result, pose_graph
 from longslam.slam.graph import ODOMETRY
-from longslam.core.timestamps import nearest_indices
-from longslam.core.trajectory import Trajectory
 
 VIEWER = "viewer"  # --viz without a file: spawn (or join) a viewer on this machine
-COLORS = {"truth": (60, 200, 60), "estimate": (230, 60, 40), "odometry": (120, 120, 120),
-          "final": (40, 90, 230), "loop": (250, 200, 0), "registration": (180, 60, 220)}
+COLORS = {
+    "truth": (60, 200, 60),
+    "estimate": (230, 60, 40),
+    "odometry": (120, 120, 120),
+    "final": (40, 90, 230),
+    "loop": (250, 200, 0),
+    "registration": (180, 60, 220),
+}
 TRUTH_MAX_DIFF = 0.02  # s: the true pose compared with each frame's estimate
 WALL_CLOCK_AFTER_S = 86_400.0  # a first stamp past a day: the sequence's stamps are wall-clock times
 # At the end, a viewer that has not taken the run's data after this long is gone or stuck. With
@@ -71,7 +76,9 @@ def require_rerun() -> Any:
     try:
         import rerun
     except ImportError:
-        raise InputError("--viz needs rerun: pip install 'longslam[viz]' (or the version pinned in requirements.lock)") from None
+        raise InputError(
+            "--viz needs rerun: pip install 'longslam[viz]' (or the version pinned in requirements.lock)"
+        ) from None
     return rerun
 
 
@@ -82,8 +89,10 @@ def find_viewer() -> str:
 
     found = shutil.which("rerun") or shutil.which("rerun", path=str(Path(sys.executable).parent))
     if found is None:
-        raise InputError("--viz: the rerun viewer (the `rerun` command of rerun-sdk) is not on PATH nor beside "
-                         f"{sys.executable}; install it (pip install 'longslam[viz]'), or record to a file: --viz run.rrd")
+        raise InputError(
+            "--viz: the rerun viewer (the `rerun` command of rerun-sdk) is not on PATH nor beside "
+            f"{sys.executable}; install it (pip install 'longslam[viz]'), or record to a file: --viz run.rrd"
+        )
     return found
 
 
@@ -148,9 +157,11 @@ def check_viewer() -> str | None:
     viewer = find_viewer()
     problem = _display_problem()
     if problem is not None:
-        raise InputError(f"--viz: there is no display to show the rerun viewer on ({problem}) and no viewer is "
-                         "running; record to a file instead (--viz run.rrd) and open it with `rerun run.rrd` "
-                         "where there is a screen")
+        raise InputError(
+            f"--viz: there is no display to show the rerun viewer on ({problem}) and no viewer is "
+            "running; record to a file instead (--viz run.rrd) and open it with `rerun run.rrd` "
+            "where there is a screen"
+        )
     return viewer
 
 
@@ -197,8 +208,15 @@ class LiveView:
 
     images_every_frame = ("rgb", "depth")  # shown every frame: the engine decodes them ahead
 
-    def __init__(self, target: str, name: str, truth: Trajectory | None = None, every: int = 10, map_stride: int = 8,
-                 overwrite: bool = False):
+    def __init__(
+        self,
+        target: str,
+        name: str,
+        truth: Trajectory | None = None,
+        every: int = 10,
+        map_stride: int = 8,
+        overwrite: bool = False,
+    ):
         check_target(target, overwrite)
         self.rr = require_rerun()
         self.target = target
@@ -219,14 +237,18 @@ class LiveView:
                 if viewer is not None:
                     self.rr.spawn(executable_path=viewer, port=VIEWER_PORT, connect=False, recording=self.rec)
                     if not _viewer_listening():  # it died at once (no GPU, a display it could not open...)
-                        raise InputError(f"--viz: the rerun viewer {viewer} did not start (nothing listens on port "
-                                         f"{VIEWER_PORT}; its own message, if any, is above); record to a file "
-                                         "instead: --viz run.rrd")
+                        raise InputError(
+                            f"--viz: the rerun viewer {viewer} did not start (nothing listens on port "
+                            f"{VIEWER_PORT}; its own message, if any, is above); record to a file "
+                            "instead: --viz run.rrd"
+                        )
                 self.rec.connect_grpc(f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy", default_blueprint=layout)
                 self.rec.send_recording_name(name)
             except RuntimeError as err:
-                raise InputError(f"--viz: the rerun viewer could not be reached ({_first_line(err)}); "
-                                 "record to a file instead: --viz run.rrd") from None
+                raise InputError(
+                    f"--viz: the rerun viewer could not be reached ({_first_line(err)}); "
+                    "record to a file instead: --viz run.rrd"
+                ) from None
         else:
             path = Path(target)
             self._tmp = partial_path(path)
@@ -261,14 +283,18 @@ class LiveView:
                         rename_no_replace(self._tmp, self.target)
                     except FileExistsError:
                         self._tmp.unlink()
-                        raise InputError(f"--viz {self.target} was written by another process while this run "
-                                         "went on; it was left as it is (pass --overwrite to replace it)") from None
+                        raise InputError(
+                            f"--viz {self.target} was written by another process while this run "
+                            "went on; it was left as it is (pass --overwrite to replace it)"
+                        ) from None
             elif self._tmp.exists():
                 self._tmp.unlink()
         if exc_type is None and self.lost is not None:
             where = "the rerun viewer" if self.target == VIEWER else f"--viz {self.target}"
-            raise InputError(f"--viz: {where} stopped taking data ({self.lost}); the run itself finished and its "
-                             "files are complete")
+            raise InputError(
+                f"--viz: {where} stopped taking data ({self.lost}); the run itself finished and its "
+                "files are complete"
+            )
         return False
 
     def _close_viewer_stream(self) -> None:
@@ -321,10 +347,17 @@ class LiveView:
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         rec.log("run", rr.TextLog(f"{self.name}"), static=True)
         i = context.intrinsics
-        rec.log("world/camera/image", rr.Pinhole(image_from_camera=i.matrix, resolution=[i.width, i.height],
-                                                 camera_xyz=rr.ViewCoordinates.RDF), static=True)
+        rec.log(
+            "world/camera/image",
+            rr.Pinhole(image_from_camera=i.matrix, resolution=[i.width, i.height], camera_xyz=rr.ViewCoordinates.RDF),
+            static=True,
+        )
         if self.truth is not None and len(self.truth):
-            rec.log("world/truth", rr.LineStrips3D([self.truth.positions], colors=[COLORS["truth"]], radii=0.03), static=True)
+            rec.log(
+                "world/truth",
+                rr.LineStrips3D([self.truth.positions], colors=[COLORS["truth"]], radii=0.03),
+                static=True,
+            )
 
     def _frame(self, frame: Frame, pose: np.ndarray, method: Any) -> None:
         rr, rec = self.rr, self.rec
@@ -370,8 +403,10 @@ class LiveView:
             start = max(self._drawn[kind] - 1, 0)
             if len(points) - start < 2:
                 continue
-            self.rec.log(f"world/{kind}/{self._segments[kind]}",
-                         self.rr.LineStrips3D([np.array(points[start:])], colors=[COLORS[kind]], radii=radius))
+            self.rec.log(
+                f"world/{kind}/{self._segments[kind]}",
+                self.rr.LineStrips3D([np.array(points[start:])], colors=[COLORS[kind]], radii=radius),
+            )
             self._segments[kind] += 1
             self._drawn[kind] = len(points)
 
@@ -381,7 +416,7 @@ class LiveView:
         depth = np.asarray(frame.depth)[::s, ::s]
         rgb = np.asarray(frame.rgb)[::s, ::s]
         i = frame.intrinsics
-        v, u = np.mgrid[0:depth.shape[0], 0:depth.shape[1]]
+        v, u = np.mgrid[0 : depth.shape[0], 0 : depth.shape[1]]
         z = depth.astype(np.float64)
         keep = z > 0
         if not keep.any():

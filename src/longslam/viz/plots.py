@@ -8,9 +8,9 @@ import matplotlib
 
 matplotlib.use("Agg")  # files only; no display on servers
 import matplotlib.pyplot as plt
+import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-import numpy as np
 
 from longslam.core.gridmap import FREE, OCCUPIED, GridMap
 from longslam.io.atomic import atomic_path
@@ -37,8 +37,13 @@ def method_styles(labels: list[str]) -> dict[str, dict]:
     methods = [label for label in labels if label != GROUND_TRUTH]
     styles = {}
     for i, label in enumerate(methods):
-        styles[label] = {"color": colours[i % len(colours)], "ls": DASHES[i % len(DASHES)],
-                         "lw": 1.3 + 0.7 * (len(methods) - 1 - i), "alpha": 0.9, "zorder": 4 + i}
+        styles[label] = {
+            "color": colours[i % len(colours)],
+            "ls": DASHES[i % len(DASHES)],
+            "lw": 1.3 + 0.7 * (len(methods) - 1 - i),
+            "alpha": 0.9,
+            "zorder": 4 + i,
+        }
     return styles
 
 
@@ -71,7 +76,9 @@ def draw_plan(
     of the route labelled once with its visit numbers. `errors[label]` (ATE, m) goes in the legend;
     `order` (every label of a set of figures) keeps a method's style when some panel lacks another."""
     trajectories = trajectories or {}
-    ax.imshow(_plan_image(grid), origin="lower", extent=grid.extent, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+    ax.imshow(
+        _plan_image(grid), origin="lower", extent=grid.extent, cmap="gray", vmin=0, vmax=1, interpolation="nearest"
+    )
     styles = method_styles(order or list(trajectories))
     for label, xy in trajectories.items():
         xy = np.asarray(xy)
@@ -82,19 +89,28 @@ def draw_plan(
         shown = label if not errors or label not in errors else f"{label} (ATE {errors[label]:.3f} m)"
         ax.plot(xy[:, 0], xy[:, 1], label=shown, **style)
         if len(xy):
-            ax.plot(*xy[-1, :2], marker="s", ms=7, color=style["color"], mec="white", mew=0.8, ls="none",
-                    zorder=20)
+            ax.plot(*xy[-1, :2], marker="s", ms=7, color=style["color"], mec="white", mew=0.8, ls="none", zorder=20)
     if trajectories:
         first = np.asarray(next(iter(trajectories.values())))
         if len(first):
-            ax.plot(*first[0, :2], marker="o", ms=10, color="tab:green", mec="black", ls="none", zorder=21, label="start")
+            ax.plot(
+                *first[0, :2], marker="o", ms=10, color="tab:green", mec="black", ls="none", zorder=21, label="start"
+            )
             ax.plot([], [], marker="s", ms=7, color="grey", mec="white", ls="none", label="end (each path's colour)")
     if waypoints is not None and len(waypoints):
         wp = np.asarray(waypoints)
         ax.plot(wp[:, 0], wp[:, 1], "o", color="tab:red", ms=5, label="waypoints", zorder=15)
         for where, text in place_labels(wp):
-            ax.annotate(text, where, textcoords="offset points", xytext=(5, 5), fontsize=8, color="tab:red", zorder=22,
-                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7})
+            ax.annotate(
+                text,
+                where,
+                textcoords="offset points",
+                xytext=(5, 5),
+                fontsize=8,
+                color="tab:red",
+                zorder=22,
+                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7},
+            )
     xmin, xmax, ymin, ymax = view or grid.extent
     ax.set_xlim(xmin, xmax)
     ax.set_ylim(ymin, ymax)
@@ -105,7 +121,9 @@ def draw_plan(
         ax.legend(loc="upper left", fontsize=8)
 
 
-def plan_view(grid: GridMap, trajectories: dict[str, np.ndarray] | None, zoom_margin: float | None) -> tuple[float, float, float, float]:
+def plan_view(
+    grid: GridMap, trajectories: dict[str, np.ndarray] | None, zoom_margin: float | None
+) -> tuple[float, float, float, float]:
     """The floor plan's extent, or with `zoom_margin` the paths plus that many metres around them."""
     xmin, xmax, ymin, ymax = grid.extent
     if zoom_margin is not None and trajectories:
@@ -159,13 +177,14 @@ def plot_plans(
     rows = -(-len(names) // cols)
     width = 16.0 if cols > 1 else 12.0
     panel_w = width / cols
-    fig, axes = plt.subplots(rows, cols, figsize=(width, rows * (panel_w * (ymax - ymin) / (xmax - xmin) + 0.8)),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(width, rows * (panel_w * (ymax - ymin) / (xmax - xmin) + 0.8)), squeeze=False
+    )
     order = list(dict.fromkeys(label for name in names for label in panels[name]))
     for ax, name in zip(axes.flat, names):
         draw_plan(ax, grid, panels[name], waypoints, view, (errors or {}).get(name), order=order)
         ax.set_title(name, fontsize=10)
-    for ax in list(axes.flat)[len(names):]:
+    for ax in list(axes.flat)[len(names) :]:
         ax.axis("off")
     if title:
         fig.suptitle(title)
@@ -253,9 +272,11 @@ def plot_curves_by_distance(
 
 def cell_legend_handles(occupied: str = "occupied") -> list:
     """Legend entries for a grid drawn by `grid_image`: free white, unknown grey, occupied black."""
-    return [Patch(facecolor="white", edgecolor="#888", label="free"),
-            Patch(facecolor=(0.75, 0.75, 0.75), edgecolor="#888", label="unknown"),
-            Patch(facecolor="black", edgecolor="#888", label=occupied)]
+    return [
+        Patch(facecolor="white", edgecolor="#888", label="free"),
+        Patch(facecolor=(0.75, 0.75, 0.75), edgecolor="#888", label="unknown"),
+        Patch(facecolor="black", edgecolor="#888", label=occupied),
+    ]
 
 
 def grid_image(grid: GridMap, block: int = 1) -> tuple[np.ndarray, tuple[float, float, float, float]]:
@@ -297,7 +318,9 @@ def plot_maps(
     aspect = (ymax - ymin) / max(xmax - xmin, 1e-6)
     width, dpi = 5.0, 90
     legend_h = 0.45  # inches under the panels for the legend of the cells
-    fig, axes = plt.subplots(1, len(panels), figsize=(width * len(panels), width * aspect + 0.9 + legend_h), squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(panels), figsize=(width * len(panels), width * aspect + 0.9 + legend_h), squeeze=False
+    )
     pixels = 0.8 * width * dpi  # about the width of a panel's drawing area
     for ax, (name, grid) in zip(axes[0], panels.items()):
         block = max(1, round((xmax - xmin) / grid.resolution / pixels))
@@ -345,8 +368,15 @@ def plot_map_over_truth(
     # Three layers: the map's free and unknown space, the true walls (orange), the map's walls
     # (black) on top: a black wall off the orange is a wall where there is none, orange
     # without black a wall the map missed.
-    ax.imshow(np.where(image == 0.0, 1.0, image), origin="lower", extent=extent, cmap="gray", vmin=0, vmax=1,
-              interpolation="nearest")
+    ax.imshow(
+        np.where(image == 0.0, 1.0, image),
+        origin="lower",
+        extent=extent,
+        cmap="gray",
+        vmin=0,
+        vmax=1,
+        interpolation="nearest",
+    )
     true_block = max(1, round((xmax - xmin) / truth.resolution / pixels))
     true_walls, true_extent = grid_image(truth, true_block)
     walls = np.zeros(true_walls.shape + (4,))
@@ -357,9 +387,18 @@ def plot_map_over_truth(
     ax.imshow(ink, origin="lower", extent=extent, interpolation="nearest")
     if doubled is not None and len(doubled):
         doubled = np.asarray(doubled, dtype=np.float64).reshape(-1, 2)
-        ax.scatter(doubled[:, 0], doubled[:, 1], s=30, facecolors="none", edgecolors="magenta", linewidths=0.8,
-                   label="wall shown twice")
-    handles = cell_legend_handles("occupied (map)") + [Patch(facecolor=(1.0, 0.55, 0.0), edgecolor="#888", label="true wall")]
+        ax.scatter(
+            doubled[:, 0],
+            doubled[:, 1],
+            s=30,
+            facecolors="none",
+            edgecolors="magenta",
+            linewidths=0.8,
+            label="wall shown twice",
+        )
+    handles = cell_legend_handles("occupied (map)") + [
+        Patch(facecolor=(1.0, 0.55, 0.0), edgecolor="#888", label="true wall")
+    ]
     if doubled is not None and len(doubled):
         handles.append(Line2D([], [], marker="o", ls="none", mfc="none", mec="magenta", label="wall shown twice"))
     ax.legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.9)

@@ -12,13 +12,13 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from longslam.core.progress import bar as tqdm
 
 from longslam.core.errors import InputError
+from longslam.core.progress import bar as tqdm
 from longslam.io.sequence import SequenceReader
-from longslam.sim.simulate import rendered_sequence
 from longslam.sim.camera import CameraSettings
 from longslam.sim.routes import Route
+from longslam.sim.simulate import rendered_sequence
 from longslam.vocabulary.dbow2 import loader_size_problem, write_vocabulary
 from longslam.vocabulary.tree import Vocabulary, build_tree
 
@@ -41,8 +41,10 @@ MAX_FEATURES = 20000
 def check_features(features: int) -> None:
     """ORB features per frame: a whole number from 1 to MAX_FEATURES."""
     if isinstance(features, bool) or not isinstance(features, (int, np.integer)) or not 1 <= features <= MAX_FEATURES:
-        raise InputError(f"--features must be a whole number from 1 to {MAX_FEATURES} ORB features per frame "
-                         f"(as ORB-SLAM3's nFeatures), got {features!r}")
+        raise InputError(
+            f"--features must be a whole number from 1 to {MAX_FEATURES} ORB features per frame "
+            f"(as ORB-SLAM3's nFeatures), got {features!r}"
+        )
 
 
 class OrbExtractor:
@@ -59,14 +61,20 @@ class OrbExtractor:
         self.features = int(features)
 
         def orb(threshold: int) -> cv2.ORB:
-            return cv2.ORB_create(nfeatures=self.features, scaleFactor=ORB_SCALE, nlevels=ORB_LEVELS,
-                                  edgeThreshold=EDGE_THRESHOLD, patchSize=PATCH_SIZE, fastThreshold=threshold)
+            return cv2.ORB_create(
+                nfeatures=self.features,
+                scaleFactor=ORB_SCALE,
+                nlevels=ORB_LEVELS,
+                edgeThreshold=EDGE_THRESHOLD,
+                patchSize=PATCH_SIZE,
+                fastThreshold=threshold,
+            )
 
         self._strict, self._loose = orb(INI_FAST), orb(MIN_FAST)
 
     @staticmethod
     def _cell(keypoint: cv2.KeyPoint) -> tuple[int, int, int]:
-        scale = ORB_SCALE ** keypoint.octave
+        scale = ORB_SCALE**keypoint.octave
         return keypoint.octave, int(keypoint.pt[0] / scale // CELL), int(keypoint.pt[1] / scale // CELL)
 
     def descriptors(self, gray: np.ndarray) -> np.ndarray:
@@ -74,9 +82,11 @@ class OrbExtractor:
         keypoints = list(self._strict.detect(gray, None))
         if len(keypoints) < self.features:
             taken = {self._cell(kp) for kp in keypoints}
-            extra = sorted((kp for kp in self._loose.detect(gray, None) if self._cell(kp) not in taken),
-                           key=lambda kp: -kp.response)
-            keypoints += extra[:self.features - len(keypoints)]
+            extra = sorted(
+                (kp for kp in self._loose.detect(gray, None) if self._cell(kp) not in taken),
+                key=lambda kp: -kp.response,
+            )
+            keypoints += extra[: self.features - len(keypoints)]
         if not keypoints:
             return np.zeros((0, 32), dtype=np.uint8)
         _, descriptors = self._strict.compute(gray, keypoints)
@@ -87,8 +97,9 @@ def chosen_frames(total: int, every: int = 1, max_frames: int | None = None) -> 
     """Indices of every `every`-th frame, thinned evenly to at most `max_frames`."""
     if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
         raise InputError(f"--frames-every must be a whole number >= 1, got {every!r}")
-    if max_frames is not None and (isinstance(max_frames, bool) or not isinstance(max_frames, (int, np.integer))
-                                   or max_frames < 1):
+    if max_frames is not None and (
+        isinstance(max_frames, bool) or not isinstance(max_frames, (int, np.integer)) or max_frames < 1
+    ):
         raise InputError(f"--max-frames must be a whole number >= 1, got {max_frames!r}")
     frames = np.arange(0, total, every)
     if max_frames is not None and len(frames) > max_frames:
@@ -97,7 +108,10 @@ def chosen_frames(total: int, every: int = 1, max_frames: int | None = None) -> 
 
 
 def sequence_descriptors(
-    sequence: str | Path, features: int = 1000, every: int = 1, max_frames: int | None = None,
+    sequence: str | Path,
+    features: int = 1000,
+    every: int = 1,
+    max_frames: int | None = None,
     progress: bool = True,
 ) -> list[np.ndarray]:
     """ORB descriptors of the chosen frames of a sequence folder, one array per frame."""
@@ -117,14 +131,20 @@ def check_tree_size(k: int, levels: int) -> None:
     k = 10, 20^5 at k = 20; see `loader_size_problem`)."""
     for name, value, low, high in (("--k", k, 2, 20), ("--levels", levels, 1, 10)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-            raise InputError(f"{name} must be a whole number in {low}..{high} (ORB-SLAM3's loader's bounds), got {value!r}")
+            raise InputError(
+                f"{name} must be a whole number in {low}..{high} (ORB-SLAM3's loader's bounds), got {value!r}"
+            )
     problem = loader_size_problem(int(k), int(levels))
     if problem is not None:
         raise InputError(f"--k {k} --levels {levels}: {problem}; choose a smaller --k or --levels")
 
 
 def vocabulary_from_descriptors(
-    images: list[np.ndarray], k: int = 10, levels: int = 5, seed: int = 0, progress: bool = True,
+    images: list[np.ndarray],
+    k: int = 10,
+    levels: int = 5,
+    seed: int = 0,
+    progress: bool = True,
 ) -> Vocabulary:
     """The vocabulary tree of these training images' descriptors, reproducible from `seed`."""
     check_tree_size(k, levels)
@@ -133,8 +153,9 @@ def vocabulary_from_descriptors(
     total = sum(len(image) for image in images)
     if total == 0:
         raise InputError(f"the {len(images)} frames gave no ORB features (blank or textureless images?)")
-    with tqdm(total=total, desc="vocabulary tree", unit="desc", unit_scale=True, disable=not progress,
-              leave=False) as bar:
+    with tqdm(
+        total=total, desc="vocabulary tree", unit="desc", unit_scale=True, disable=not progress, leave=False
+    ) as bar:
         return build_tree(images, k, levels, np.random.default_rng(seed), progress=bar.update)
 
 
@@ -169,8 +190,15 @@ def check_output(out: str | Path, overwrite: bool = False) -> Path:
 
 
 def build_vocabulary_file(
-    sequence: str | Path, out: str | Path, k: int = 10, levels: int = 5, seed: int = 0,
-    features: int = 1000, every: int = 1, max_frames: int | None = None, overwrite: bool = False,
+    sequence: str | Path,
+    out: str | Path,
+    k: int = 10,
+    levels: int = 5,
+    seed: int = 0,
+    features: int = 1000,
+    every: int = 1,
+    max_frames: int | None = None,
+    overwrite: bool = False,
     progress: bool = True,
 ) -> BuildSummary:
     """Build a vocabulary from a sequence folder's frames and write it to `out` atomically."""
@@ -185,5 +213,12 @@ def build_vocabulary_file(
     images = sequence_descriptors(sequence, features, every, max_frames, progress)
     vocabulary = vocabulary_from_descriptors(images, k, levels, seed, progress)
     write_vocabulary(vocabulary, out, overwrite=overwrite)
-    return BuildSummary(out, len(images), sum(len(i) for i in images), len(vocabulary.words), vocabulary.nodes,
-                        out.stat().st_size, time.perf_counter() - start)
+    return BuildSummary(
+        out,
+        len(images),
+        sum(len(i) for i in images),
+        len(vocabulary.words),
+        vocabulary.nodes,
+        out.stat().st_size,
+        time.perf_counter() - start,
+    )

@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from longslam.core.errors import InputError
-from longslam.io.atomic import atomic_path, naming_the_file
-from longslam.core.textfile import read_text
-from longslam.vocabulary.tree import Vocabulary
 from longslam.core.file_kinds import special_file_kind
+from longslam.core.textfile import read_text
+from longslam.io.atomic import atomic_path, naming_the_file
+from longslam.vocabulary.tree import Vocabulary
 
 DESCRIPTOR_BYTES = 32  # FORB::L
 # The loader's own bounds on the header (loadFromTextFile).
@@ -61,12 +61,16 @@ def loader_size_problem(k: int, levels: int) -> str | None:
     """Why ORB-SLAM3's loader could not load a vocabulary with this k and L, or None."""
     nodes, reserved = loader_reservation(k, levels)
     if nodes > LOADER_MAX_NODES:
-        return (f"k = {k}, L = {levels} makes ORB-SLAM3's loader reserve {nodes:.3g} nodes, more than its int "
-                f"holds ({LOADER_MAX_NODES}): it stops with 'vector::reserve'")
+        return (
+            f"k = {k}, L = {levels} makes ORB-SLAM3's loader reserve {nodes:.3g} nodes, more than its int "
+            f"holds ({LOADER_MAX_NODES}): it stops with 'vector::reserve'"
+        )
     if reserved > LOADER_MAX_RESERVED_BYTES:
-        return (f"k = {k}, L = {levels} makes ORB-SLAM3's loader reserve {reserved / 1e9:.3g} GB before it reads a "
-                f"node (a full tree of k^(L+1) words); longslam keeps to {LOADER_MAX_RESERVED_BYTES / 1e9:g} GB "
-                "(ORBvoc.txt's k = 10, L = 6: 0.25 GB)")
+        return (
+            f"k = {k}, L = {levels} makes ORB-SLAM3's loader reserve {reserved / 1e9:.3g} GB before it reads a "
+            f"node (a full tree of k^(L+1) words); longslam keeps to {LOADER_MAX_RESERVED_BYTES / 1e9:g} GB "
+            "(ORBvoc.txt's k = 10, L = 6: 0.25 GB)"
+        )
     return None
 
 
@@ -78,8 +82,10 @@ def _weight_text(weight: float) -> str:
 def format_text(vocabulary: Vocabulary) -> str:
     """The vocabulary as DBoW2 text, without a final newline."""
     if vocabulary.descriptors.shape[1] != DESCRIPTOR_BYTES:
-        raise ValueError(f"DBoW2's ORB text format holds {DESCRIPTOR_BYTES}-byte descriptors, "
-                         f"not {vocabulary.descriptors.shape[1]}")
+        raise ValueError(
+            f"DBoW2's ORB text format holds {DESCRIPTOR_BYTES}-byte descriptors, "
+            f"not {vocabulary.descriptors.shape[1]}"
+        )
     header = (vocabulary.k, vocabulary.levels, vocabulary.scoring, vocabulary.weighting)
     for (name, (low, high)), value in zip(HEADER_LIMITS.items(), header):
         if not low <= value <= high:
@@ -116,7 +122,7 @@ def _prefix(raw: bytes) -> str:
     except UnicodeDecodeError as err:
         if err.start < 200 - 4:  # not a character cut at the end of the slice
             return binary
-        text = raw[:err.start].decode("utf-8")
+        text = raw[: err.start].decode("utf-8")
     if any(not c.isprintable() and c not in "\t\r" for c in text):
         return binary
     return repr(text[:40]) + (" ..." if len(raw) > 40 else "")
@@ -138,8 +144,10 @@ def _node_chunks(handle, where: str):
         carry = block[cut:]
         complete = block.count(b"\n", 0, cut)
         if len(carry) > MAX_LINE_BYTES:
-            raise InputError(f"{where}:{lines_before + complete + 1}: a line longer than {MAX_LINE_BYTES} bytes "
-                             f"({_prefix(carry)}); a node line is about 150")
+            raise InputError(
+                f"{where}:{lines_before + complete + 1}: a line longer than {MAX_LINE_BYTES} bytes "
+                f"({_prefix(carry)}); a node line is about 150"
+            )
         if cut:
             yield lines_before, block[:cut]
             lines_before += complete
@@ -152,7 +160,11 @@ def _first_bad_line(lines: list[bytes], width: int) -> tuple[int, str]:
         if not parts:
             return i, "an empty line, which ORB-SLAM3 would read as a broken node"
         if len(parts) != width:
-            return i, f"expected {width} fields (parent, isLeaf, {DESCRIPTOR_BYTES} bytes, weight), got {len(parts)}: {_prefix(line)}"
+            return (
+                i,
+                f"expected {width} fields (parent, isLeaf, {DESCRIPTOR_BYTES} bytes, weight), got {len(parts)}: "
+                f"{_prefix(line)}",
+            )
         try:
             for part in parts:
                 float(part)
@@ -187,8 +199,11 @@ def check_vocabulary_file(path: str | Path, what: str = "vocabulary", final_newl
     with handle:
         raw = handle.readline(MAX_LINE_BYTES + 1)
         header = raw.split()
-        if (len(raw) > MAX_LINE_BYTES or len(header) != 4
-                or not all(h.lstrip(b"-").isdigit() and len(h) < 10 for h in header)):
+        if (
+            len(raw) > MAX_LINE_BYTES
+            or len(header) != 4
+            or not all(h.lstrip(b"-").isdigit() and len(h) < 10 for h in header)
+        ):
             raise InputError(f"{what}: {path} is not {expected}; its first line is {_prefix(raw.rstrip())}")
         values = [int(h) for h in header]
         for (name, (low, high)), value in zip(HEADER_LIMITS.items(), values):
@@ -209,15 +224,20 @@ def check_vocabulary_file(path: str | Path, what: str = "vocabulary", final_newl
             if ends_with_newline:
                 lines.pop()
 
-            def refuse(i: int, why: str) -> None:
+            def refuse(i: int, why: str, before: int = before) -> None:
                 raise InputError(f"{what}: {path}:{before + i + 1}: {why}")
 
             if nodes + len(lines) > most:
-                refuse(most - nodes, f"more nodes than a tree of k = {k}, L = {levels} holds ({most - 1} below the root)")
+                refuse(
+                    most - nodes, f"more nodes than a tree of k = {k}, L = {levels} holds ({most - 1} below the root)"
+                )
             longest = max(range(len(lines)), key=lambda i: len(lines[i]))
             if len(lines[longest]) > MAX_LINE_BYTES:
-                refuse(longest, f"a line longer than {MAX_LINE_BYTES} bytes ({_prefix(lines[longest])}); "
-                                "a node line is about 150")
+                refuse(
+                    longest,
+                    f"a line longer than {MAX_LINE_BYTES} bytes ({_prefix(lines[longest])}); "
+                    "a node line is about 150",
+                )
             if b"\0" in block:
                 i = next(i for i, line in enumerate(lines) if b"\0" in line)
                 refuse(i, f"a NUL byte: {_prefix(lines[i])}")
@@ -228,11 +248,14 @@ def check_vocabulary_file(path: str | Path, what: str = "vocabulary", final_newl
             if table.shape != (len(lines), width):  # loadtxt skips empty lines
                 refuse(*_first_bad_line(lines, width))
             ids = np.arange(nodes, nodes + len(lines))
-            whole = table[:, :2 + DESCRIPTOR_BYTES]
+            whole = table[:, : 2 + DESCRIPTOR_BYTES]
             bad = np.flatnonzero(np.any(whole != np.floor(whole), axis=1))
             if bad.size:
-                refuse(int(bad[0]), f"parent id, isLeaf and the {DESCRIPTOR_BYTES} bytes must be whole numbers: "
-                                    f"{_prefix(lines[int(bad[0])])}")
+                refuse(
+                    int(bad[0]),
+                    f"parent id, isLeaf and the {DESCRIPTOR_BYTES} bytes must be whole numbers: "
+                    f"{_prefix(lines[int(bad[0])])}",
+                )
             parent, flags = table[:, 0], table[:, 1]
             bad = np.flatnonzero((parent < 0) | (parent >= ids))
             if bad.size:
@@ -257,16 +280,19 @@ def check_vocabulary_file(path: str | Path, what: str = "vocabulary", final_newl
     if nodes == 1:
         raise InputError(f"{what}: {path} has a header but no nodes")
     if ends_with_newline and not final_newline:
-        raise InputError(f"{what}: {path} ends with a newline, which ORB-SLAM3's text loader reads as one more, "
-                         "broken, node; remove the final newline")
+        raise InputError(
+            f"{what}: {path} ends with a newline, which ORB-SLAM3's text loader reads as one more, "
+            "broken, node; remove the final newline"
+        )
     parent = np.concatenate(parents)
     leaf = leaf[:nodes]
     children = np.bincount(parent[1:], minlength=nodes)
     wide = np.flatnonzero(children > k)
     if wide.size:
         node = int(wide[0])
-        raise InputError(f"{what}: {path}:{node + 1}: node {node} has {children[node]} children, more than k = {k} "
-                         "of the header")
+        raise InputError(
+            f"{what}: {path}:{node + 1}: node {node} has {children[node]} children, more than k = {k} " "of the header"
+        )
     depth = np.zeros(nodes, np.int64)
     for _ in range(levels + 1):  # min(true depth, iterations): a node deeper than L ends at L + 1
         depth[1:] = depth[parent[1:]] + 1
@@ -276,8 +302,10 @@ def check_vocabulary_file(path: str | Path, what: str = "vocabulary", final_newl
     wrong = np.flatnonzero(leaf[1:] == (children[1:] > 0))
     if wrong.size:
         node = int(wrong[0]) + 1
-        raise InputError(f"{what}: {path}:{node + 1}: isLeaf is {leaf[node]} but the node has "
-                         f"{'' if children[node] else 'no '}children")
+        raise InputError(
+            f"{what}: {path}:{node + 1}: isLeaf is {leaf[node]} but the node has "
+            f"{'' if children[node] else 'no '}children"
+        )
     return nodes
 
 
@@ -301,8 +329,10 @@ def read_vocabulary(path: str | Path, final_newline: bool = False) -> Vocabulary
     if text.endswith("\n") and final_newline:
         text = text[:-1]
     if text.endswith("\n"):
-        raise InputError(f"vocabulary {path} ends with a newline, which ORB-SLAM3's text loader reads "
-                         "as one more, broken, node; remove the final newline")
+        raise InputError(
+            f"vocabulary {path} ends with a newline, which ORB-SLAM3's text loader reads "
+            "as one more, broken, node; remove the final newline"
+        )
     lines = text.split("\n")
     fields = lines[0].split()
     if len(fields) != 4:
@@ -324,8 +354,10 @@ def read_vocabulary(path: str | Path, final_newline: bool = False) -> Vocabulary
         where = f"{path}:{node + 1}"
         parts = lines[node].split()
         if len(parts) != width:
-            raise InputError(f"{where}: expected {width} fields (parent, isLeaf, {DESCRIPTOR_BYTES} bytes, "
-                             f"weight), got {len(parts)}")
+            raise InputError(
+                f"{where}: expected {width} fields (parent, isLeaf, {DESCRIPTOR_BYTES} bytes, "
+                f"weight), got {len(parts)}"
+            )
         parent = _int(parts[0], where, "parent id")
         if not 0 <= parent < node:
             raise InputError(f"{where}: parent id {parent} must be a node before this one (0..{node - 1})")
@@ -334,9 +366,11 @@ def read_vocabulary(path: str | Path, final_newline: bool = False) -> Vocabulary
         parents[node] = parent
         leaf_flags[node] = _int(parts[1], where, "isLeaf") > 0
         try:
-            row = np.array(parts[2:2 + DESCRIPTOR_BYTES], dtype=np.int64)
+            row = np.array(parts[2 : 2 + DESCRIPTOR_BYTES], dtype=np.int64)
         except ValueError:
-            raise InputError(f"{where}: descriptor bytes must be integers, got {parts[2:2 + DESCRIPTOR_BYTES]}") from None
+            raise InputError(
+                f"{where}: descriptor bytes must be integers, got {parts[2:2 + DESCRIPTOR_BYTES]}"
+            ) from None
         if row.min() < 0 or row.max() > 255:
             raise InputError(f"{where}: descriptor bytes must be 0..255")
         descriptors[node] = row
@@ -350,6 +384,8 @@ def read_vocabulary(path: str | Path, final_newline: bool = False) -> Vocabulary
     wrong = np.flatnonzero(vocabulary.is_leaf[1:] != leaf_flags[1:])
     if wrong.size:
         node = int(wrong[0]) + 1
-        raise InputError(f"{path}:{node + 1}: isLeaf is {int(leaf_flags[node])} but the node has "
-                         f"{'no ' if vocabulary.is_leaf[node] else ''}children")
+        raise InputError(
+            f"{path}:{node + 1}: isLeaf is {int(leaf_flags[node])} but the node has "
+            f"{'no ' if vocabulary.is_leaf[node] else ''}children"
+        )
     return vocabulary

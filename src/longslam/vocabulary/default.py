@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from longslam.core.errors import InputError
-from longslam.sim.simulate import cache_root
 from longslam.sim.routes import get_route
+from longslam.sim.simulate import cache_root
 
 log = logging.getLogger(__name__)
 # While another process builds the default vocabulary (minutes), a waiting run says so this often.
@@ -41,8 +41,17 @@ def default_vocabulary(progress: bool = True) -> tuple[Path, dict[str, Any]]:
 
     path = default_vocabulary_path()
     route = get_route(ROUTE)
-    info = {"world": route.world, "route": ROUTE, "k": K, "levels": LEVELS, "seed": SEED, "frames_every": EVERY,
-            "features": FEATURES, "path": str(path), "trained_on_evaluated_world": False}
+    info = {
+        "world": route.world,
+        "route": ROUTE,
+        "k": K,
+        "levels": LEVELS,
+        "seed": SEED,
+        "frames_every": EVERY,
+        "features": FEATURES,
+        "path": str(path),
+        "trained_on_evaluated_world": False,
+    }
     if path.is_file() and _intact(path):
         return path, info
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -55,8 +64,9 @@ def default_vocabulary(progress: bool = True) -> tuple[Path, dict[str, Any]]:
             _digest_path(path).unlink(missing_ok=True)
         if not path.is_file():
             sequence = rendered_route(route, progress=progress)
-            build_vocabulary_file(sequence, path, k=K, levels=LEVELS, seed=SEED, features=FEATURES, every=EVERY,
-                                  progress=progress)
+            build_vocabulary_file(
+                sequence, path, k=K, levels=LEVELS, seed=SEED, features=FEATURES, every=EVERY, progress=progress
+            )
             _intact(path)  # checks it once and records its digest
     return path, info
 
@@ -85,8 +95,10 @@ def _intact(path: Path, warn: bool = True) -> bool:
         if recorded == digest.hexdigest():
             return True
         if warn:
-            log.warning(f"warning: the cached default vocabulary {path} has changed since it was built "
-                        f"(its SHA-256 is not the one in {record.name}); building it again")
+            log.warning(
+                f"warning: the cached default vocabulary {path} has changed since it was built "
+                f"(its SHA-256 is not the one in {record.name}); building it again"
+            )
         return False
     try:
         check_vocabulary_file(path, "the cached default vocabulary")
@@ -107,8 +119,10 @@ def _wait_for(lock, path: Path) -> None:
     except BlockingIOError:
         pass
     start = last = time.monotonic()
-    log.warning(f"note: another process is building the default vocabulary {path}; waiting for it "
-                "(a build takes a few minutes)")
+    log.warning(
+        f"note: another process is building the default vocabulary {path}; waiting for it "
+        "(a build takes a few minutes)"
+    )
     while True:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)

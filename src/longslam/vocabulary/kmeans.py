@@ -43,7 +43,11 @@ def xor_popcount(a64: np.ndarray, b64: np.ndarray) -> np.ndarray:
     # Word by word: a sum over the short last axis is numpy's slow case (1.8x slower here).
     for w in range(a64.shape[-1]):
         x = a64[..., w] ^ b64[..., w]
-        total += np.bitwise_count(x) if _HAS_BITWISE_COUNT else _POPCOUNT[x.view(np.uint8)].reshape(*x.shape, 8).sum(axis=-1, dtype=np.uint16)
+        total += (
+            np.bitwise_count(x)
+            if _HAS_BITWISE_COUNT
+            else _POPCOUNT[x.view(np.uint8)].reshape(*x.shape, 8).sum(axis=-1, dtype=np.uint16)
+        )
     return total
 
 
@@ -53,8 +57,8 @@ def hamming(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     b64 = np.ascontiguousarray(b).view(np.uint64)
     out = np.empty((len(a64), len(b64)), dtype=np.int32)
     for start in range(0, len(a64), CHUNK):
-        block = a64[start:start + CHUNK]
-        out[start:start + len(block)] = xor_popcount(block[:, None, :], b64[None, :, :])
+        block = a64[start : start + CHUNK]
+        out[start : start + len(block)] = xor_popcount(block[:, None, :], b64[None, :, :])
     return out
 
 
@@ -62,7 +66,7 @@ def _nearest(descriptors: np.ndarray, centres: np.ndarray) -> np.ndarray:
     """Index of each descriptor's nearest centre (the first on a tie, as DBoW2's strict '<')."""
     out = np.empty(len(descriptors), dtype=np.int64)
     for start in range(0, len(descriptors), CHUNK):  # never the whole (n, k) distance matrix
-        out[start:start + CHUNK] = np.argmin(hamming(descriptors[start:start + CHUNK], centres), axis=1)
+        out[start : start + CHUNK] = np.argmin(hamming(descriptors[start : start + CHUNK], centres), axis=1)
     return out
 
 
@@ -74,7 +78,7 @@ def majority(descriptors: np.ndarray) -> np.ndarray:
         return descriptors[0].copy()
     counts = np.zeros(descriptors.shape[1] * 8, dtype=np.int64)
     for start in range(0, n, CHUNK):
-        counts += np.unpackbits(descriptors[start:start + CHUNK], axis=1).sum(axis=0, dtype=np.int64)
+        counts += np.unpackbits(descriptors[start : start + CHUNK], axis=1).sum(axis=0, dtype=np.int64)
     return np.packbits(counts >= (n + 1) // 2)
 
 
@@ -97,7 +101,10 @@ def seed_centres(descriptors: np.ndarray, k: int, rng: np.random.Generator) -> n
 
 
 def kmeans(
-    descriptors: np.ndarray, k: int, rng: np.random.Generator, max_iterations: int = 100,
+    descriptors: np.ndarray,
+    k: int,
+    rng: np.random.Generator,
+    max_iterations: int = 100,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Cluster binary descriptors into at most k groups.
 

@@ -84,14 +84,16 @@ class Vocabulary:
         (the first on a tie), as DBoW2's `transform`."""
         descriptors = check_descriptors(descriptors)
         if descriptors.shape[1] != self.descriptors.shape[1]:
-            raise ValueError(f"descriptors of {descriptors.shape[1]} bytes for a vocabulary of "
-                             f"{self.descriptors.shape[1]}-byte words")
+            raise ValueError(
+                f"descriptors of {descriptors.shape[1]} bytes for a vocabulary of "
+                f"{self.descriptors.shape[1]}-byte words"
+            )
         word_of_node = np.cumsum(self.is_leaf) - 1
         nodes64 = self.descriptors.view(np.uint64)
         children, is_leaf = self.children, self.is_leaf
         out = np.empty(len(descriptors), dtype=np.int64)
         for start in range(0, len(descriptors), CHUNK):
-            block = descriptors[start:start + CHUNK].view(np.uint64)
+            block = descriptors[start : start + CHUNK].view(np.uint64)
             node = np.zeros(len(block), dtype=np.int64)
             active = np.arange(len(block))
             while active.size:
@@ -100,7 +102,7 @@ class Vocabulary:
                 distance[kids < 0] = np.iinfo(np.int32).max
                 node[active] = kids[np.arange(len(active)), np.argmin(distance, axis=1)]
                 active = active[~is_leaf[node[active]]]
-            out[start:start + len(block)] = word_of_node[node]
+            out[start : start + len(block)] = word_of_node[node]
         return out
 
 
@@ -122,8 +124,12 @@ def idf_weights(vocabulary: Vocabulary, images: Sequence[np.ndarray]) -> np.ndar
 
 
 def build_tree(
-    images: Sequence[np.ndarray], k: int, levels: int, rng: np.random.Generator,
-    progress: Callable[[int], None] | None = None, max_iterations: int = 100,
+    images: Sequence[np.ndarray],
+    k: int,
+    levels: int,
+    rng: np.random.Generator,
+    progress: Callable[[int], None] | None = None,
+    max_iterations: int = 100,
 ) -> Vocabulary:
     """DBoW2's `create(training_features, k, L)` with TF_IDF weighting and L1 scoring.
 
@@ -160,8 +166,9 @@ def build_tree(
                 progress(len(group))
 
     step(0, np.arange(len(everything)), 1)
-    tree = Vocabulary(k, levels, np.array(parents, dtype=np.int64), np.array(centres, dtype=np.uint8),
-                      np.zeros(len(parents)))
+    tree = Vocabulary(
+        k, levels, np.array(parents, dtype=np.int64), np.array(centres, dtype=np.uint8), np.zeros(len(parents))
+    )
     weights = np.zeros(tree.nodes)
     weights[tree.words] = idf_weights(tree, images)
     return Vocabulary(k, levels, tree.parents, tree.descriptors, weights)

@@ -84,8 +84,9 @@ def wall_segments(free: np.ndarray, origin: tuple[float, float], resolution: flo
         for sign, mask in ((-1, a & ~b), (+1, ~a & b)):
             line, s0, s1 = _runs(mask)
             for k, i, j in zip(line.tolist(), s0.tolist(), s1.tolist()):
-                segments.append(WallSegment(axis, fixed0 + k * resolution, along0 + i * resolution,
-                                            along0 + j * resolution, sign))
+                segments.append(
+                    WallSegment(axis, fixed0 + k * resolution, along0 + i * resolution, along0 + j * resolution, sign)
+                )
     return segments
 
 
@@ -145,8 +146,17 @@ class _Quads:
         self.uvs.append(np.asarray(uvs, dtype=np.float64))
         self.images.append(image)
 
-    def vertical(self, p_left: np.ndarray, p_right: np.ndarray, z0: float, z1: float,
-                 u_left: float, u_right: float, image_h: int, image: int) -> None:
+    def vertical(
+        self,
+        p_left: np.ndarray,
+        p_right: np.ndarray,
+        z0: float,
+        z1: float,
+        u_left: float,
+        u_right: float,
+        image_h: int,
+        image: int,
+    ) -> None:
         """A vertical quad seen from its front with `p_left` on the left; texture rows run from
         the top (z1) down."""
         corners = [(*p_left, z0), (*p_right, z0), (*p_right, z1), (*p_left, z1)]
@@ -214,9 +224,21 @@ def _wall_textures(plan: FloorPlan, seed: int, panels: list[_Panel], images: lis
         b0, _, bc0, _ = _zone_span(b_rect, seg.axis)
         # The same place relative to the original zone.
         fixed, s0, s1 = seg.fixed - bc0 + ac0, p.start - b0 + a0, p.end - b0 + a0
-        match = next((o for o in originals if o.zone is not None and o.zone[0] == p.zone[0] and o.segment.axis == seg.axis
-                      and o.segment.normal_sign == seg.normal_sign and abs(o.segment.fixed - fixed) < 1e-3
-                      and o.start - 1e-3 <= s0 and s1 <= o.end + 1e-3 and o.image >= 0), None)
+        match = next(
+            (
+                o
+                for o in originals
+                if o.zone is not None
+                and o.zone[0] == p.zone[0]
+                and o.segment.axis == seg.axis
+                and o.segment.normal_sign == seg.normal_sign
+                and abs(o.segment.fixed - fixed) < 1e-3
+                and o.start - 1e-3 <= s0
+                and s1 <= o.end + 1e-3
+                and o.image >= 0
+            ),
+            None,
+        )
         if match is None:  # the original zone has an opening here: nothing to copy
             fresh(i, p)
             continue
@@ -252,13 +274,23 @@ def _add_furniture(quads: _Quads, plan: FloorPlan, seed: int, images: list[np.nd
             colour = (110, 84, 60) if box.kind == "desk" else (186, 146, 98)
             img = tex.wood(rng, x1 - x0, y1 - y0, colour)
             hh, ww = img.shape[:2]
-            quads.add([(x0, y0, h), (x1, y0, h), (x1, y1, h), (x0, y1, h)],
-                      [(0.5, hh - 0.5), (ww - 0.5, hh - 0.5), (ww - 0.5, 0.5), (0.5, 0.5)], len(images))
+            quads.add(
+                [(x0, y0, h), (x1, y0, h), (x1, y1, h), (x0, y1, h)],
+                [(0.5, hh - 0.5), (ww - 0.5, hh - 0.5), (ww - 0.5, 0.5), (0.5, 0.5)],
+                len(images),
+            )
             images.append(img)
 
 
-def _add_floor_and_ceiling(quads: _Quads, plan: FloorPlan, seed: int, free: np.ndarray, resolution: float,
-                           images: list[np.ndarray], variants: int = 4) -> None:
+def _add_floor_and_ceiling(
+    quads: _Quads,
+    plan: FloorPlan,
+    seed: int,
+    free: np.ndarray,
+    resolution: float,
+    images: list[np.ndarray],
+    variants: int = 4,
+) -> None:
     """A grid of FLOOR_QUAD squares over the plan, skipping squares with no free space under them.
     A few texture variants per surface, picked at random per square, keep the floor from
     repeating every 4 m while the atlas stays small."""
@@ -293,10 +325,16 @@ def _add_floor_and_ceiling(quads: _Quads, plan: FloorPlan, seed: int, free: np.n
             v_top, v_bottom = 0.5, 0.5 + (y1 - y0) * scale
             floor_img = ids["hall_floor" if hall else "floor"][int(rng.integers(variants))]
             ceil_img = ids["hall_ceiling" if hall else "ceiling"][int(rng.integers(variants))]
-            quads.add([(x0, y0, 0.0), (x1, y0, 0.0), (x1, y1, 0.0), (x0, y1, 0.0)],
-                      [(u0, v_bottom), (u1, v_bottom), (u1, v_top), (u0, v_top)], floor_img)
-            quads.add([(x0, y0, zc), (x0, y1, zc), (x1, y1, zc), (x1, y0, zc)],
-                      [(u0, v_bottom), (u0, v_top), (u1, v_top), (u1, v_bottom)], ceil_img)
+            quads.add(
+                [(x0, y0, 0.0), (x1, y0, 0.0), (x1, y1, 0.0), (x0, y1, 0.0)],
+                [(u0, v_bottom), (u1, v_bottom), (u1, v_top), (u0, v_top)],
+                floor_img,
+            )
+            quads.add(
+                [(x0, y0, zc), (x0, y1, zc), (x1, y1, zc), (x1, y0, zc)],
+                [(u0, v_bottom), (u0, v_top), (u1, v_top), (u1, v_bottom)],
+                ceil_img,
+            )
 
 
 def build_mesh(plan: FloorPlan, seed: int = 0, resolution: float = 0.05) -> WorldMesh:

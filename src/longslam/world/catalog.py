@@ -6,11 +6,12 @@ import functools
 from collections.abc import Callable
 
 from longslam.core.registry import Registry
-from longslam.world.annex import TEXTURE_SEED as _ANNEX_SEED, annex_plan
+from longslam.world.annex import TEXTURE_SEED as _ANNEX_SEED
+from longslam.world.annex import annex_plan
 from longslam.world.builder import build_mesh
 from longslam.world.layout import FloorPlan
-from longslam.world.university import university_plan
 from longslam.world.model import World
+from longslam.world.university import university_plan
 
 WORLDS: Registry[Callable[[], World]] = Registry("world")
 

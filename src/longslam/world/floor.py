@@ -33,16 +33,26 @@ def check_metres(mesh: WorldMesh, source: str, units: str = "m") -> None:
     size = hi - lo
     if max(size[0], size[1]) < MIN_WIDTH_M or size[2] < HEADROOM:
         factor = {"mm": 1e-3, "cm": 1e-2}.get(units)
-        hint = (f"; it was read in {units} (--units {units}): if the file is in metres, leave out --units"
-                if factor is not None and max(size[:2]) / factor >= MIN_WIDTH_M else "")
+        hint = (
+            f"; it was read in {units} (--units {units}): if the file is in metres, leave out --units"
+            if factor is not None and max(size[:2]) / factor >= MIN_WIDTH_M
+            else ""
+        )
         raise InputError(
             f"{source} is {size[0]:.3g} x {size[1]:.3g} x {size[2]:.3g} m (x, y, z): too small to be a building "
             f"(at least {MIN_WIDTH_M:g} m wide and {HEADROOM:g} m tall for the robot's headroom){hint}"
         )
     if size[2] <= MAX_HEIGHT_M and max(size[0], size[1]) <= MAX_WIDTH_M:
         return
-    guess = next((u for u, f in (("mm", 1e-3), ("cm", 1e-2)) if size[2] * f <= MAX_HEIGHT_M and max(size[:2]) * f <= MAX_WIDTH_M), None)
-    hint = f"; if it is in {guess}, give its units (--units {guess}, or units = \"{guess}\")" if guess else ""
+    guess = next(
+        (
+            u
+            for u, f in (("mm", 1e-3), ("cm", 1e-2))
+            if size[2] * f <= MAX_HEIGHT_M and max(size[:2]) * f <= MAX_WIDTH_M
+        ),
+        None,
+    )
+    hint = f'; if it is in {guess}, give its units (--units {guess}, or units = "{guess}")' if guess else ""
     raise InputError(
         f"{source} is {size[0]:.0f} x {size[1]:.0f} x {size[2]:.0f} units (x, y, z): too big to be a building "
         f"in metres (at most {MAX_WIDTH_M:.0f} m wide and {MAX_HEIGHT_M:.0f} m tall){hint}"
@@ -73,7 +83,9 @@ def find_floor(mesh: WorldMesh, source: str) -> float:
     weights = (area / counts)[which]
 
     scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.triangles.astype(np.uint32)))
+    scene.add_triangles(
+        o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.triangles.astype(np.uint32))
+    )
     rays = np.zeros((len(points), 6), dtype=np.float32)
     rays[:, :3] = points + [0.0, 0.0, 0.01]
     rays[:, 5] = 1.0

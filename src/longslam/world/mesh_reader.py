@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from longslam.core.errors import InputError
-from longslam.world.world_mesh import WorldMesh
 from longslam.world.textures import pack_atlas
+from longslam.world.world_mesh import WorldMesh
 
 GREY = (160, 160, 160)
 MESH_SUFFIXES = (".ply", ".obj", ".glb", ".gltf", ".off", ".stl")
@@ -85,7 +85,11 @@ def _part(geometry, transform: np.ndarray) -> _Part:
     if kind == "face":
         # One colour per face: each face gets corners of its own.
         colours = np.asarray(visual.face_colors, dtype=np.uint8)[:, :3]
-        return _Part(vertices[faces].reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3), colors=np.repeat(colours, 3, axis=0))
+        return _Part(
+            vertices[faces].reshape(-1, 3),
+            np.arange(3 * len(faces)).reshape(-1, 3),
+            colors=np.repeat(colours, 3, axis=0),
+        )
     return _Part(vertices, faces, colors=np.tile(np.array(GREY, np.uint8), (len(vertices), 1)))
 
 

@@ -17,9 +17,9 @@ import numpy as np
 from longslam.core.errors import InputError
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.world.floor import check_metres, find_floor
-from longslam.world.world_mesh import WorldMesh
 from longslam.world.mesh_reader import read_mesh_file
 from longslam.world.model import World
+from longslam.world.world_mesh import WorldMesh
 
 OBSTACLE_BAND = (0.2, 1.5)  # metres above the floor
 FLOOR_TOLERANCE = 0.1  # metres: how far a downward ray's hit may be from the floor and count as floor
@@ -68,9 +68,7 @@ def load_mesh_world(
     if floor_z is None:
         floor_z = find_floor(mesh, source)
     elif not math.isfinite(floor_z) or not zmin - 0.01 <= floor_z <= zmax + 0.01:
-        raise InputError(
-            f"{source}: floor height {floor_z} m is outside the mesh's z range [{zmin:.3f}, {zmax:.3f}] m"
-        )
+        raise InputError(f"{source}: floor height {floor_z} m is outside the mesh's z range [{zmin:.3f}, {zmax:.3f}] m")
     mesh.vertices[:, 2] -= floor_z
     occupancy = occupancy_from_mesh(mesh, 0.0, resolution)
     if not np.any(occupancy.data == FREE):
@@ -144,7 +142,9 @@ def occupancy_from_mesh(mesh: WorldMesh, floor_z: float, resolution: float = 0.0
                 occupied[r[ok], c[ok]] = True
 
     scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.triangles.astype(np.uint32)))
+    scene.add_triangles(
+        o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.triangles.astype(np.uint32))
+    )
     # A floor hit counts if the floor faces up, the side a robot stands on. A ray that starts
     # inside a closed solid (a wall modelled as a box) hits the solid's bottom from within,
     # facing down, and must not make the wall's inside free.

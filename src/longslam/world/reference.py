@@ -22,9 +22,9 @@ from typing import Any
 from longslam.core.errors import InputError
 from longslam.core.textfile import read_text
 from longslam.world.catalog import WORLDS, get_world
-from longslam.world.own_building import UNITS, UP_AXES, default_up, load_mesh_world
 from longslam.world.mesh_reader import MESH_SUFFIXES
 from longslam.world.model import World
+from longslam.world.own_building import UNITS, UP_AXES, default_up, load_mesh_world
 
 MESH_PREFIX = "mesh:"
 OPTION_KEYS = ("mesh", "floor", "units", "up", "places")
@@ -52,7 +52,7 @@ class MeshSpec:
 
     @classmethod
     def from_ref(cls, ref: str) -> "MeshSpec":
-        data = json.loads(ref[len(MESH_PREFIX):])
+        data = json.loads(ref[len(MESH_PREFIX) :])
         data["places"] = tuple(tuple(p) for p in data.get("places", ()))
         return cls(**data)
 
@@ -97,7 +97,8 @@ def world_ref(value: Any, base: Path | None = None, what: str = "world") -> str:
     from longslam.core.suggest import did_you_mean
 
     raise InputError(
-        f"{what}: unknown world {value!r}{did_you_mean(value, WORLDS.names())}; valid values: a world name ({', '.join(WORLDS.names())}) "
+        f"{what}: unknown world {value!r}{did_you_mean(value, WORLDS.names())}; valid values: a world name "
+        f"({', '.join(WORLDS.names())}) "
         f"or a mesh file ({', '.join(s.lstrip('.').upper() for s in MESH_SUFFIXES)})"
     )
 
@@ -117,7 +118,9 @@ def mesh_world_ref(
         raise InputError(f"{what}: mesh file {file} is a folder; expected a mesh file (PLY, OBJ or GLB)")
     if not file.is_file():
         raise InputError(f"{what}: mesh file {file} does not exist")
-    if floor is not None and (isinstance(floor, bool) or not isinstance(floor, (int, float)) or not math.isfinite(floor)):
+    if floor is not None and (
+        isinstance(floor, bool) or not isinstance(floor, (int, float)) or not math.isfinite(floor)
+    ):
         raise InputError(f"{what}: floor must be a height in metres, got {floor!r}")
     if units not in UNITS:
         raise InputError(f"{what}: unknown units {units!r}; valid values: {', '.join(UNITS)}")
@@ -133,8 +136,9 @@ def mesh_world_ref(
         found = read_places(places_path)
         place_list = tuple((name, x, y) for name, (x, y) in sorted(found.items()))
         places_file = str(places_path.absolute())
-    spec = MeshSpec(str(file), content_hash(file), None if floor is None else float(floor), units, up, place_list,
-                    places_file)
+    spec = MeshSpec(
+        str(file), content_hash(file), None if floor is None else float(floor), units, up, place_list, places_file
+    )
     return spec.ref()
 
 
@@ -151,8 +155,11 @@ def read_places(path: Path) -> dict[str, tuple[float, float]]:
         raise InputError(f'places file {path}: expected an object {{"name": [x, y], ...}}, got {text[:60]!r}')
     places = {}
     for name, xy in data.items():
-        if not (isinstance(xy, list) and len(xy) == 2 and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in xy)):
+        if not (
+            isinstance(xy, list)
+            and len(xy) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in xy)
+        ):
             raise InputError(f"places file {path}: {name!r} = {xy!r}; expected [x, y] in metres")
         places[name] = (float(xy[0]), float(xy[1]))
     return places
@@ -188,8 +195,12 @@ def _companions(path: Path) -> list[Path]:
                             names.append(fields[-1])
         elif suffix == ".gltf":
             data = json.loads(path.read_text(encoding="utf-8"))
-            names += [item["uri"] for key in ("buffers", "images") for item in data.get(key, [])
-                      if isinstance(item.get("uri"), str) and not item["uri"].startswith("data:")]
+            names += [
+                item["uri"]
+                for key in ("buffers", "images")
+                for item in data.get(key, [])
+                if isinstance(item.get("uri"), str) and not item["uri"].startswith("data:")
+            ]
         elif suffix == ".ply":
             with open(path, "rb") as handle:
                 for raw in iter(handle.readline, b""):
@@ -237,7 +248,9 @@ def load_world(ref: str) -> World:
 def _load_mesh(ref: str) -> World:
     spec = MeshSpec.from_ref(ref)
     places = {name: (x, y) for name, x, y in spec.places}
-    return load_mesh_world(spec.path, spec.floor, name=Path(spec.path).stem, units=spec.units, up=spec.up, places=places)
+    return load_mesh_world(
+        spec.path, spec.floor, name=Path(spec.path).stem, units=spec.units, up=spec.up, places=places
+    )
 
 
 def world_key(ref: str) -> str:

@@ -21,8 +21,15 @@ PX_PER_M = 50.0
 
 # Pale paints for corridor and room walls.
 WALL_PAINTS = [
-    (226, 222, 210), (214, 222, 228), (232, 226, 200), (222, 214, 224), (208, 222, 208),
-    (234, 234, 230), (238, 220, 204), (218, 226, 218), (226, 216, 204),
+    (226, 222, 210),
+    (214, 222, 228),
+    (232, 226, 200),
+    (222, 214, 224),
+    (208, 222, 208),
+    (234, 234, 230),
+    (238, 220, 204),
+    (218, 226, 218),
+    (226, 216, 204),
 ]
 _LETTERS = string.ascii_uppercase + string.digits
 
@@ -45,7 +52,9 @@ def _vivid(rng: np.random.Generator) -> tuple[int, int, int]:
     return int(c[0]), int(c[1]), int(c[2])
 
 
-def _noisy_fill(rng: np.random.Generator, h: int, w: int, colour, grain: float = 4.0, blotch: float = 5.0) -> np.ndarray:
+def _noisy_fill(
+    rng: np.random.Generator, h: int, w: int, colour, grain: float = 4.0, blotch: float = 5.0
+) -> np.ndarray:
     """A flat colour with per-texel grain and low-frequency blotches (real paint is never flat)."""
     img = np.empty((h, w, 3), dtype=np.float32)
     img[:] = np.asarray(colour, dtype=np.float32)
@@ -82,6 +91,7 @@ def _put_text(img: np.ndarray, text: str, x: int, baseline: int, height: int, co
 
 # Each item below draws on its own canvas of the item's size, which keeps shapes inside it.
 
+
 def _poster(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     bg = _colour(rng, 150, 256) if rng.random() < 0.6 else _vivid(rng)
     img = np.empty((h, w, 3), dtype=np.uint8)
@@ -111,7 +121,9 @@ def _poster(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
             cv2.fillPoly(picture, [pts], colour, cv2.LINE_8)
         else:
             p = rng.integers([0, 0], [pw, ph], (2, 2))
-            cv2.line(picture, (int(p[0, 0]), int(p[0, 1])), (int(p[1, 0]), int(p[1, 1])), colour, int(rng.integers(1, 4)))
+            cv2.line(
+                picture, (int(p[0, 0]), int(p[0, 1])), (int(p[1, 0]), int(p[1, 1])), colour, int(rng.integers(1, 4))
+            )
     img[py0:py1, 2 : w - 2] = picture
     _text_rows(rng, img, 3, py1 + 3, w - 3, h - 3, dark)
     cv2.rectangle(img, (0, 0), (w - 1, h - 1), dark, 1)
@@ -218,7 +230,9 @@ def wall_panel(rng: np.random.Generator, width_m: float, height_m: float, paint,
             bottom, top = rng.uniform(1.0, 1.15), rng.uniform(1.8, 2.0)
         elif kind == "pattern":
             iw = rng.uniform(0.5, 1.5)
-            bottom, top = (0.25, rng.uniform(0.7, 0.85)) if rng.random() < 0.5 else (rng.uniform(0.3, 0.5), rng.uniform(2.0, 2.5))
+            bottom, top = (
+                (0.25, rng.uniform(0.7, 0.85)) if rng.random() < 0.5 else (rng.uniform(0.3, 0.5), rng.uniform(2.0, 2.5))
+            )
         elif kind == "extinguisher":
             iw, bottom, top = 0.2, 0.3, 0.8
         else:
@@ -248,13 +262,17 @@ def door_frame(rng: np.random.Generator, width_m: float, height_m: float, ppm: f
     """Dark wood with vertical grain, for door jambs."""
     w, h = texels(width_m, ppm), texels(height_m, ppm)
     grain = rng.normal(0.0, 12.0, (1, w)).astype(np.float32) + rng.normal(0.0, 4.0, (h, w)).astype(np.float32)
-    img = np.asarray((92, 58, 34), dtype=np.float32) + grain[:, :, None] * np.asarray((1.0, 0.7, 0.45), dtype=np.float32)
+    img = np.asarray((92, 58, 34), dtype=np.float32) + grain[:, :, None] * np.asarray(
+        (1.0, 0.7, 0.45), dtype=np.float32
+    )
     img = np.clip(img, 0, 255).astype(np.uint8)
     img[:, 0] = img[:, -1] = (40, 24, 14)
     return img
 
 
-def _tile_grid(rng: np.random.Generator, size_px: int, tile_px: int, colours: np.ndarray, grout, speckle: float) -> np.ndarray:
+def _tile_grid(
+    rng: np.random.Generator, size_px: int, tile_px: int, colours: np.ndarray, grout, speckle: float
+) -> np.ndarray:
     """Square tiles of `tile_px` texels, tile (i, j) coloured `colours[i, j]`, grout lines between them."""
     img = np.repeat(np.repeat(colours.astype(np.float32), tile_px, 0), tile_px, 1)[:size_px, :size_px]
     img += rng.normal(0.0, 3.0, (size_px, size_px, 1)).astype(np.float32)
@@ -266,7 +284,9 @@ def _tile_grid(rng: np.random.Generator, size_px: int, tile_px: int, colours: np
     return img
 
 
-def floor_tiles(rng: np.random.Generator, size_m: float = 4.0, tile_m: float = 0.5, ppm: float = PX_PER_M) -> np.ndarray:
+def floor_tiles(
+    rng: np.random.Generator, size_m: float = 4.0, tile_m: float = 0.5, ppm: float = PX_PER_M
+) -> np.ndarray:
     """Corridor and room floor: beige 0.5 m tiles, each a slightly different shade, with grout and speckle."""
     size, tile = texels(size_m, ppm), texels(tile_m, ppm)
     n = int(math.ceil(size / tile))
@@ -290,8 +310,9 @@ def hall_floor(rng: np.random.Generator, size_m: float = 4.0, tile_m: float = 1.
     return img
 
 
-def ceiling_panels(rng: np.random.Generator, size_m: float = 4.0, tile_m: float = 0.5, ppm: float = PX_PER_M,
-                   hall: bool = False) -> np.ndarray:
+def ceiling_panels(
+    rng: np.random.Generator, size_m: float = 4.0, tile_m: float = 0.5, ppm: float = PX_PER_M, hall: bool = False
+) -> np.ndarray:
     """Suspended ceiling: off-white acoustic tiles in a metal grid, with a light fixture or two."""
     size, tile = texels(size_m, ppm), texels(tile_m, ppm)
     n = int(math.ceil(size / tile))
@@ -310,7 +331,9 @@ def ceiling_panels(rng: np.random.Generator, size_m: float = 4.0, tile_m: float 
     return img
 
 
-def wood(rng: np.random.Generator, width_m: float, height_m: float, colour=(186, 146, 98), ppm: float = PX_PER_M) -> np.ndarray:
+def wood(
+    rng: np.random.Generator, width_m: float, height_m: float, colour=(186, 146, 98), ppm: float = PX_PER_M
+) -> np.ndarray:
     """Wood grain running along the width (table tops)."""
     w, h = texels(width_m, ppm), texels(height_m, ppm)
     grain = rng.normal(0.0, 14.0, (h, 1)).astype(np.float32) + rng.normal(0.0, 5.0, (h, w)).astype(np.float32)
@@ -320,7 +343,9 @@ def wood(rng: np.random.Generator, width_m: float, height_m: float, colour=(186,
     return img
 
 
-def furniture_side(rng: np.random.Generator, width_m: float, height_m: float, kind: str, ppm: float = PX_PER_M) -> np.ndarray:
+def furniture_side(
+    rng: np.random.Generator, width_m: float, height_m: float, kind: str, ppm: float = PX_PER_M
+) -> np.ndarray:
     """The side of a table or desk (modesty panel under an edge band) or of a pillar (concrete
     with a poster or sign, so the pillars of a hall can be told apart)."""
     w, h = texels(width_m, ppm), texels(height_m, ppm)

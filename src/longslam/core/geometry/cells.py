@@ -77,7 +77,9 @@ def unpack_3d(keys: np.ndarray) -> np.ndarray:
     return np.column_stack([(keys >> (2 * _BITS)) & _MASK, (keys >> _BITS) & _MASK, keys & _MASK]) - _OFFSET
 
 
-def group_cells_3d(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+def group_cells_3d(
+    i: np.ndarray, j: np.ndarray, k: np.ndarray
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
     """Unique cells of integer indices given per axis ((N,) each): ((i, j, k) of the unique
     cells, ordered as their packed keys; inverse (N,)), as
     `np.unique(pack_3d(ijk), return_inverse=True)` gives them."""
@@ -88,8 +90,9 @@ def group_cells_3d(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> tuple[tuple[n
     span = (int(i.max()) - low[0] + 1, int(j.max()) - low[1] + 1, int(k.max()) - low[2] + 1)
     cells = span[0] * span[1] * span[2]
     if not box_is_dense(cells, len(i)):
-        keys, inverse = np.unique(_pack_axes(np.asarray(i, np.int64), np.asarray(j, np.int64), np.asarray(k, np.int64)),
-                                  return_inverse=True)
+        keys, inverse = np.unique(
+            _pack_axes(np.asarray(i, np.int64), np.asarray(j, np.int64), np.asarray(k, np.int64)), return_inverse=True
+        )
         ijk = unpack_3d(keys)
         return (ijk[:, 0], ijk[:, 1], ijk[:, 2]), inverse.reshape(-1)
     # Row-major over (i, j, k) is the packed keys' order.
@@ -110,7 +113,9 @@ def average_2d(xy: np.ndarray, cell: float) -> np.ndarray:
     """Mean of the (N, 2) points in each `cell`-sized square: (M, 2), M <= N."""
     if not len(xy):
         return np.zeros((0, 2))
-    i, j, inverse = group_cells_2d(np.floor(xy[:, 0] / cell).astype(np.int64), np.floor(xy[:, 1] / cell).astype(np.int64))
+    i, j, inverse = group_cells_2d(
+        np.floor(xy[:, 0] / cell).astype(np.int64), np.floor(xy[:, 1] / cell).astype(np.int64)
+    )
     return cell_means(xy, inverse, len(i))
 
 

@@ -2,7 +2,8 @@
 closed form in the plane.
 
 Used to align a trajectory to its reference (evaluation), to polish a loop transform on matched
-3D points (place recognition) and to fit the robot's step to tracked corners (the front end). Same definition as evo's `geometry.umeyama_alignment`.
+3D points (place recognition) and to fit the robot's step to tracked corners (the front end). Same definition as
+evo's `geometry.umeyama_alignment`.
 """
 
 from __future__ import annotations
@@ -29,8 +30,7 @@ def umeyama(
     target = np.asarray(target, dtype=np.float64)
     if source.shape != target.shape or source.ndim != 2 or source.shape[1] != 3:
         raise TrajectoryError(
-            f"alignment needs two (N, 3) point arrays of the same shape, "
-            f"got {source.shape} and {target.shape}"
+            f"alignment needs two (N, 3) point arrays of the same shape, " f"got {source.shape} and {target.shape}"
         )
     n = len(source)
     if n < 3:

@@ -64,7 +64,8 @@ def planar_from_camera_poses(poses: np.ndarray, camera_height: float) -> np.ndar
 def xyyaw_from_pose(pose: np.ndarray) -> np.ndarray:
     """(4, 4) or (N, 4, 4) planar pose(s) -> (3,) or (N, 3) x, y, yaw.
 
-    Only the translation in x, y and the rotation about z are kept (tilt ignored); for camera poses use `planar_from_camera_poses`, which
+    Only the translation in x, y and the rotation about z are kept (tilt ignored); for camera poses use
+    `planar_from_camera_poses`, which
     first removes the camera's mounting rotation.
     """
     pose = np.asarray(pose, dtype=np.float64)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+
 def invert(pose: np.ndarray) -> np.ndarray:
     """Inverse of one (4, 4) or many (N, 4, 4) rigid transforms."""
     pose = np.asarray(pose, dtype=np.float64)

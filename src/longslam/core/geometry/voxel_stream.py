@@ -35,8 +35,13 @@ class VoxelStream:
     Use as a context manager, or call `close`: the scratch files live in a temporary folder under
     `scratch_dir` (the system's temporary folder by default)."""
 
-    def __init__(self, voxel: float, scratch_dir: str | Path | None = None, slab_voxels: int = SLAB_VOXELS,
-                 buffer_points: int = BUFFER_POINTS):
+    def __init__(
+        self,
+        voxel: float,
+        scratch_dir: str | Path | None = None,
+        slab_voxels: int = SLAB_VOXELS,
+        buffer_points: int = BUFFER_POINTS,
+    ):
         if not voxel > 0:
             raise ValueError(f"voxel must be > 0 m, got {voxel}")
         if slab_voxels < 1 or buffer_points < 1:

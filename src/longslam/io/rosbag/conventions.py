@@ -34,18 +34,37 @@ class TopicPreset:
 
 TOPIC_PRESETS = {
     # longslam's own names
-    "default": TopicPreset("/camera/color/image_raw", "/camera/depth/image_raw", "/camera/color/camera_info",
-                           "/camera/depth/camera_info", "camera_color_optical_frame"),
+    "default": TopicPreset(
+        "/camera/color/image_raw",
+        "/camera/depth/image_raw",
+        "/camera/color/camera_info",
+        "/camera/depth/camera_info",
+        "camera_color_optical_frame",
+    ),
     # RTAB-Map's rgbd_mapping launch files (rgb_topic, depth_topic, camera_info_topic defaults)
-    "rtabmap": TopicPreset("/camera/rgb/image_rect_color", "/camera/depth_registered/image_raw",
-                           "/camera/rgb/camera_info", "/camera/depth_registered/camera_info", "camera_rgb_optical_frame"),
+    "rtabmap": TopicPreset(
+        "/camera/rgb/image_rect_color",
+        "/camera/depth_registered/image_raw",
+        "/camera/rgb/camera_info",
+        "/camera/depth_registered/camera_info",
+        "camera_rgb_optical_frame",
+    ),
     # realsense2_camera (ROS 2 wrapper 4.x: namespace camera, node camera) with align_depth enabled
-    "realsense": TopicPreset("/camera/camera/color/image_raw", "/camera/camera/aligned_depth_to_color/image_raw",
-                             "/camera/camera/color/camera_info", "/camera/camera/aligned_depth_to_color/camera_info",
-                             "camera_color_optical_frame"),
+    "realsense": TopicPreset(
+        "/camera/camera/color/image_raw",
+        "/camera/camera/aligned_depth_to_color/image_raw",
+        "/camera/camera/color/camera_info",
+        "/camera/camera/aligned_depth_to_color/camera_info",
+        "camera_color_optical_frame",
+    ),
     # openni(2)_launch with depth registration, what ORB-SLAM's ROS RGB-D nodes subscribe to
-    "openni": TopicPreset("/camera/rgb/image_raw", "/camera/depth_registered/image_raw", "/camera/rgb/camera_info",
-                          "/camera/depth_registered/camera_info", "camera_rgb_optical_frame"),
+    "openni": TopicPreset(
+        "/camera/rgb/image_raw",
+        "/camera/depth_registered/image_raw",
+        "/camera/rgb/camera_info",
+        "/camera/depth_registered/camera_info",
+        "camera_rgb_optical_frame",
+    ),
 }
 DEFAULT_TOPICS = "default"
 

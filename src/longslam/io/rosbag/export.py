@@ -25,19 +25,38 @@ import longslam
 from longslam.core.errors import InputError
 from longslam.core.geometry import base_to_camera, invert
 from longslam.core.geometry.planar import xyyaw_from_pose
+from longslam.core.odometry_noise import BiasNoise, get_noise, noise_of_meta
 from longslam.io.atomic import atomic_path
-from longslam.io.partials import clean_stale_partials
 from longslam.io.overwrite_policy import BAG, ROS1_BAG, check_not_an_input, check_replaceable, replace_guard
+from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
 from longslam.io.rosbag.conventions import (
-    BASE_FRAME, CAMERA_INFO, CAMERA_LINK_FRAME, DEFAULT_DISTRO, DEFAULT_TOPICS, DEPTH_ENCODINGS, DISTROS,
-    GROUND_TRUTH_FRAME, GROUND_TRUTH_TOPIC, IMAGE, MAP_FRAME, META_TOPIC, ODOM_FRAME, ODOM_TOPIC, ODOMETRY, STRING,
-    TF_MESSAGE, TOPIC_PRESETS, TopicPreset, clock_offset, stamp_ns, step_covariance,
+    BASE_FRAME,
+    CAMERA_INFO,
+    CAMERA_LINK_FRAME,
+    DEFAULT_DISTRO,
+    DEFAULT_TOPICS,
+    DEPTH_ENCODINGS,
+    DISTROS,
+    GROUND_TRUTH_FRAME,
+    GROUND_TRUTH_TOPIC,
+    IMAGE,
+    MAP_FRAME,
+    META_TOPIC,
+    ODOM_FRAME,
+    ODOM_TOPIC,
+    ODOMETRY,
+    STRING,
+    TF_MESSAGE,
+    TOPIC_PRESETS,
+    TopicPreset,
+    clock_offset,
+    stamp_ns,
+    step_covariance,
 )
 from longslam.io.rosbag.messages import ROS1, ROS2, MessageBuilder, encode_depth
 from longslam.io.sequence import SequenceReader
-from longslam.core.odometry_noise import BiasNoise, get_noise, noise_of_meta
 
 FORMATS = ("ros1", "ros2")
 STORAGES = ("sqlite3", "mcap")
@@ -127,8 +146,17 @@ def _latched_qos() -> Any:
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
     never = QosTime(0, 0)
-    return Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, never, never,
-               QosLiveliness.AUTOMATIC, never, False)
+    return Qos(
+        QosHistory.KEEP_LAST,
+        1,
+        QosReliability.RELIABLE,
+        QosDurability.TRANSIENT_LOCAL,
+        never,
+        never,
+        QosLiveliness.AUTOMATIC,
+        never,
+        False,
+    )
 
 
 def _check_out(out: Path, fmt: str, overwrite: bool, sequence: str | Path) -> None:
@@ -188,29 +216,45 @@ def export_sequence(
     if fmt == "ros1" and storage != "sqlite3":
         raise InputError("--storage applies to ROS 2 bags only")
     if camera_height is not None and not (np.isfinite(camera_height) and camera_height >= 0):
-        raise InputError(f"--camera-height must be a finite number of metres, 0 or more (the camera above "
-                         f"base_link, which is on the floor), got {camera_height}")
+        raise InputError(
+            f"--camera-height must be a finite number of metres, 0 or more (the camera above "
+            f"base_link, which is on the floor), got {camera_height}"
+        )
     given_noise = get_noise(odom_noise) if odom_noise is not None else None
     out = Path(out)
     _check_out(out, fmt, overwrite, sequence)
     reader = SequenceReader(sequence)
-    noise = given_noise if given_noise is not None else (
-        noise_of_meta(reader.meta, reader.path) if reader.odometry is not None else None)
+    noise = (
+        given_noise
+        if given_noise is not None
+        else (noise_of_meta(reader.meta, reader.path) if reader.odometry is not None else None)
+    )
     height = _camera_height(reader, camera_height)
     camera_in_base = base_to_camera(height)
     base_in_camera = invert(camera_in_base)
 
     clean_stale_partials(out.absolute().parent)
-    with atomic_path(out, overwrite=overwrite,
-                     may_replace=replace_guard(ROS1_BAG if fmt == "ros1" else BAG, "--out")) as tmp:
+    with atomic_path(
+        out, overwrite=overwrite, may_replace=replace_guard(ROS1_BAG if fmt == "ros1" else BAG, "--out")
+    ) as tmp:
         # rosbags names a ROS 2 bag's database after its folder: write it under its final name
         # inside a staging folder, then move it to the temporary name that is renamed at the end.
         staging = tmp.with_name(tmp.name + "-staging")
         staging.mkdir()
         try:
             with _Bag(staging / out.name, ROS1 if fmt == "ros1" else ROS2, storage, compress, distro) as bag:
-                _write(bag, reader, noise, depth_encoding, camera_in_base, base_in_camera, height, progress,
-                       TOPIC_PRESETS[topics], topics)
+                _write(
+                    bag,
+                    reader,
+                    noise,
+                    depth_encoding,
+                    camera_in_base,
+                    base_in_camera,
+                    height,
+                    progress,
+                    TOPIC_PRESETS[topics],
+                    topics,
+                )
             os.rename(staging / out.name, tmp)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
@@ -220,9 +264,18 @@ def export_sequence(
     return ExportSummary(out, len(reader), bag.count, _size(out), linear, yaw, tuple(reader.notes))
 
 
-def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_encoding: str,
-           camera_in_base: np.ndarray, base_in_camera: np.ndarray, height: float,
-           progress: Callable[[int, int], None] | None, names: TopicPreset, preset: str) -> None:
+def _write(
+    bag: _Bag,
+    reader: SequenceReader,
+    noise: BiasNoise | None,
+    depth_encoding: str,
+    camera_in_base: np.ndarray,
+    base_in_camera: np.ndarray,
+    height: float,
+    progress: Callable[[int, int], None] | None,
+    names: TopicPreset,
+    preset: str,
+) -> None:
     b = bag.builder
     optical = names.optical_frame
     # base_link -> camera_link: the camera's body, upright at its place on the robot (REP 103);
@@ -246,19 +299,41 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
 
     first_ns = stamp_ns(first, offset)
     meta = {
-        "longslam_version": longslam.__version__, "clock_offset_s": offset, "meta": reader.meta,
-        "max_depth": reader.max_depth, "camera_height": height, "depth_encoding": depth_encoding,
+        "longslam_version": longslam.__version__,
+        "clock_offset_s": offset,
+        "meta": reader.meta,
+        "max_depth": reader.max_depth,
+        "camera_height": height,
+        "depth_encoding": depth_encoding,
         "step_variances": None if noise is None else list(noise.step_variances()),
-        "topic_preset": preset, **({"distro": bag.distro} if bag.ros == ROS2 else {}),
-        "frames": {"odom": ODOM_FRAME, "base": BASE_FRAME, "camera_link": CAMERA_LINK_FRAME, "optical": optical,
-                   **({"map": MAP_FRAME, "groundtruth": GROUND_TRUTH_FRAME} if gt_c is not None else {})},
-        "topics": {"rgb": names.rgb, "depth": names.depth, "camera_info": names.camera_info,
-                   **({"odom": ODOM_TOPIC} if odom_c is not None else {}),
-                   **({"groundtruth": GROUND_TRUTH_TOPIC} if gt_c is not None else {})},
+        "topic_preset": preset,
+        **({"distro": bag.distro} if bag.ros == ROS2 else {}),
+        "frames": {
+            "odom": ODOM_FRAME,
+            "base": BASE_FRAME,
+            "camera_link": CAMERA_LINK_FRAME,
+            "optical": optical,
+            **({"map": MAP_FRAME, "groundtruth": GROUND_TRUTH_FRAME} if gt_c is not None else {}),
+        },
+        "topics": {
+            "rgb": names.rgb,
+            "depth": names.depth,
+            "camera_info": names.camera_info,
+            **({"odom": ODOM_TOPIC} if odom_c is not None else {}),
+            **({"groundtruth": GROUND_TRUTH_TOPIC} if gt_c is not None else {}),
+        },
     }
     bag.write(meta_c, first_ns, b.string(json.dumps(meta, sort_keys=True)))
-    bag.write(static_c, first_ns, b.tf([(BASE_FRAME, CAMERA_LINK_FRAME, link_in_base, first_ns),
-                                        (CAMERA_LINK_FRAME, optical, optical_in_link, first_ns)]))
+    bag.write(
+        static_c,
+        first_ns,
+        b.tf(
+            [
+                (BASE_FRAME, CAMERA_LINK_FRAME, link_in_base, first_ns),
+                (CAMERA_LINK_FRAME, optical, optical_in_link, first_ns),
+            ]
+        ),
+    )
 
     if noise is not None:
         pose_cov = step_covariance(*noise.step_variances())
@@ -272,6 +347,7 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
         base = gt.poses[k] @ base_in_camera
         bag.write(gt_c, ns, b.odometry(base, ns, MAP_FRAME, BASE_FRAME, zero_cov, np.zeros(3), np.zeros(3), zero_cov))
         bag.write(tf_c, ns, b.tf([(MAP_FRAME, GROUND_TRUTH_FRAME, base, ns)]))
+
     frame_dt = float(np.median(np.diff(reader.timestamps))) if len(reader) > 1 else 0.1
     previous_base, previous_t = None, 0.0
     for i in range(len(reader)):
@@ -298,7 +374,9 @@ def _write(bag: _Bag, reader: SequenceReader, noise: BiasNoise | None, depth_enc
             # pose.covariance: one step's; twist.covariance: the velocity's (per step / dt^2). As
             # the bias holds for 10 s, a stretch of T s inside one period has twist variance x T^2:
             # RTAB-Map, which takes twist.covariance as a link's, gets its 1 Hz links right.
-            bag.write(odom_c, ns, b.odometry(base, ns, ODOM_FRAME, BASE_FRAME, pose_cov, linear, angular, pose_cov / dt**2))
+            bag.write(
+                odom_c, ns, b.odometry(base, ns, ODOM_FRAME, BASE_FRAME, pose_cov, linear, angular, pose_cov / dt**2)
+            )
             bag.write(tf_c, ns, b.tf([(ODOM_FRAME, BASE_FRAME, base, ns)]))
             previous_base, previous_t = base, t
         if progress is not None:

@@ -21,17 +21,35 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
+from longslam.core.timestamps import associate_lists
+from longslam.core.trajectory import Trajectory
 from longslam.io.overwrite_policy import SEQUENCE, check_not_an_input, check_replaceable
 from longslam.io.paths import check_output_folder
 from longslam.io.rosbag import require_rosbags
 from longslam.io.rosbag.conventions import (
-    CAMERA_INFO, COMPRESSED_IMAGE, DEPTH_ENCODINGS, IMAGE, META_TOPIC, ODOMETRY, POSE_STAMPED, STRING, TF_MESSAGE,
+    CAMERA_INFO,
+    COMPRESSED_IMAGE,
+    DEPTH_ENCODINGS,
+    IMAGE,
+    META_TOPIC,
+    ODOMETRY,
+    POSE_STAMPED,
+    STRING,
+    TF_MESSAGE,
 )
-from longslam.io.rosbag.messages import ROS2, field as msg_field, pose_matrix, read_depth, read_rgb, stamp_of, typestore_for
+from longslam.io.rosbag.messages import (
+    ROS2,
+    pose_matrix,
+    read_depth,
+    read_rgb,
+    stamp_of,
+    typestore_for,
+)
+from longslam.io.rosbag.messages import (
+    field as msg_field,
+)
 from longslam.io.rosbag.tf import TfBuffer, interpolate_poses
 from longslam.io.sequence import DEFAULT_MAX_DIFF, DEPTH_SCALE, SequenceWriter
-from longslam.core.timestamps import associate_lists
-from longslam.core.trajectory import Trajectory
 
 LARGEST_DEPTH = 65535 / DEPTH_SCALE  # metres storable in a 16-bit image at longslam's scale
 MAX_GAP_S = 0.5  # odometry, ground truth and moving TF links: the most time between two messages interpolated
@@ -65,9 +83,11 @@ def _open(bag: Path) -> Any:
     if not bag.exists():
         raise InputError(f"bag {bag} does not exist")
     if bag.is_dir() and not (bag / "metadata.yaml").is_file():
-        raise InputError(f"bag folder {bag} has no metadata.yaml: a ROS 2 bag is a folder holding metadata.yaml "
-                         f"beside its .db3 or .mcap files (`ros2 bag reindex {bag}` rebuilds a lost one); "
-                         "a ROS 1 bag is one .bag file")
+        raise InputError(
+            f"bag folder {bag} has no metadata.yaml: a ROS 2 bag is a folder holding metadata.yaml "
+            f"beside its .db3 or .mcap files (`ros2 bag reindex {bag}` rebuilds a lost one); "
+            "a ROS 1 bag is one .bag file"
+        )
     try:
         reader = AnyReader([bag], default_typestore=typestore_for(ROS2))
         reader.open()
@@ -116,8 +136,10 @@ class _Bag:
         if len(candidates) == 1:
             return candidates[0]
         if len(candidates) > 1:
-            raise InputError(f"{self.path} has {len(candidates)} {what} topics ({', '.join(sorted(candidates))}); "
-                             f"choose one with {option}")
+            raise InputError(
+                f"{self.path} has {len(candidates)} {what} topics ({', '.join(sorted(candidates))}); "
+                f"choose one with {option}"
+            )
         return None
 
 
@@ -145,16 +167,25 @@ def _choose_topics(bag: _Bag, given: Topics, meta: dict, camera_given: bool = Fa
     kinds = {}
     if given.rgb is None or given.depth is None:
         kinds = {t: is_depth(t) for t in images if named.get("rgb") != t and named.get("depth") != t}
-    rgb = (bag.check(given.rgb, "--rgb", (IMAGE, COMPRESSED_IMAGE)) if given.rgb else named.get("rgb")
-           or bag.one_of([t for t, d in kinds.items() if not d], "--rgb", "colour image"))
-    depth = (bag.check(given.depth, "--depth", (IMAGE,)) if given.depth else named.get("depth")
-             or bag.one_of([t for t, d in kinds.items() if d], "--depth", "depth image"))
+    rgb = (
+        bag.check(given.rgb, "--rgb", (IMAGE, COMPRESSED_IMAGE))
+        if given.rgb
+        else named.get("rgb") or bag.one_of([t for t, d in kinds.items() if not d], "--rgb", "colour image")
+    )
+    depth = (
+        bag.check(given.depth, "--depth", (IMAGE,))
+        if given.depth
+        else named.get("depth") or bag.one_of([t for t, d in kinds.items() if d], "--depth", "depth image")
+    )
     if rgb is None:
-        raise InputError(f"{bag.path} has no colour image topic (sensor_msgs/Image rgb8, bgr8... or "
-                         f"CompressedImage); its topics: {bag.listing()}")
+        raise InputError(
+            f"{bag.path} has no colour image topic (sensor_msgs/Image rgb8, bgr8... or "
+            f"CompressedImage); its topics: {bag.listing()}"
+        )
     if depth is None:
-        raise InputError(f"{bag.path} has no depth image topic (sensor_msgs/Image 32FC1 or 16UC1); "
-                         f"its topics: {bag.listing()}")
+        raise InputError(
+            f"{bag.path} has no depth image topic (sensor_msgs/Image 32FC1 or 16UC1); " f"its topics: {bag.listing()}"
+        )
     if camera_given:  # --intrinsics: no CameraInfo is read
         info: str | None = None
     elif given.camera_info:
@@ -162,10 +193,14 @@ def _choose_topics(bag: _Bag, given: Topics, meta: dict, camera_given: bool = Fa
     else:
         sibling = rgb.rsplit("/", 1)[0] + "/camera_info"  # image_transport's convention
         infos = [t for t, m in bag.types.items() if m == CAMERA_INFO]
-        info = named.get("camera_info") or (sibling if sibling in infos else bag.one_of(infos, "--camera-info", "CameraInfo"))
+        info = named.get("camera_info") or (
+            sibling if sibling in infos else bag.one_of(infos, "--camera-info", "CameraInfo")
+        )
     if info is None and not camera_given:
-        raise InputError(f"{bag.path} has no sensor_msgs/CameraInfo topic for the colour camera; give one with "
-                         f"--camera-info, or the intrinsics with --intrinsics fx,fy,cx,cy (its topics: {bag.listing()})")
+        raise InputError(
+            f"{bag.path} has no sensor_msgs/CameraInfo topic for the colour camera; give one with "
+            f"--camera-info, or the intrinsics with --intrinsics fx,fy,cx,cy (its topics: {bag.listing()})"
+        )
     if given.odom:
         odom: str | None = bag.check(given.odom, "--odom", (ODOMETRY,))
     elif named:  # a longslam bag says whether it has odometry
@@ -184,15 +219,19 @@ def _intrinsics(message: Any, topic: str) -> tuple[Intrinsics, list[float]]:
     if k.size != 9 or not np.all(np.isfinite(k)) or k[0] <= 0 or k[4] <= 0:
         raise InputError(f"{topic}: CameraInfo K must hold 9 finite numbers with fx, fy > 0, got {k.tolist()}")
     if int(message.width) <= 0 or int(message.height) <= 0:
-        raise InputError(f"{topic}: CameraInfo width and height must be positive, got {message.width} x {message.height}")
+        raise InputError(
+            f"{topic}: CameraInfo width and height must be positive, got {message.width} x {message.height}"
+        )
     distortion = [float(d) for d in np.asarray(msg_field(message, "d"), dtype=np.float64).reshape(-1)]
-    return Intrinsics(int(message.width), int(message.height), float(k[0]), float(k[4]), float(k[2]), float(k[5])), distortion
+    return Intrinsics(
+        int(message.width), int(message.height), float(k[0]), float(k[4]), float(k[2]), float(k[5])
+    ), distortion
 
 
 def import_bag(
     bag: str | Path,
     out: str | Path,
-    topics: Topics = Topics(),
+    topics: Topics | None = None,
     max_diff: float = DEFAULT_MAX_DIFF,
     max_depth: float | None = None,
     groundtruth_frame: str | None = None,
@@ -204,6 +243,7 @@ def import_bag(
 
     `intrinsics` (fx, fy, cx, cy in pixels, or their 'fx,fy,cx,cy' text) stand in for the bag's
     CameraInfo, for a bag recorded without one (the image size is the colour images')."""
+    topics = topics if topics is not None else Topics()  # a fresh one: Topics is mutable
     require_rosbags()
     bag, out = Path(bag), check_output_folder(out, "sequence folder")
     # --overwrite replaces a sequence, never the bag or a folder holding it (or the user's files).
@@ -227,9 +267,17 @@ def import_bag(
         reader.close()
 
 
-def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: float | None,
-            groundtruth_frame: str | None, overwrite: bool, progress: Callable[[int, int], None] | None,
-            given_k: tuple[float, float, float, float] | None = None) -> ImportSummary:
+def _import(
+    bag: _Bag,
+    out: Path,
+    given: Topics,
+    max_diff: float,
+    max_depth: float | None,
+    groundtruth_frame: str | None,
+    overwrite: bool,
+    progress: Callable[[int, int], None] | None,
+    given_k: tuple[float, float, float, float] | None = None,
+) -> ImportSummary:
     meta = _longslam_meta(bag)
     chosen = _choose_topics(bag, given, meta, camera_given=given_k is not None)
     assert chosen.rgb is not None and chosen.depth is not None  # or it raised
@@ -260,7 +308,9 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         elif topic == chosen.camera_info:
             info = info or message
         elif topic == chosen.odom:
-            odom.append((stamp_of(message), pose_matrix(message.pose.pose.position, message.pose.pose.orientation, topic)))
+            odom.append(
+                (stamp_of(message), pose_matrix(message.pose.pose.position, message.pose.pose.orientation, topic))
+            )
             odom_frames.add((message.header.frame_id.lstrip("/"), message.child_frame_id.lstrip("/")))
         elif topic == chosen.groundtruth:
             pose = message.pose.pose if hasattr(message.pose, "pose") else message.pose
@@ -268,9 +318,13 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
             truth_frames.add((message.header.frame_id.lstrip("/"), getattr(message, "child_frame_id", "").lstrip("/")))
         else:
             for t in message.transforms:
-                tf.add(t.header.frame_id, t.child_frame_id,
-                       pose_matrix(t.transform.translation, t.transform.rotation, topic), stamp_of(t),
-                       static=topic.lstrip("/") == "tf_static")
+                tf.add(
+                    t.header.frame_id,
+                    t.child_frame_id,
+                    pose_matrix(t.transform.translation, t.transform.rotation, topic),
+                    stamp_of(t),
+                    static=topic.lstrip("/") == "tf_static",
+                )
     if not rgb_stamps:
         raise InputError(f"{chosen.rgb} in {bag.path} holds no messages")
     if not depth_stamps:
@@ -286,8 +340,10 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         assert chosen.camera_info is not None  # info was read from it
         intrinsics, distortion = _intrinsics(info, chosen.camera_info)
     if any(abs(d) > 0 for d in distortion):
-        notes.append(f"{chosen.camera_info} gives distortion {distortion}; the images are used as they are "
-                     f"(record rectified images, e.g. image_rect_color, for an undistorted sequence)")
+        notes.append(
+            f"{chosen.camera_info} gives distortion {distortion}; the images are used as they are "
+            f"(record rectified images, e.g. image_rect_color, for an undistorted sequence)"
+        )
 
     # Colour and depth paired by stamp, one to one (TUM's rule).
     pairs = associate_lists(np.array(rgb_stamps) / 1e9, np.array(depth_stamps) / 1e9, max_diff)
@@ -303,19 +359,25 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         raise InputError(
             f"{bag.path}: no colour image on {chosen.rgb} has a depth image on {chosen.depth} within {max_diff} s "
             f"(colour {_span(rgb_stamps)}, depth {_span(depth_stamps)}); the streams cannot be synchronised "
-            f"(a larger --max-diff, or other topics)")
+            f"(a larger --max-diff, or other topics)"
+        )
     if len(kept) < len(rgb_stamps):
-        notes.append(f"{len(rgb_stamps) - len(kept)} of {len(rgb_stamps)} colour images had no depth image within "
-                     f"{max_diff} s and were left out")
+        notes.append(
+            f"{len(rgb_stamps) - len(kept)} of {len(rgb_stamps)} colour images had no depth image within "
+            f"{max_diff} s and were left out"
+        )
     frame_ns = np.array([rgb_stamps[i] for i, _ in kept], dtype=np.int64)
     frame_t = np.array([stamp_text[i] for i, _ in kept])
 
     odometry = None
     if chosen.odom:
         _, base_frame = _frame_pair(chosen.odom, odom, odom_frames, bag.path)
-        base_poses = interpolate_poses(np.array([s for s, _ in odom]), np.array([p for _, p in odom]), frame_ns,
-                                       gap_ns, f"odometry {chosen.odom}")
-        cam = np.array([base_poses[k] @ tf.lookup(base_frame, camera_frame, int(frame_ns[k])) for k in range(len(frame_ns))])
+        base_poses = interpolate_poses(
+            np.array([s for s, _ in odom]), np.array([p for _, p in odom]), frame_ns, gap_ns, f"odometry {chosen.odom}"
+        )
+        cam = np.array(
+            [base_poses[k] @ tf.lookup(base_frame, camera_frame, int(frame_ns[k])) for k in range(len(frame_ns))]
+        )
         odometry = Trajectory(frame_t, cam, source=f"{chosen.odom} in {bag.path}")
     ground_truth = None
     if chosen.groundtruth:
@@ -328,7 +390,9 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
         poses = np.array([truth[k][1] for k in order])[keep]
         stamps = stamps[keep]
         cam = np.array([poses[k] @ tf.lookup(body, camera_frame, int(stamps[k])) for k in range(len(stamps))])
-        ground_truth = Trajectory(np.round((stamps - offset_ns) / 1e9, 6), cam, source=f"{chosen.groundtruth} in {bag.path}")
+        ground_truth = Trajectory(
+            np.round((stamps - offset_ns) / 1e9, 6), cam, source=f"{chosen.groundtruth} in {bag.path}"
+        )
 
     limit = _max_depth(max_depth, meta)
     beyond = 0
@@ -337,8 +401,12 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
     depth_index = {j: k for k, (_, j) in enumerate(kept)}
     pending: dict[int, dict[str, np.ndarray]] = {}
     source_meta = meta["meta"] if isinstance(meta.get("meta"), dict) else {}
-    seq_meta = {**source_meta, "imported_from": str(bag.path.resolve()), "import_topics": vars(chosen).copy(),
-                "import_notes": notes}
+    seq_meta = {
+        **source_meta,
+        "imported_from": str(bag.path.resolve()),
+        "import_topics": vars(chosen).copy(),
+        "import_notes": notes,
+    }
     next_frame = 0
     counters = {chosen.rgb: -1, chosen.depth: -1}
     with SequenceWriter(out, intrinsics, limit, seq_meta, overwrite=overwrite, max_diff=max_diff) as writer:
@@ -347,7 +415,9 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
             n = counters[topic]
             if topic == chosen.rgb and n in rgb_index:
                 k = rgb_index[n]
-                pending.setdefault(k, {})["rgb"] = _checked(read_rgb(message, f"{topic} message {n}"), intrinsics, topic, n)
+                pending.setdefault(k, {})["rgb"] = _checked(
+                    read_rgb(message, f"{topic} message {n}"), intrinsics, topic, n
+                )
             elif topic == chosen.depth and n in depth_index:
                 k = depth_index[n]
                 depth = _checked(read_depth(message, f"{topic} message {n}"), intrinsics, topic, n)
@@ -362,16 +432,27 @@ def _import(bag: _Bag, out: Path, given: Topics, max_diff: float, max_depth: flo
                 if progress is not None:
                     progress(next_frame, len(kept))
         if next_frame != len(kept):
-            raise InputError(f"{bag.path}: the images of frame t={frame_t[next_frame]:.6f} were not found on a second "
-                             f"reading of the bag")
+            raise InputError(
+                f"{bag.path}: the images of frame t={frame_t[next_frame]:.6f} were not found on a second "
+                f"reading of the bag"
+            )
         if odometry is not None:
             writer.set_odometry(odometry)
         if ground_truth is not None:
             writer.set_ground_truth(ground_truth)
     if beyond:
         notes.append(f"{beyond} depth pixels beyond {limit:.3f} m were stored as 'no return'")
-    return ImportSummary(out, len(kept), chosen, len(rgb_stamps), len(depth_stamps), odometry is not None,
-                         ground_truth is not None, beyond, notes)
+    return ImportSummary(
+        out,
+        len(kept),
+        chosen,
+        len(rgb_stamps),
+        len(depth_stamps),
+        odometry is not None,
+        ground_truth is not None,
+        beyond,
+        notes,
+    )
 
 
 def _check_one_role_each(chosen: Topics) -> None:
@@ -409,13 +490,17 @@ def _max_depth(given: float | None, meta: dict) -> float:
     except (TypeError, ValueError):
         raise InputError(f"--max-depth must be a number of metres, got {value!r}") from None
     if not math.isfinite(value) or not 0 < value <= LARGEST_DEPTH:
-        raise InputError(f"--max-depth {value}: expected metres in (0, {LARGEST_DEPTH:.3f}] (16-bit depth x {DEPTH_SCALE:g})")
+        raise InputError(
+            f"--max-depth {value}: expected metres in (0, {LARGEST_DEPTH:.3f}] (16-bit depth x {DEPTH_SCALE:g})"
+        )
     return value
 
 
 def _checked(image: np.ndarray, intrinsics: Intrinsics, topic: str, n: int) -> np.ndarray:
     h, w = image.shape[:2]
     if (w, h) != (intrinsics.width, intrinsics.height):
-        raise InputError(f"{topic} message {n}: image is {w} x {h} but the CameraInfo says {intrinsics.width} x "
-                         f"{intrinsics.height}; the depth must be registered to the colour camera (same size and frame)")
+        raise InputError(
+            f"{topic} message {n}: image is {w} x {h} but the CameraInfo says {intrinsics.width} x "
+            f"{intrinsics.height}; the depth must be registered to the colour camera (same size and frame)"
+        )
     return image

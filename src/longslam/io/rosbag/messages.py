@@ -12,7 +12,13 @@ from scipy.spatial.transform import Rotation
 
 from longslam.core.errors import InputError
 from longslam.io.rosbag.conventions import (
-    CAMERA_INFO, DEPTH_ENCODINGS, IMAGE, ODOMETRY, RGB_ENCODINGS, STRING, TF_MESSAGE,
+    CAMERA_INFO,
+    DEPTH_ENCODINGS,
+    IMAGE,
+    ODOMETRY,
+    RGB_ENCODINGS,
+    STRING,
+    TF_MESSAGE,
 )
 
 ROS1, ROS2 = "ros1", "ros2"
@@ -86,29 +92,54 @@ class MessageBuilder:
         pixels = np.ascontiguousarray(pixels)
         height, width = pixels.shape[:2]
         return self.types[IMAGE](
-            header=self.header(ns, frame_id), height=height, width=width, encoding=encoding,
-            is_bigendian=0, step=pixels.strides[0], data=pixels.reshape(-1).view(np.uint8),
+            header=self.header(ns, frame_id),
+            height=height,
+            width=width,
+            encoding=encoding,
+            is_bigendian=0,
+            step=pixels.strides[0],
+            data=pixels.reshape(-1).view(np.uint8),
         )
 
     def camera_info(self, intrinsics, ns: int, frame_id: str) -> Any:
         i = intrinsics
         k = np.array([i.fx, 0.0, i.cx, 0.0, i.fy, i.cy, 0.0, 0.0, 1.0])
         p = np.array([i.fx, 0.0, i.cx, 0.0, 0.0, i.fy, i.cy, 0.0, 0.0, 0.0, 1.0, 0.0])
-        roi = self.types["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
+        roi = self.types["sensor_msgs/msg/RegionOfInterest"](
+            x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+        )
         fields = {"d": np.zeros(5), "k": k, "r": np.eye(3).reshape(-1), "p": p}
         if self.ros == ROS1:
             fields = {name.upper(): value for name, value in fields.items()}
         return self.types[CAMERA_INFO](
-            header=self.header(ns, frame_id), height=i.height, width=i.width, distortion_model="plumb_bob",
-            binning_x=0, binning_y=0, roi=roi, **fields,
+            header=self.header(ns, frame_id),
+            height=i.height,
+            width=i.width,
+            distortion_model="plumb_bob",
+            binning_x=0,
+            binning_y=0,
+            roi=roi,
+            **fields,
         )
 
-    def odometry(self, pose: np.ndarray, ns: int, frame_id: str, child: str, pose_covariance: np.ndarray,
-                 linear: np.ndarray, angular: np.ndarray, twist_covariance: np.ndarray) -> Any:
+    def odometry(
+        self,
+        pose: np.ndarray,
+        ns: int,
+        frame_id: str,
+        child: str,
+        pose_covariance: np.ndarray,
+        linear: np.ndarray,
+        angular: np.ndarray,
+        twist_covariance: np.ndarray,
+    ) -> Any:
         t = self.types
         return t[ODOMETRY](
-            header=self.header(ns, frame_id), child_frame_id=child,
-            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self._pose(pose), covariance=pose_covariance.reshape(-1).astype(np.float64)),
+            header=self.header(ns, frame_id),
+            child_frame_id=child,
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](
+                pose=self._pose(pose), covariance=pose_covariance.reshape(-1).astype(np.float64)
+            ),
             twist=t["geometry_msgs/msg/TwistWithCovariance"](
                 twist=t["geometry_msgs/msg/Twist"](linear=self._vector3(linear), angular=self._vector3(angular)),
                 covariance=twist_covariance.reshape(-1).astype(np.float64),
@@ -119,7 +150,8 @@ class MessageBuilder:
         """(parent, child, child-in-parent 4x4, stamp ns) -> a TFMessage."""
         stamped = [
             self.types["geometry_msgs/msg/TransformStamped"](
-                header=self.header(ns, parent), child_frame_id=child, transform=self._transform(pose))
+                header=self.header(ns, parent), child_frame_id=child, transform=self._transform(pose)
+            )
             for parent, child, pose, ns in transforms
         ]
         return self.types[TF_MESSAGE](transforms=stamped)
@@ -129,6 +161,7 @@ class MessageBuilder:
 
 
 # reading: any bag, ROS 1 or ROS 2 ---------------------------------------------------------------
+
 
 def field(message: Any, name: str) -> Any:
     """A field spelt in ROS 2's lower case or ROS 1's upper case (CameraInfo's K, D...)."""
@@ -162,12 +195,18 @@ def _pixels(message: Any, dtype: np.dtype, channels: int, where: str) -> np.ndar
     data = np.asarray(message.data, dtype=np.uint8)
     row = w * channels * np.dtype(dtype).itemsize
     if step < row or data.size < step * h:
-        raise InputError(f"{where}: {message.encoding} image of {w} x {h} needs {row} bytes a row and "
-                         f"{step * h} in all, got step {step} and {data.size} bytes")
+        raise InputError(
+            f"{where}: {message.encoding} image of {w} x {h} needs {row} bytes a row and "
+            f"{step * h} in all, got step {step} and {data.size} bytes"
+        )
     rows = data[: step * h].reshape(h, step)[:, :row]
     big = bool(message.is_bigendian)
     dt = np.dtype(dtype).newbyteorder(">" if big else "<") if np.dtype(dtype).itemsize > 1 else np.dtype(dtype)
-    out = np.ascontiguousarray(rows).view(dt).reshape(h, w, channels) if channels > 1 else np.ascontiguousarray(rows).view(dt).reshape(h, w)
+    out = (
+        np.ascontiguousarray(rows).view(dt).reshape(h, w, channels)
+        if channels > 1
+        else np.ascontiguousarray(rows).view(dt).reshape(h, w)
+    )
     return out.astype(np.dtype(dtype).newbyteorder("="), copy=False)
 
 
@@ -189,8 +228,10 @@ def read_rgb(message: Any, where: str) -> np.ndarray:
         return cv2.cvtColor(_pixels(message, np.uint8, 4, where), cv2.COLOR_BGRA2RGB)
     if encoding == "mono8":
         return cv2.cvtColor(_pixels(message, np.uint8, 1, where), cv2.COLOR_GRAY2RGB)
-    raise InputError(f"{where}: colour image encoding {message.encoding!r} is not supported; expected one of "
-                     f"{', '.join(RGB_ENCODINGS)} or a sensor_msgs/CompressedImage")
+    raise InputError(
+        f"{where}: colour image encoding {message.encoding!r} is not supported; expected one of "
+        f"{', '.join(RGB_ENCODINGS)} or a sensor_msgs/CompressedImage"
+    )
 
 
 def read_depth(message: Any, where: str) -> np.ndarray:
@@ -202,8 +243,10 @@ def read_depth(message: Any, where: str) -> np.ndarray:
     elif encoding in ("16UC1", "MONO16"):
         depth = _pixels(message, np.uint16, 1, where).astype(np.float64) / 1000.0
     else:
-        raise InputError(f"{where}: depth image encoding {message.encoding!r} is not supported; expected "
-                         f"{' or '.join(DEPTH_ENCODINGS)} (metres or millimetres, REP 118)")
+        raise InputError(
+            f"{where}: depth image encoding {message.encoding!r} is not supported; expected "
+            f"{' or '.join(DEPTH_ENCODINGS)} (metres or millimetres, REP 118)"
+        )
     depth[~np.isfinite(depth) | (depth < 0)] = 0.0
     return depth
 

@@ -16,8 +16,9 @@ from longslam.core.errors import InputError
 from longslam.core.geometry import invert
 
 
-def interpolate_poses(stamps_ns: np.ndarray, poses: np.ndarray, query_ns: np.ndarray, max_gap_ns: int,
-                      what: str) -> np.ndarray:
+def interpolate_poses(
+    stamps_ns: np.ndarray, poses: np.ndarray, query_ns: np.ndarray, max_gap_ns: int, what: str
+) -> np.ndarray:
     """Poses at `query_ns`: linear in translation and spherical in rotation between the two
     neighbouring stamps, which must be at most `max_gap_ns` apart; a query outside the stamps'
     span takes the end pose if it is within `max_gap_ns / 2` of it. InputError naming `what` and
@@ -41,16 +42,18 @@ def interpolate_poses(stamps_ns: np.ndarray, poses: np.ndarray, query_ns: np.nda
             if abs(int(stamps[end]) - int(t)) * 2 > max_gap_ns:
                 raise InputError(
                     f"{what}: no pose near t={t / 1e9:.6f} s (its messages span {stamps[0] / 1e9:.6f} to "
-                    f"{stamps[-1] / 1e9:.6f} s); the stream cannot be synchronised with the images")
+                    f"{stamps[-1] / 1e9:.6f} s); the stream cannot be synchronised with the images"
+                )
             out[k] = poses[end]
             continue
         t0, t1 = int(stamps[h - 1]), int(stamps[h])
         if t1 - t0 > max_gap_ns:
             raise InputError(
                 f"{what}: a gap of {(t1 - t0) / 1e9:.3f} s around t={t / 1e9:.6f} s (more than "
-                f"{max_gap_ns / 1e9:.3f} s); the stream cannot be synchronised with the images")
+                f"{max_gap_ns / 1e9:.3f} s); the stream cannot be synchronised with the images"
+            )
         w = (int(t) - t0) / (t1 - t0)
-        rot = Slerp([0.0, 1.0], Rotation.from_matrix(poses[h - 1:h + 1, :3, :3]))([w]).as_matrix()[0]
+        rot = Slerp([0.0, 1.0], Rotation.from_matrix(poses[h - 1 : h + 1, :3, :3]))([w]).as_matrix()[0]
         out[k] = np.eye(4)
         out[k][:3, :3] = rot
         out[k][:3, 3] = (1 - w) * poses[h - 1, :3, 3] + w * poses[h, :3, 3]
@@ -71,8 +74,10 @@ class TfBuffer:
         parent, child = parent.lstrip("/"), child.lstrip("/")
         self._parents[child].add(parent)
         if len(self._parents[child]) > 1:
-            raise InputError(f"{self.source}: TF frame {child!r} has more than one parent "
-                             f"({', '.join(sorted(self._parents[child]))}); a TF tree allows one")
+            raise InputError(
+                f"{self.source}: TF frame {child!r} has more than one parent "
+                f"({', '.join(sorted(self._parents[child]))}); a TF tree allows one"
+            )
         if static:
             self._static[child] = (parent, pose)
         else:
@@ -110,8 +115,9 @@ class TfBuffer:
         if not isinstance(stamps, np.ndarray):  # arrays once all messages are in
             stamps, poses = np.array(stamps, dtype=np.int64), np.array(poses)
             self._moving[frame] = (parent, stamps, poses)
-        return interpolate_poses(stamps, poses, np.array([stamp_ns]), self.max_gap_ns,
-                                 f"{self.source}: TF {parent} -> {frame}")[0]
+        return interpolate_poses(
+            stamps, poses, np.array([stamp_ns]), self.max_gap_ns, f"{self.source}: TF {parent} -> {frame}"
+        )[0]
 
     def _up_to(self, chain: list[str], stop: str, stamp_ns: int) -> np.ndarray:
         """The pose of chain[0] in `stop`, one of its ancestors."""
@@ -133,5 +139,6 @@ class TfBuffer:
             raise InputError(
                 f"{self.source}: no TF path from {target!r} to {frame!r} in /tf and /tf_static "
                 f"(frames seen: {known}); the bag needs the transform between the odometry's child frame "
-                f"and the camera's frame")
+                f"and the camera's frame"
+            )
         return invert(self._up_to(up_target, common, stamp_ns)) @ self._up_to(up_frame, common, stamp_ns)

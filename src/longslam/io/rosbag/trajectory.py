@@ -15,12 +15,14 @@ from pathlib import Path
 import numpy as np
 
 from longslam.core.errors import InputError
-from longslam.io.rosbag import require_rosbags
 from longslam.core.trajectory import Trajectory
+from longslam.io.rosbag import require_rosbags
 
 POSE_TYPES = (
-    "geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",
-    "geometry_msgs/msg/TransformStamped", "nav_msgs/msg/Odometry",
+    "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "geometry_msgs/msg/TransformStamped",
+    "nav_msgs/msg/Odometry",
 )
 _META_TOPIC = "/longslam/meta"
 
@@ -42,7 +44,9 @@ def _pose(message, msgtype: str, where: str) -> np.ndarray:
     return pose_matrix(pose.position, pose.orientation, where)
 
 
-def read_bag_trajectory(bag: str | Path, topic: str | None, option: str, frames: dict[str, str] | None = None) -> Trajectory:
+def read_bag_trajectory(
+    bag: str | Path, topic: str | None, option: str, frames: dict[str, str] | None = None
+) -> Trajectory:
     """The poses on `topic` of `bag` (the bag's only pose topic if None); `option` names the
     command-line option that chooses the topic, for the error messages. `frames`, if given, is
     told the frame the poses are of (an Odometry's or TransformStamped's child_frame_id), so that
@@ -86,5 +90,6 @@ def read_bag_trajectory(bag: str | Path, topic: str | None, option: str, frames:
     if not stamps:
         raise InputError(f"{option} {topic} in {path} holds no messages")
     order = np.argsort(stamps, kind="stable")
-    return Trajectory(np.asarray(stamps, dtype=np.float64)[order] / 1e9, np.asarray(poses)[order],
-                      source=f"{topic} in {path}")
+    return Trajectory(
+        np.asarray(stamps, dtype=np.float64)[order] / 1e9, np.asarray(poses)[order], source=f"{topic} in {path}"
+    )

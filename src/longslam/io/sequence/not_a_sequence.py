@@ -9,7 +9,7 @@ ROS2_BAG_INDEX = "metadata.yaml"
 
 
 def bag_kind(path: Path) -> str | None:
-    """"a ROS 1 bag" or "a ROS 2 bag" if `path` is one, else None (from the name and layout only)."""
+    """ "a ROS 1 bag" or "a ROS 2 bag" if `path` is one, else None (from the name and layout only)."""
     if path.is_file() and path.suffix == ".bag":
         return "a ROS 1 bag"
     if path.is_dir() and (path / ROS2_BAG_INDEX).is_file():
@@ -22,5 +22,7 @@ def bag_refusal(path: Path) -> str | None:
     kind = bag_kind(path)
     if kind is None:
         return None
-    return (f"{path} is {kind}, not a sequence folder: turn it into one first with "
-            f"`longslam import {path} --out SEQUENCE` (see `longslam import --help` for its topics)")
+    return (
+        f"{path} is {kind}, not a sequence folder: turn it into one first with "
+        f"`longslam import {path} --out SEQUENCE` (see `longslam import --help` for its topics)"
+    )

@@ -13,16 +13,23 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame, Intrinsics
-from longslam.io.camera_guess import intrinsics_without_camera_json
-from longslam.io.sequence.layout import (
-    CAMERA, DEFAULT_MAX_DIFF, DEPTH_LIST, DEPTH_SCALE, GROUND_TRUTH, META, ODOMETRY, RGB_LIST,
-)
-from longslam.io.plain_table import plain_table
-from longslam.io.sequence.not_a_sequence import bag_refusal
-from longslam.io.trajectory_files import read_tum
 from longslam.core.textfile import read_text
 from longslam.core.timestamps import associate_indices, match_every
 from longslam.core.trajectory import Trajectory
+from longslam.io.camera_guess import intrinsics_without_camera_json
+from longslam.io.plain_table import plain_table
+from longslam.io.sequence.layout import (
+    CAMERA,
+    DEFAULT_MAX_DIFF,
+    DEPTH_LIST,
+    DEPTH_SCALE,
+    GROUND_TRUTH,
+    META,
+    ODOMETRY,
+    RGB_LIST,
+)
+from longslam.io.sequence.not_a_sequence import bag_refusal
+from longslam.io.trajectory_files import read_tum
 
 
 class PackedNames(Sequence[str]):
@@ -64,9 +71,7 @@ def _read_list(path: Path) -> tuple[np.ndarray, np.ndarray]:
             continue
         fields = line.split()
         if len(fields) != 2:
-            raise InputError(
-                f"{path}:{number}: expected 'timestamp filename', got {len(fields)} fields: {line!r}"
-            )
+            raise InputError(f"{path}:{number}: expected 'timestamp filename', got {len(fields)} fields: {line!r}")
         try:
             t = float(fields[0])
         except ValueError:
@@ -90,11 +95,15 @@ def _pairing_notes(rgb_stamps: np.ndarray, depth_stamps: np.ndarray, paired: int
         if repeated:
             notes.append(f"{name} lists {repeated} timestamp{'s' if repeated > 1 else ''} more than once")
     if paired < len(rgb_stamps):
-        notes.append(f"{len(rgb_stamps) - paired} of {len(rgb_stamps)} colour images in {RGB_LIST} have no depth image "
-                     f"in {DEPTH_LIST} within {max_diff} s and are left out ({paired} frames)")
+        notes.append(
+            f"{len(rgb_stamps) - paired} of {len(rgb_stamps)} colour images in {RGB_LIST} have no depth image "
+            f"in {DEPTH_LIST} within {max_diff} s and are left out ({paired} frames)"
+        )
     if paired < len(depth_stamps):
-        notes.append(f"{len(depth_stamps) - paired} of {len(depth_stamps)} depth images in {DEPTH_LIST} are paired "
-                     f"with no colour image and are not used")
+        notes.append(
+            f"{len(depth_stamps) - paired} of {len(depth_stamps)} depth images in {DEPTH_LIST} are paired "
+            f"with no colour image and are not used"
+        )
     return notes
 
 
@@ -147,7 +156,9 @@ class SequenceReader:
     time by `frame(i)` and iteration.
     """
 
-    def __init__(self, path: str | Path, max_diff: float = DEFAULT_MAX_DIFF, intrinsics: Sequence[float] | str | None = None):
+    def __init__(
+        self, path: str | Path, max_diff: float = DEFAULT_MAX_DIFF, intrinsics: Sequence[float] | str | None = None
+    ):
         # `intrinsics` (fx, fy, cx, cy) replace camera.json's, or stand in for a missing one.
         self._given_intrinsics = intrinsics
         self.path = Path(path)
@@ -181,16 +192,22 @@ class SequenceReader:
         k = self.intrinsics
         if not (0 <= k.cx <= k.width and 0 <= k.cy <= k.height):
             where = "--intrinsics" if self.intrinsics_source.startswith("given") else self.intrinsics_source
-            raise InputError(f"{where}: principal point (cx, cy) = ({k.cx:g}, {k.cy:g}) lies outside "
-                             f"the {k.width} x {k.height} image; expected 0 <= cx <= width and 0 <= cy <= height")
+            raise InputError(
+                f"{where}: principal point (cx, cy) = ({k.cx:g}, {k.cy:g}) lies outside "
+                f"the {k.width} x {k.height} image; expected 0 <= cx <= width and 0 <= cy <= height"
+            )
 
         # The truth is read here for its notes, then again when asked for: a method never reads
         # it, and a 10 km route's poses are 9 MB held through the whole run.
         self._ground_truth: Trajectory | None = None
         self._has_ground_truth = (self.path / GROUND_TRUTH).exists()
         if self._has_ground_truth:
-            self.notes += _coverage_notes(self.timestamps, read_tum(self.path / GROUND_TRUTH).timestamps,
-                                          self.max_diff, str(self.path / GROUND_TRUTH))
+            self.notes += _coverage_notes(
+                self.timestamps,
+                read_tum(self.path / GROUND_TRUTH).timestamps,
+                self.max_diff,
+                str(self.path / GROUND_TRUTH),
+            )
         self.odometry: Trajectory | None = None
         self._odometry_index: np.ndarray | None = None
         if (self.path / ODOMETRY).exists():
@@ -221,9 +238,7 @@ class SequenceReader:
                     except OSError:
                         listings[folder] = set()
                 if file_name not in listings[folder]:
-                    raise InputError(
-                        f"image {full} listed in {self.path / list_name} does not exist"
-                    )
+                    raise InputError(f"image {full} listed in {self.path / list_name} does not exist")
 
     def _read_meta(self) -> dict:
         file = self.path / META
@@ -255,12 +270,7 @@ class SequenceReader:
             if not math.isfinite(getattr(intr, name)):
                 raise InputError(f"{file}: field {name} must be a finite number")
         scale = data.get("depth_scale", DEPTH_SCALE)
-        if (
-            isinstance(scale, bool)
-            or not isinstance(scale, (int, float))
-            or not math.isfinite(scale)
-            or scale <= 0
-        ):
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) or scale <= 0:
             raise InputError(f"{file}: field depth_scale must be a positive number, got {scale!r}")
         max_depth = data.get("max_depth")
         if max_depth is not None and (
@@ -269,9 +279,7 @@ class SequenceReader:
             or not math.isfinite(max_depth)
             or max_depth <= 0
         ):
-            raise InputError(
-                f"{file}: field max_depth must be a positive number of metres or null, got {max_depth!r}"
-            )
+            raise InputError(f"{file}: field max_depth must be a positive number of metres or null, got {max_depth!r}")
         return intr, float(scale), None if max_depth is None else float(max_depth)
 
     # frames ------------------------------------------------------------------------
@@ -319,8 +327,7 @@ class SequenceReader:
         bgr = _read_image(rgb_file, cv2.IMREAD_COLOR)
         if bgr.shape[:2] != (h, w):
             raise InputError(
-                f"image {rgb_file} is {bgr.shape[1]} x {bgr.shape[0]}, but {self._size_source()} "
-                f"says {w} x {h}"
+                f"image {rgb_file} is {bgr.shape[1]} x {bgr.shape[0]}, but {self._size_source()} " f"says {w} x {h}"
             )
         return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
@@ -331,8 +338,7 @@ class SequenceReader:
         raw = _read_image(depth_file, cv2.IMREAD_UNCHANGED)
         if raw.ndim != 2 or raw.dtype != np.uint16:
             raise InputError(
-                f"depth image {depth_file} must be single-channel 16-bit, got "
-                f"{raw.dtype} with shape {raw.shape}"
+                f"depth image {depth_file} must be single-channel 16-bit, got " f"{raw.dtype} with shape {raw.shape}"
             )
         if raw.shape != (h, w):
             raise InputError(

@@ -18,18 +18,27 @@ import numpy as np
 import longslam
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
+from longslam.core.jsonable import json_default
+from longslam.core.timestamps import match_every
+from longslam.core.trajectory import Trajectory
 from longslam.io.atomic import atomic_path, write_bytes, write_text
-from longslam.io.partials import clean_stale_partials
 from longslam.io.overwrite_policy import SEQUENCE, check_not_an_input, check_replaceable, replace_guard
+from longslam.io.partials import clean_stale_partials
 from longslam.io.sequence.layout import (
-    CAMERA, DEFAULT_MAX_DIFF, DEPTH_DIR, DEPTH_LIST, DEPTH_SCALE, GROUND_TRUTH, META, ODOMETRY, RGB_DIR, RGB_LIST,
+    CAMERA,
+    DEFAULT_MAX_DIFF,
+    DEPTH_DIR,
+    DEPTH_LIST,
+    DEPTH_SCALE,
+    GROUND_TRUTH,
+    META,
+    ODOMETRY,
+    RGB_DIR,
+    RGB_LIST,
     STAMP_DECIMALS,
 )
 from longslam.io.sequence.reader import SequenceReader
 from longslam.io.trajectory_files import write_tum
-from longslam.core.jsonable import json_default
-from longslam.core.timestamps import match_every
-from longslam.core.trajectory import Trajectory
 
 
 def _stamp_text(t: float) -> str:
@@ -179,9 +188,7 @@ class SequenceWriter:
 
     def _folder(self, what: str) -> Path:
         if self._tmp is None:
-            raise InputError(
-                f"SequenceWriter.{what} for {self.path} must be called inside its `with` block"
-            )
+            raise InputError(f"SequenceWriter.{what} for {self.path} must be called inside its `with` block")
         return self._tmp
 
     def add(self, timestamp: float, rgb: np.ndarray, depth: np.ndarray) -> None:
@@ -218,8 +225,7 @@ class SequenceWriter:
             )
         if depth.shape != (h, w):
             raise InputError(
-                f"{where}: depth must have shape (height, width) = ({h}, {w}) per the "
-                f"intrinsics, got {depth.shape}"
+                f"{where}: depth must have shape (height, width) = ({h}, {w}) per the " f"intrinsics, got {depth.shape}"
             )
         if not np.all(np.isfinite(depth)):
             raise InputError(f"{where}: depth holds NaN or inf; use 0 for pixels with no return")
@@ -307,6 +313,3 @@ def derive_sequence(
                 shutil.copy2(source / name, tmp / name)
         write_tum(tmp / ODOMETRY, odometry)
         write_text(tmp / META, meta_text)
-
-
-

@@ -7,6 +7,13 @@ from longslam.sim.perturbations.catalog import get_perturbation, perturbation_na
 from longslam.sim.perturbations.parse import NONE, canonical, parse_entry, parse_perturbations
 
 __all__ = [
-    "FrameContext", "NONE", "Perturbation", "canonical", "get_perturbation", "parse_entry", "parse_perturbations",
-    "perturbation_names", "perturbation_rng",
+    "FrameContext",
+    "NONE",
+    "Perturbation",
+    "canonical",
+    "get_perturbation",
+    "parse_entry",
+    "parse_perturbations",
+    "perturbation_names",
+    "perturbation_rng",
 ]

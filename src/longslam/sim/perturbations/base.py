@@ -87,8 +87,9 @@ class Perturbation:
         """Whether the frame never reaches the method (its colour and depth both lost)."""
         return False
 
-    def perturb(self, rgb: np.ndarray, depth: np.ndarray, frame: FrameContext,
-                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    def perturb(
+        self, rgb: np.ndarray, depth: np.ndarray, frame: FrameContext, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray]:
         """rgb (H, W, 3) uint8 and depth (H, W) float32 metres as the perturbed camera delivers
         them; the inputs are not modified."""
         return rgb, depth

@@ -32,11 +32,14 @@ def _as_class(name: str, loaded: Any) -> type[Perturbation]:
     entry = PERTURBATIONS.plugin(name)
     where = f"perturbation {name!r}: entry point {entry.value if entry else name}"
     if not NAME.fullmatch(name):
-        raise InputError(f"perturbation {name!r}: its entry point's name cannot be a folder name; "
-                         "expected letters, digits, '_', '.' or '-'")
+        raise InputError(
+            f"perturbation {name!r}: its entry point's name cannot be a folder name; "
+            "expected letters, digits, '_', '.' or '-'"
+        )
     if not (isinstance(loaded, type) and issubclass(loaded, Perturbation)):
-        raise InputError(f"{where} is a {type(loaded).__name__}; "
-                         "expected a subclass of longslam.sim.perturbations.Perturbation")
+        raise InputError(
+            f"{where} is a {type(loaded).__name__}; " "expected a subclass of longslam.sim.perturbations.Perturbation"
+        )
     return loaded
 
 
@@ -73,7 +76,9 @@ def get_perturbation(name: str, level: float | None = None) -> Perturbation:
     try:
         made = cls(level)
     except (Exception, SystemExit) as err:
-        raise InputError(f"perturbation {name!r}: making it at level {level_text(level)} raised {failure(err)}") from None
+        raise InputError(
+            f"perturbation {name!r}: making it at level {level_text(level)} raised {failure(err)}"
+        ) from None
     if made.name != name:
         # The name in meta.json and the study is the entry point's, so the frame draws are keyed by it.
         made.name = name

@@ -28,7 +28,7 @@ class Exposure(Perturbation):
     def perturb(self, rgb, depth, frame: FrameContext, rng: np.random.Generator):
         if not in_stretch(self.name, frame.seed, frame.timestamp, frame.start, frame.end, EXPOSURE_STRETCH_S):
             return rgb, depth
-        dimmed = rgb.astype(np.float32) * np.float32(2.0 ** -self.level) + np.float32(0.5)
+        dimmed = rgb.astype(np.float32) * np.float32(2.0**-self.level) + np.float32(0.5)
         return np.clip(dimmed, 0, 255).astype(np.uint8), depth
 
 

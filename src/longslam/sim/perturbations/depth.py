@@ -38,7 +38,9 @@ class DepthOffset(Perturbation):
         return rgb, reproject_depth(depth, frame.intrinsics, rotation, moved)
 
 
-def reproject_depth(depth: np.ndarray, intrinsics: Intrinsics, rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
+def reproject_depth(
+    depth: np.ndarray, intrinsics: Intrinsics, rotation: np.ndarray, position: np.ndarray
+) -> np.ndarray:
     """`depth` as seen by a camera at `position` with `rotation` in this camera's frame: each
     return moved and projected, the nearest kept where several land on one pixel; one-pixel cracks
     of that forward warp filled from the nearer of their two neighbours, uncovered areas left at 0."""

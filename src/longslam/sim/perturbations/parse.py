@@ -45,7 +45,9 @@ def parse_perturbations(texts: Iterable[str]) -> tuple[Perturbation, ...]:
         for part in _JOIN.split(str(text)):
             made = parse_one(part)
             if any(p.name == made.name for p in out):
-                raise InputError(f"perturbation {made.name!r} is given twice; give each perturbation once, at one level")
+                raise InputError(
+                    f"perturbation {made.name!r} is given twice; give each perturbation once, at one level"
+                )
             out.append(made)
     return tuple(out)
 

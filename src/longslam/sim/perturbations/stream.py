@@ -10,21 +10,30 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
-from longslam.sim.perturbations.base import FrameContext, Perturbation, perturbation_rng
-from longslam.sim.sensors.base import FrameMotion
 from longslam.core.registry import failure
 from longslam.sim.image_contract import checked_images
+from longslam.sim.perturbations.base import FrameContext, Perturbation, perturbation_rng
+from longslam.sim.sensors.base import FrameMotion
 
 
 def frame_context(frame: Frame, timestamps: np.ndarray, motions: Sequence[FrameMotion], seed: int) -> FrameContext:
     """What the perturbations know of `frame`, whose index is into `timestamps` and `motions`."""
     if not 0 <= frame.index < len(motions):
         raise InputError(f"frame {frame.index} has no true camera motion ({len(motions)} frames of ground truth)")
-    return FrameContext(frame.index, float(frame.timestamp), float(timestamps[0]), float(timestamps[-1]),
-                        frame.intrinsics, motions[frame.index], int(seed))
+    return FrameContext(
+        frame.index,
+        float(frame.timestamp),
+        float(timestamps[0]),
+        float(timestamps[-1]),
+        frame.intrinsics,
+        motions[frame.index],
+        int(seed),
+    )
 
 
-def _perturb(perturbations: Sequence[Perturbation], frame: Frame, context: FrameContext) -> tuple[np.ndarray, np.ndarray]:
+def _perturb(
+    perturbations: Sequence[Perturbation], frame: Frame, context: FrameContext
+) -> tuple[np.ndarray, np.ndarray]:
     rgb, depth = frame.rgb, frame.depth  # read before: an error reading them is not a perturbation's
     shape = (frame.intrinsics.height, frame.intrinsics.width)
     for p in perturbations:
@@ -49,14 +58,21 @@ def is_dropped(perturbations: Sequence[Perturbation], context: FrameContext) -> 
             try:
                 dropped = bool(p.drops(context, perturbation_rng(p.name, context.seed, context.index)))
             except (Exception, SystemExit) as err:
-                raise InputError(f"perturbation {p.text!r}, frame {context.index}: drops() raised {failure(err)}") from None
+                raise InputError(
+                    f"perturbation {p.text!r}, frame {context.index}: drops() raised {failure(err)}"
+                ) from None
             if dropped:
                 return True
     return False
 
 
-def perturbed_frames(frames: Iterable[Frame], perturbations: Sequence[Perturbation], seed: int,
-                     timestamps: np.ndarray, motions: Sequence[FrameMotion]) -> Iterator[Frame]:
+def perturbed_frames(
+    frames: Iterable[Frame],
+    perturbations: Sequence[Perturbation],
+    seed: int,
+    timestamps: np.ndarray,
+    motions: Sequence[FrameMotion],
+) -> Iterator[Frame]:
     """The frames that get through, numbered anew from 0 (as a sequence written without the dropped
     ones reads back), each with its images perturbed on first use. `timestamps` and `motions` are
     per index of the rendered sequence (its ground truth's, and `camera_motions`')."""

@@ -7,6 +7,13 @@ from longslam.sim.sensors.kinect import KinectV1
 from longslam.sim.sensors.realsense import RealSenseD435
 
 __all__ = [
-    "ColourNoise", "FrameMotion", "IDEAL", "KinectV1", "RealSenseD435", "SensorModel", "frame_rng", "get_sensor",
+    "ColourNoise",
+    "FrameMotion",
+    "IDEAL",
+    "KinectV1",
+    "RealSenseD435",
+    "SensorModel",
+    "frame_rng",
+    "get_sensor",
     "sensor_names",
 ]

@@ -50,8 +50,9 @@ class SensorModel:
         """Whether the model leaves every frame as rendered (then a sequence links the cached frames)."""
         return type(self).sense is SensorModel.sense
 
-    def sense(self, rgb: np.ndarray, depth: np.ndarray, intrinsics: Intrinsics, motion: FrameMotion,
-              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    def sense(
+        self, rgb: np.ndarray, depth: np.ndarray, intrinsics: Intrinsics, motion: FrameMotion, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray]:
         """rgb (H, W, 3) uint8 and depth (H, W) float32 metres (0 = no return) as the camera
         would deliver them; the inputs are not modified."""
         return rgb, depth

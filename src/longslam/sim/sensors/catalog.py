@@ -29,16 +29,22 @@ def _as_model(name: str, loaded: Any) -> SensorModel:
     entry = SENSORS.plugin(name)
     where = f"sensor {name!r}: entry point {entry.value if entry else name}"
     if not isinstance(loaded, SensorModel) and not callable(loaded):
-        raise InputError(f"{where} is a {type(loaded).__name__}; "
-                         "expected a longslam.sim.sensors.SensorModel (or a class making one)")
+        raise InputError(
+            f"{where} is a {type(loaded).__name__}; "
+            "expected a longslam.sim.sensors.SensorModel (or a class making one)"
+        )
     try:
         model = loaded if isinstance(loaded, SensorModel) else loaded()
     except (Exception, SystemExit) as err:
-        raise InputError(f"sensor {name!r}: making the model from entry point "
-                         f"{entry.value if entry else name} raised {failure(err)}") from None
+        raise InputError(
+            f"sensor {name!r}: making the model from entry point "
+            f"{entry.value if entry else name} raised {failure(err)}"
+        ) from None
     if not isinstance(model, SensorModel):
-        raise InputError(f"{where} gave a {type(model).__name__}; "
-                         "expected a longslam.sim.sensors.SensorModel (or a class making one)")
+        raise InputError(
+            f"{where} gave a {type(model).__name__}; "
+            "expected a longslam.sim.sensors.SensorModel (or a class making one)"
+        )
     if model.name != name:
         # The name in meta.json and the study is the entry point's, so the frame draws are keyed by it.
         object.__setattr__(model, "name", name)

@@ -44,8 +44,15 @@ class ColourNoise:
         wx, wy, _ = (float(v) for v in motion.angular_velocity)
         return -intrinsics.fx * wy * self.exposure_s, intrinsics.fy * wx * self.exposure_s
 
-    def apply(self, rgb: np.ndarray, intrinsics: Intrinsics, motion: FrameMotion, rng: np.random.Generator,
-              sensor: str = "", seed: int = 0) -> np.ndarray:
+    def apply(
+        self,
+        rgb: np.ndarray,
+        intrinsics: Intrinsics,
+        motion: FrameMotion,
+        rng: np.random.Generator,
+        sensor: str = "",
+        seed: int = 0,
+    ) -> np.ndarray:
         image = rgb.astype(np.float32)
         du, dv = self.blur_px(intrinsics, motion)
         length = math.hypot(du, dv)
@@ -66,6 +73,7 @@ class ColourNoise:
         image += np.float32(0.5)
         np.clip(image, 0, 255, out=image)
         return image.astype(np.uint8)
+
 
 def _line_kernel(du: float, dv: float) -> np.ndarray:
     """A normalised box along the segment from -(du, dv)/2 to (du, dv)/2, anti-aliased."""

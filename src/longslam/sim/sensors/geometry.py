@@ -49,7 +49,9 @@ def projector_shadow(depth: np.ndarray, intrinsics: Intrinsics, baseline: float)
     """
     z = depth.astype(np.float32)
     with np.errstate(divide="ignore"):
-        u_projector = np.where(z > 0, np.arange(z.shape[1], dtype=np.float32)[None, :] - baseline * intrinsics.fx / z, np.inf)
+        u_projector = np.where(
+            z > 0, np.arange(z.shape[1], dtype=np.float32)[None, :] - baseline * intrinsics.fx / z, np.inf
+        )
     # The smallest projector column among the pixels to the right of each pixel.
     right_min = np.minimum.accumulate(u_projector[:, ::-1], axis=1)[:, ::-1]
     right_min = np.concatenate([right_min[:, 1:], np.full((z.shape[0], 1), np.inf, np.float32)], axis=1)

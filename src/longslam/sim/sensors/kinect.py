@@ -29,8 +29,8 @@ Sources of the constants:
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import cv2
 import numpy as np

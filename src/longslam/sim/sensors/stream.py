@@ -11,9 +11,9 @@ import numpy as np
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.registry import failure
-from longslam.sim.sensors.base import FrameMotion, SensorModel, frame_rng
 from longslam.core.trajectory import Trajectory
 from longslam.sim.image_contract import checked_images
+from longslam.sim.sensors.base import FrameMotion, SensorModel, frame_rng
 
 
 def camera_motions(truth: Trajectory) -> list[FrameMotion]:
@@ -26,7 +26,9 @@ def camera_motions(truth: Trajectory) -> list[FrameMotion]:
         return [FrameMotion.still(float(t)) for t in stamps]
     rel = np.einsum("nji,njk->nik", poses[:-1, :3, :3], poses[1:, :3, :3])  # R_i^T R_{i+1}
     dt = np.maximum(np.diff(stamps), 1e-9)
-    skew = 0.5 * np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], axis=1)
+    skew = 0.5 * np.stack(
+        [rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], axis=1
+    )
     sin = np.linalg.norm(skew, axis=1)
     angle = np.arctan2(sin, np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
     scale = np.divide(angle, sin, out=np.ones_like(angle), where=sin > 1e-12)
@@ -69,7 +71,9 @@ def sensed_frame(clean: Frame, sensor: SensorModel, seed: int, motion: FrameMoti
     return Frame(clean.index, clean.timestamp, lambda: both()[0], lambda: both()[1], clean.odometry, clean.intrinsics)
 
 
-def sensed_frames(frames: Iterable[Frame], sensor: SensorModel, seed: int, motions: list[FrameMotion]) -> Iterator[Frame]:
+def sensed_frames(
+    frames: Iterable[Frame], sensor: SensorModel, seed: int, motions: list[FrameMotion]
+) -> Iterator[Frame]:
     """Each frame as `sensor` delivers it; `motions` per frame index (from `camera_motions`)."""
     for frame in frames:
         if not 0 <= frame.index < len(motions):

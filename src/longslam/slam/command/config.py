@@ -43,8 +43,9 @@ def split_template(command: str) -> list[str]:
     try:
         words = shlex.split(command)
     except ValueError as err:  # an unclosed quote
-        raise InputError(f"method {METHOD!r}: parameter command={command!r} cannot be split into words "
-                         f"as a shell would: {err}") from None
+        raise InputError(
+            f"method {METHOD!r}: parameter command={command!r} cannot be split into words " f"as a shell would: {err}"
+        ) from None
     _check(bool(words), f"parameter command={command!r} holds no program to run")
     valid = ", ".join("{" + name + "}" for name in PLACEHOLDERS)
     # Trial values of each placeholder's type: a bad format spec fails here, not after the frames.
@@ -53,12 +54,16 @@ def split_template(command: str) -> list[str]:
         try:
             names = placeholders_of(word)
         except ValueError as err:
-            raise InputError(f"method {METHOD!r}: parameter command: {word!r}: {err} (write {{{{ and }}}} for "
-                             f"literal braces; valid placeholders: {valid})") from None
+            raise InputError(
+                f"method {METHOD!r}: parameter command: {word!r}: {err} (write {{{{ and }}}} for "
+                f"literal braces; valid placeholders: {valid})"
+            ) from None
         unknown = [n for n in names if n not in PLACEHOLDERS]
         if unknown:
-            raise InputError(f"method {METHOD!r}: parameter command: unknown placeholder {{{unknown[0]}}} in "
-                             f"{word!r}; valid placeholders: {valid} ({{{{ and }}}} for literal braces)")
+            raise InputError(
+                f"method {METHOD!r}: parameter command: unknown placeholder {{{unknown[0]}}} in "
+                f"{word!r}; valid placeholders: {valid} ({{{{ and }}}} for literal braces)"
+            )
         try:
             word.format_map(trial)
         except (ValueError, TypeError, KeyError, IndexError, AttributeError) as err:
@@ -80,7 +85,8 @@ class CommandConfig:
     frame: str = "optical"
     # Seconds the program may run before it (and every process it started) is killed and the run fails.
     timeout: float = 3600.0
-    # Camera height above the floor in m, for robot-frame poses and a start without odometry (none takes the odometry's).
+    # Camera height above the floor in m, for robot-frame poses and a start without odometry (none takes the
+    # odometry's).
     camera_height: float | None = None
     # Keep the TUM folder written for the program in the run folder (it is removed once the program ends).
     keep_sequence: bool = False
@@ -89,22 +95,33 @@ class CommandConfig:
         if self.command:
             split_template(self.command)
         _check(self.format in FORMATS, f"parameter format={self.format!r}: expected one of {', '.join(FORMATS)}")
-        _check(self.frame in FRAMES, f"parameter frame={self.frame!r}: expected one of {', '.join(FRAMES)} "
-                                     "(optical: camera poses, OpenCV axes; robot: base poses, x ahead, z up)")
+        _check(
+            self.frame in FRAMES,
+            f"parameter frame={self.frame!r}: expected one of {', '.join(FRAMES)} "
+            "(optical: camera poses, OpenCV axes; robot: base poses, x ahead, z up)",
+        )
         path = PurePath(self.trajectory)
-        _check(bool(self.trajectory.strip()) and not path.is_absolute() and ".." not in path.parts,
-               f"parameter trajectory={self.trajectory!r}: expected a file name relative to {{output}} "
-               "(the program's working directory), inside it")
-        _check(math.isfinite(self.timeout) and 0.0 < self.timeout <= MAX_TIMEOUT_S,
-               f"parameter timeout={self.timeout}: expected (0, {MAX_TIMEOUT_S:g}] seconds")
-        _check(self.camera_height is None or (math.isfinite(self.camera_height) and 0.0 < self.camera_height < 10.0),
-               f"parameter camera_height={self.camera_height}: expected (0, 10) m, or none")
+        _check(
+            bool(self.trajectory.strip()) and not path.is_absolute() and ".." not in path.parts,
+            f"parameter trajectory={self.trajectory!r}: expected a file name relative to {{output}} "
+            "(the program's working directory), inside it",
+        )
+        _check(
+            math.isfinite(self.timeout) and 0.0 < self.timeout <= MAX_TIMEOUT_S,
+            f"parameter timeout={self.timeout}: expected (0, {MAX_TIMEOUT_S:g}] seconds",
+        )
+        _check(
+            self.camera_height is None or (math.isfinite(self.camera_height) and 0.0 < self.camera_height < 10.0),
+            f"parameter camera_height={self.camera_height}: expected (0, 10) m, or none",
+        )
 
     def words(self) -> list[str]:
         """The template's words; InputError when no program was given."""
         if not self.command.strip():
-            raise InputError(f"method {METHOD!r} needs the program to run: --param command='myslam {{sequence}} "
-                             f"{{output}}' (placeholders: {', '.join('{' + n + '}' for n in PLACEHOLDERS)})")
+            raise InputError(
+                f"method {METHOD!r} needs the program to run: --param command='myslam {{sequence}} "
+                f"{{output}}' (placeholders: {', '.join('{' + n + '}' for n in PLACEHOLDERS)})"
+            )
         return split_template(self.command)
 
     def uses(self, placeholder: str) -> bool:

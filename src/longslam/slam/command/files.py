@@ -15,9 +15,18 @@ from longslam.io.sequence.layout import DEPTH_DIR, DEPTH_SCALE, RGB_DIR
 TH_DEPTH = 40.0  # close points: within 40 baselines (3.1 m)
 BASELINE = 0.07732  # m, the virtual stereo pair ORB-SLAM makes of a depth image (a Kinect's)
 ORB_EXTRACTOR = (("nFeatures", 1000), ("scaleFactor", 1.2), ("nLevels", 8), ("iniThFAST", 20), ("minThFAST", 7))
-VIEWER = (("KeyFrameSize", 0.05), ("KeyFrameLineWidth", 1.0), ("GraphLineWidth", 0.9), ("PointSize", 2.0),
-          ("CameraSize", 0.08), ("CameraLineWidth", 3.0), ("ViewpointX", 0.0), ("ViewpointY", -0.7),
-          ("ViewpointZ", -1.8), ("ViewpointF", 500.0))
+VIEWER = (
+    ("KeyFrameSize", 0.05),
+    ("KeyFrameLineWidth", 1.0),
+    ("GraphLineWidth", 0.9),
+    ("PointSize", 2.0),
+    ("CameraSize", 0.08),
+    ("CameraLineWidth", 3.0),
+    ("ViewpointX", 0.0),
+    ("ViewpointY", -0.7),
+    ("ViewpointZ", -1.8),
+    ("ViewpointF", 500.0),
+)
 
 
 def associations_text(stamp_texts: list[str]) -> str:
@@ -44,8 +53,16 @@ def settings_text(intrinsics: Intrinsics, fps: float) -> str:
     read instead (`Camera.fx`..., `Camera.bf`, `ThDepth`, `DepthMapFactor`) beside them: each
     reads its own keys and ignores the others'. Images are undistorted, colour in RGB order."""
     k = intrinsics
-    pinhole = (("fx", k.fx), ("fy", k.fy), ("cx", k.cx), ("cy", k.cy), ("k1", 0.0), ("k2", 0.0), ("p1", 0.0),
-               ("p2", 0.0))
+    pinhole = (
+        ("fx", k.fx),
+        ("fy", k.fy),
+        ("cx", k.cx),
+        ("cy", k.cy),
+        ("k1", 0.0),
+        ("k2", 0.0),
+        ("p1", 0.0),
+        ("p2", 0.0),
+    )
     lines = [
         "%YAML:1.0",
         "# written by longslam's `command` method from the sequence's camera; other values are ORB-SLAM3's TUM1.yaml",

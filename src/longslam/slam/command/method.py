@@ -53,6 +53,8 @@ import numpy as np
 from longslam.core.errors import InputError, LongslamError, MethodError
 from longslam.core.frame import Frame
 from longslam.core.geometry import CameraMount, anchor, base_to_camera, camera_poses_from_planar, hold_last
+from longslam.core.timestamps import one_to_one_nearest
+from longslam.core.trajectory import Trajectory
 from longslam.io.atomic import write_text
 from longslam.io.sequence import DEFAULT_MAX_DIFF, DEPTH_SCALE, SequenceWriter
 from longslam.io.sequence.layout import STAMP_DECIMALS
@@ -62,8 +64,6 @@ from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.command.config import METHOD, CommandConfig, command_line, fill, placeholders_of
 from longslam.slam.command.files import associations_text, write_settings
 from longslam.slam.command.program import last_lines, run_program
-from longslam.core.timestamps import one_to_one_nearest
-from longslam.core.trajectory import Trajectory
 
 SEQUENCE_DIR, OUTPUT_DIR = "sequence", "program"
 ASSOCIATIONS = "associations.txt"  # inside the sequence folder
@@ -91,8 +91,10 @@ def resolve_program(word: str) -> str:
     if not path.is_file():
         raise InputError(f"{WHAT}: program {word!r} does not exist ({path})")
     if not os.access(path, os.X_OK):
-        raise InputError(f"{WHAT}: program {word!r} is not executable ({path}); chmod +x it, or name its "
-                         "interpreter first (python3 script.py)")
+        raise InputError(
+            f"{WHAT}: program {word!r} is not executable ({path}); chmod +x it, or name its "
+            "interpreter first (python3 script.py)"
+        )
     return str(path)
 
 
@@ -148,8 +150,12 @@ class CommandMethod:
         max_depth = self.context.max_depth
         if max_depth is None or not np.isfinite(max_depth) or not 0.0 < max_depth <= MAX_DEPTH_PNG:
             max_depth = MAX_DEPTH_PNG
-        writer = SequenceWriter(self._sequence, self.context.intrinsics, max_depth,
-                                {"written_by": "longslam's command method, for the program it runs"})
+        writer = SequenceWriter(
+            self._sequence,
+            self.context.intrinsics,
+            max_depth,
+            {"written_by": "longslam's command method, for the program it runs"},
+        )
         writer.__enter__()
         return writer
 
@@ -182,10 +188,17 @@ class CommandMethod:
     def _values(self) -> dict[str, Any]:
         k = self.context.intrinsics
         return {
-            "sequence": str(self._sequence), "output": str(self._output),
-            "associations": str(self._sequence / ASSOCIATIONS), "settings": str(self._workdir / SETTINGS),
-            "fx": float(k.fx), "fy": float(k.fy), "cx": float(k.cx), "cy": float(k.cy),
-            "width": int(k.width), "height": int(k.height), "depth_scale": int(DEPTH_SCALE),
+            "sequence": str(self._sequence),
+            "output": str(self._output),
+            "associations": str(self._sequence / ASSOCIATIONS),
+            "settings": str(self._workdir / SETTINGS),
+            "fx": float(k.fx),
+            "fy": float(k.fy),
+            "cx": float(k.cx),
+            "cy": float(k.cy),
+            "width": int(k.width),
+            "height": int(k.height),
+            "depth_scale": int(DEPTH_SCALE),
         }
 
     def _prepare_files(self) -> None:
@@ -199,9 +212,11 @@ class CommandMethod:
         if not path.is_file():
             left = sorted(p.name for p in self._output.iterdir()) if self._output.is_dir() else []
             shown = ", ".join(left[:8]) + (" ..." if len(left) > 8 else "") if left else "nothing"
-            raise MethodError(f"{WHAT}: the program exited with status 0 but wrote no trajectory {path} (parameter "
-                              f"trajectory={self.config.trajectory!r}, relative to {{output}}, its working folder); "
-                              f"{{output}} holds {shown}; {last_lines(output)}")
+            raise MethodError(
+                f"{WHAT}: the program exited with status 0 but wrote no trajectory {path} (parameter "
+                f"trajectory={self.config.trajectory!r}, relative to {{output}}, its working folder); "
+                f"{{output}} holds {shown}; {last_lines(output)}"
+            )
         try:
             if self.config.format == EUROC:
                 trajectory = read_euroc(path)
@@ -210,8 +225,10 @@ class CommandMethod:
             else:
                 trajectory = read_tum(path)
         except LongslamError as err:
-            raise MethodError(f"{WHAT}: the program's trajectory is not a {self.config.format} file as the "
-                              f"parameter format says: {err}") from None
+            raise MethodError(
+                f"{WHAT}: the program's trajectory is not a {self.config.format} file as the "
+                f"parameter format says: {err}"
+            ) from None
         if not len(trajectory):
             raise MethodError(f"{WHAT}: the program's trajectory {path} holds no poses; {last_lines(output)}")
         return trajectory
@@ -221,17 +238,21 @@ class CommandMethod:
         stamps = np.array(self._stamps)
         if self.config.format == KITTI:
             if len(trajectory) > len(stamps):
-                raise MethodError(f"{WHAT}: the program's KITTI trajectory {path} holds {len(trajectory)} poses for "
-                                  f"{len(stamps)} frames; a KITTI file has one pose per frame, in order")
+                raise MethodError(
+                    f"{WHAT}: the program's KITTI trajectory {path} holds {len(trajectory)} poses for "
+                    f"{len(stamps)} frames; a KITTI file has one pose per frame, in order"
+                )
             index = np.arange(len(trajectory))
             return index, index.copy()
         ours, frames = one_to_one_nearest(trajectory.timestamps, stamps, MATCH_S)
         if not len(ours):
             span = f"{trajectory.timestamps[0]:.6f}..{trajectory.timestamps[-1]:.6f}"
-            raise MethodError(f"{WHAT}: none of the {len(trajectory)} poses of the program's trajectory {path} is "
-                              f"within {MATCH_S} s of a frame (its stamps span {span} s, the frames' "
-                              f"{stamps[0]:.6f}..{stamps[-1]:.6f} s); its stamps must be rgb.txt's, in seconds "
-                              "(format=euroc for nanoseconds, format=kitti for a file without stamps)")
+            raise MethodError(
+                f"{WHAT}: none of the {len(trajectory)} poses of the program's trajectory {path} is "
+                f"within {MATCH_S} s of a frame (its stamps span {span} s, the frames' "
+                f"{stamps[0]:.6f}..{stamps[-1]:.6f} s); its stamps must be rgb.txt's, in seconds "
+                "(format=euroc for nanoseconds, format=kitti for a file without stamps)"
+            )
         return ours, frames
 
     def finish(self) -> Result:
@@ -309,7 +330,15 @@ class CommandMethod:
             self._cleanup()
 
 
-SPEC = MethodSpec(METHOD, CommandConfig, CommandMethod, "any program that reads a TUM RGB-D folder and writes a trajectory",
-                  # The program may be anything: its threads are its own (threads stays 1, MethodSpec's is
-                  # static), it runs after the last frame, and nothing says it repeats itself.
-                  threads=1, real_time=False, deterministic=False, required=("command",))
+SPEC = MethodSpec(
+    METHOD,
+    CommandConfig,
+    CommandMethod,
+    "any program that reads a TUM RGB-D folder and writes a trajectory",
+    # The program may be anything: its threads are its own (threads stays 1, MethodSpec's is
+    # static), it runs after the last frame, and nothing says it repeats itself.
+    threads=1,
+    real_time=False,
+    deterministic=False,
+    required=("command",),
+)

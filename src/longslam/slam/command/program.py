@@ -108,8 +108,9 @@ def run_program(argv: list[str], cwd: Path, log: Path, timeout: float, what: str
         offset = handle.tell()
         t0 = time.monotonic()
         try:
-            proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=handle, stderr=subprocess.STDOUT,
-                                    start_new_session=True)
+            proc = subprocess.Popen(
+                argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=handle, stderr=subprocess.STDOUT, start_new_session=True
+            )
         except OSError as err:
             raise MethodError(f"{what}: cannot start {argv[0]!r}: {err.strerror or err}") from None
     pid, reaped, timed_out = proc.pid, False, False
@@ -135,9 +136,12 @@ def run_program(argv: list[str], cwd: Path, log: Path, timeout: float, what: str
     wall = time.monotonic() - t0
     output = _read_from(log, offset)
     if timed_out:
-        raise MethodError(f"{what}: {argv[0]!r} ran past its timeout of {timeout:g} s and was killed with every "
-                          f"process it started; {last_lines(output)}")
+        raise MethodError(
+            f"{what}: {argv[0]!r} ran past its timeout of {timeout:g} s and was killed with every "
+            f"process it started; {last_lines(output)}"
+        )
     if proc.returncode != 0:
-        raise MethodError(f"{what}: {argv[0]!r} {describe_status(proc.returncode)} after {wall:.1f} s; "
-                          f"{last_lines(output)}")
+        raise MethodError(
+            f"{what}: {argv[0]!r} {describe_status(proc.returncode)} after {wall:.1f} s; " f"{last_lines(output)}"
+        )
     return ProgramRun(proc.returncode, wall, usage.ru_utime + usage.ru_stime, int(usage.ru_maxrss) * 1024, output)

@@ -46,7 +46,7 @@ class BiasFilter:
         self.use_bias = use_bias
         self.state = np.zeros(5)
         self.state[:3] = pose
-        self.cov = np.diag([1e-8, 1e-8, 1e-10, noise.bias_forward_init ** 2, noise.bias_yaw_init ** 2])
+        self.cov = np.diag([1e-8, 1e-8, 1e-10, noise.bias_forward_init**2, noise.bias_yaw_init**2])
 
     @property
     def pose(self) -> np.ndarray:
@@ -69,16 +69,20 @@ class BiasFilter:
         n = self.noise
         mv = 1.0 if step.moving else 0.0
         b = self.state[3:] if self.use_bias else np.zeros(2)
-        f, l, dth = step.forward - b[0] * mv, step.lateral, step.yaw - b[1]
+        f, lat, dth = step.forward - b[0] * mv, step.lateral, step.yaw - b[1]
         sigmas = np.array([n.forward_min + n.forward_rel * abs(f), n.lateral, n.yaw_min + n.yaw_rel * abs(dth)])
         jac_bias = np.array([[-mv, 0.0], [0.0, 0.0], [0.0, -1.0]]) if self.use_bias else np.zeros((3, 2))
         walk = np.array([n.bias_forward_walk, n.bias_yaw_walk]) if self.use_bias else np.zeros(2)
-        self._predict(np.array([f, l, dth]), sigmas, jac_bias, walk)
+        self._predict(np.array([f, lat, dth]), sigmas, jac_bias, walk)
 
     def predict_constant_velocity(self, step: np.ndarray) -> None:
         n = self.noise
-        self._predict(np.asarray(step, dtype=np.float64), np.array([n.cv_forward, n.cv_lateral, n.cv_yaw]),
-                      np.zeros((3, 2)), np.zeros(2))
+        self._predict(
+            np.asarray(step, dtype=np.float64),
+            np.array([n.cv_forward, n.cv_lateral, n.cv_yaw]),
+            np.zeros((3, 2)),
+            np.zeros(2),
+        )
 
     def _predict(self, delta: np.ndarray, sigmas: np.ndarray, jac_bias: np.ndarray, walk: np.ndarray) -> None:
         th = self.state[2]
@@ -89,14 +93,16 @@ class BiasFilter:
         f_mat[1, 2] = c * delta[0] - s * delta[1]
         f_mat[:3, 3:] = g @ jac_bias
         q = np.zeros((5, 5))
-        q[:3, :3] = g @ np.diag(sigmas ** 2) @ g.T
-        q[3:, 3:] = np.diag(walk ** 2)
+        q[:3, :3] = g @ np.diag(sigmas**2) @ g.T
+        q[3:, 3:] = np.diag(walk**2)
         self.state[:3] = compose_xyyaw(self.state[:3], delta)
         self.cov = f_mat @ self.cov @ f_mat.T + q
 
     def predict_step(self, step: np.ndarray, sigmas: np.ndarray) -> None:
         """A measured step (e.g. visual) with its stds, when there are no wheels."""
-        self._predict(np.asarray(step, dtype=np.float64), np.asarray(sigmas, dtype=np.float64), np.zeros((3, 2)), np.zeros(2))
+        self._predict(
+            np.asarray(step, dtype=np.float64), np.asarray(sigmas, dtype=np.float64), np.zeros((3, 2)), np.zeros(2)
+        )
 
     def update_bias(self, residual: np.ndarray, variances: np.ndarray, moving: bool) -> None:
         """Fuse (wheel step - visual step) in forward and yaw, which measures the two biases.
@@ -116,7 +122,7 @@ class BiasFilter:
         """Fuse a measurement of the heading alone (rad, within `sigma`): the walls' direction."""
         h = np.zeros((1, 5))
         h[0, 2] = 1.0
-        s = float(self.cov[2, 2]) + sigma ** 2
+        s = float(self.cov[2, 2]) + sigma**2
         self._correct(self.cov @ h.T / s, h, np.array([wrap_angle(yaw - self.state[2])]))
 
     def _correct(self, gain: np.ndarray, h: np.ndarray, innovation: np.ndarray) -> None:
@@ -129,7 +135,7 @@ class BiasFilter:
 
     def widen_forward_bias(self, std: float) -> None:
         """The forward bias may have jumped: add `std`^2 to its variance."""
-        self.cov[3, 3] += std ** 2
+        self.cov[3, 3] += std**2
 
     def pose_information(self) -> np.ndarray:
         """Information of the marginal pose (world x, y, yaw): the prior of the registration."""

@@ -16,6 +16,7 @@ import numpy as np
 
 from longslam.slam.graph.factors import WheelStep
 from longslam.slam.rows import CHUNK, Rows
+
 # Column layout of a row: (first column, width) of each part, and its "present" flag's column.
 POSE = (0, 3)
 WHEEL, WHEEL_ON = (4, 4), 3  # forward, lateral, yaw, moving
@@ -53,11 +54,11 @@ class FrameStore:
 
     def pose_span(self, first: int, stop: int) -> np.ndarray:
         """The online poses of frames first..stop-1, (stop - first, 3)."""
-        return self._rows.span(first, stop)[:, POSE[0]:POSE[0] + 3]
+        return self._rows.span(first, stop)[:, POSE[0] : POSE[0] + 3]
 
     def append(self, pose: np.ndarray, record: FrameRecord) -> None:
         row = np.zeros(WIDTH)
-        row[POSE[0]:POSE[0] + 3] = pose
+        row[POSE[0] : POSE[0] + 3] = pose
         self._write(row, record)
         self._rows.append(row)
 
@@ -70,7 +71,9 @@ class FrameStore:
 
         def put(part: tuple[int, int], flag: int, values) -> None:
             row[flag] = 1.0
-            row[part[0]:part[0] + part[1]] = np.concatenate([np.ravel(np.asarray(v, dtype=np.float64)) for v in values])
+            row[part[0] : part[0] + part[1]] = np.concatenate(
+                [np.ravel(np.asarray(v, dtype=np.float64)) for v in values]
+            )
 
         if record.wheel is not None:
             w = record.wheel
@@ -91,7 +94,7 @@ class FrameStore:
         row = self._row(k)
 
         def part(span: tuple[int, int]) -> np.ndarray:
-            return row[span[0]:span[0] + span[1]].copy()
+            return row[span[0] : span[0] + span[1]].copy()
 
         wheel = None
         if row[WHEEL_ON]:
@@ -105,8 +108,14 @@ class FrameStore:
         if row[VISUAL_ON]:
             values = part(VISUAL)
             visual = (values[:3], values[3:])
-        return FrameRecord(wheel, part(SIGMAS) if row[SIGMAS_ON] else None, part(CV) if row[CV_ON] else None,
-                           scan, visual, part(BIAS) if row[BIAS_ON] else None)
+        return FrameRecord(
+            wheel,
+            part(SIGMAS) if row[SIGMAS_ON] else None,
+            part(CV) if row[CV_ON] else None,
+            scan,
+            visual,
+            part(BIAS) if row[BIAS_ON] else None,
+        )
 
     def __iter__(self) -> Iterator[FrameRecord]:
         return (self[k] for k in range(len(self)))
@@ -126,7 +135,7 @@ class _Poses:
         return len(self._store)
 
     def __getitem__(self, k: int) -> np.ndarray:
-        return self._store._row(k)[POSE[0]:POSE[0] + 3].copy()
+        return self._store._row(k)[POSE[0] : POSE[0] + 3].copy()
 
     def __iter__(self) -> Iterator[np.ndarray]:
         return (self[k] for k in range(len(self)))

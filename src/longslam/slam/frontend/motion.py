@@ -32,16 +32,23 @@ from longslam.core.frame import Frame, Intrinsics
 from longslam.core.geometry import CameraMount, JumpFilteredOdometry, relative_xyyaw, wrap_angle
 from longslam.core.memory_release import release_free_memory
 from longslam.slam.api import Table
-from longslam.slam.depth_trust import DepthTrust, measured_noise, range_for_noise, scan_weight, trusted_depth, trusted_range
-from longslam.slam.graph import Edge
+from longslam.slam.depth_trust import (
+    DepthTrust,
+    measured_noise,
+    range_for_noise,
+    scan_weight,
+    trusted_depth,
+    trusted_range,
+)
+from longslam.slam.frontend.filter import BiasFilter, MotionNoise
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor
+from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
 from longslam.slam.frontend.visual import VisualConfig, VisualOdometry
 from longslam.slam.frontend.visual_gates import GateBounds, VisualGates
 from longslam.slam.frontend.wall_axes import WallAxes, WallAxesConfig
-from longslam.slam.frontend.filter import BiasFilter, MotionNoise
-from longslam.slam.frontend.smoother import FullSmoother, SmootherConfig
+from longslam.slam.graph import Edge
 from longslam.slam.graph.factors import WheelStep
 from longslam.slam.rows import Rows
 
@@ -50,8 +57,19 @@ relative = relative_xyyaw
 MODES = ("fused", "wheel")
 # loops.csv: frame i, frame j, j's base pose in i's frame, and the constraint's information (the
 # upper triangle of its 3x3 matrix, in GTSAM's Pose2 tangent: body dx, dy, dyaw).
-LOOP_COLUMNS = ("frame_i", "frame_j", "dx_m", "dy_m", "dyaw_rad",
-                "info_xx", "info_xy", "info_xyaw", "info_yy", "info_yyaw", "info_yawyaw")
+LOOP_COLUMNS = (
+    "frame_i",
+    "frame_j",
+    "dx_m",
+    "dy_m",
+    "dyaw_rad",
+    "info_xx",
+    "info_xy",
+    "info_xyaw",
+    "info_yy",
+    "info_yyaw",
+    "info_yawyaw",
+)
 # frontend.csv: see `FrontEnd.frame_table`.
 FRAME_COLUMNS = ("frame", "wheel", "visual", "scan", "scan_shift_m", "scan_turn_deg")
 SCAN_REGISTERED, SCAN_REFUSED = 1.0, -1.0
@@ -87,7 +105,8 @@ class FrontEndConfig:
     visual_max_bias: float = 0.1  # m per step: an RGB-D step further than this from the raw wheel step is wrong
     visual_bias_reset_after: int = 5  # consecutive forward refusals that widen the bias's variance
     visual_gate_distance_no_wheels: float = 0.3  # m: the gate around the constant-velocity prediction without wheels
-    visual_gate_angle_no_wheels: float = 0.2  # rad: the heading gate around the constant-velocity prediction without wheels
+    # The heading gate (rad) around the constant-velocity prediction without wheels.
+    visual_gate_angle_no_wheels: float = 0.2
     visual_sigma_forward: float = 0.004  # m per step
     visual_sigma_lateral: float = 0.05  # m per step: the wheels hold the lateral step
     # Looser than the step's white scatter on purpose: the tracked heading also has a small bias
@@ -122,11 +141,15 @@ class FrontEndConfig:
         for f in fields(self):
             value = getattr(self, f.name)
             values = value if isinstance(value, tuple) else (value,)
-            if f.name == "camera_height" or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            if f.name == "camera_height" or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values
+            ):
                 continue
             positive = "sigma" in f.name
             if not all(math.isfinite(v) and (v > 0 if positive else v >= 0) for v in values):
-                raise InputError(f"front end: {f.name} must be {'> 0' if positive else '>= 0'} and finite, got {value!r}")
+                raise InputError(
+                    f"front end: {f.name} must be {'> 0' if positive else '>= 0'} and finite, got {value!r}"
+                )
 
 
 @dataclass(frozen=True)
@@ -161,8 +184,9 @@ class FrontEnd:
         self._filter: BiasFilter | None = None
         self._map = LocalMap(self.config.local_map)
         # In "wheel" mode the smoother (used only when loops are added) trusts the wheels as given.
-        self._smoother = FullSmoother(self.config.noise, self.config.smoother,
-                                      use_bias=self.config.use_bias and self.config.mode == "fused")
+        self._smoother = FullSmoother(
+            self.config.noise, self.config.smoother, use_bias=self.config.use_bias and self.config.mode == "fused"
+        )
         self._wheels: JumpFilteredOdometry | None = None
         self._odom: np.ndarray | None = None  # jump-corrected wheel odometry of the latest frame
         self._has_wheels: bool | None = None
@@ -174,10 +198,23 @@ class FrontEnd:
         self._frame_rows = array("d")
         self._frame_scan = (0.0, 0.0, 0.0)  # (state, shift m, turn deg) of the latest fused frame
         self._visual_used = False
-        self.counts = {"frames": 0, "odometry_jumps": 0, "visual_accepted": 0, "visual_refused": 0,
-                       "visual_failed": 0, "forward_bias_resets": 0, "scans_registered": 0, "scans_refused": 0,
-                       "scans_unmatched": 0, "scan_points": 0, "loops": 0,
-                       "depth_limited": 0, "depth_too_noisy": 0, "scans_weighted": 0, "wall_headings": 0}
+        self.counts = {
+            "frames": 0,
+            "odometry_jumps": 0,
+            "visual_accepted": 0,
+            "visual_refused": 0,
+            "visual_failed": 0,
+            "forward_bias_resets": 0,
+            "scans_registered": 0,
+            "scans_refused": 0,
+            "scans_unmatched": 0,
+            "scan_points": 0,
+            "loops": 0,
+            "depth_limited": 0,
+            "depth_too_noisy": 0,
+            "scans_weighted": 0,
+            "wall_headings": 0,
+        }
         self._axes = WallAxes(self.config.wall_axes) if self.config.wall_axes.use else None
         self._range_sum = 0.0  # of the trusted ranges of the frames whose depth was limited
         self._depth_limit: tuple[int, float | None] | None = None  # (frame index, its trusted range)
@@ -220,8 +257,10 @@ class FrontEnd:
     def _start(self, frame: Frame) -> None:
         cfg = self.config
         if frame.odometry is None and cfg.mode == "wheel":
-            raise InputError(f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the front end's "
-                             f"mode 'wheel' needs a sequence with odometry.txt (mode 'fused' runs without)")
+            raise InputError(
+                f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the front end's "
+                f"mode 'wheel' needs a sequence with odometry.txt (mode 'fused' runs without)"
+            )
         if frame.odometry is not None:
             self.mount = CameraMount.from_first_pose(np.asarray(frame.odometry, dtype=np.float64), cfg.camera_height)
             self._wheels = JumpFilteredOdometry(self.mount, cfg.jump_distance, cfg.jump_angle)
@@ -232,9 +271,19 @@ class FrontEnd:
         tracker = None
         if cfg.visual and cfg.mode == "fused":
             tracker = VisualOdometry(self.intrinsics, self.mount.camera_in_base, cfg.visual_tracking)
-        self._gates = VisualGates(tracker, GateBounds(
-            cfg.visual_gate_distance, cfg.visual_gate_angle, cfg.visual_gate_sigmas, cfg.visual_max_bias,
-            cfg.visual_bias_reset_after, cfg.noise.bias_forward_reset, cfg.use_bias), self.counts)
+        self._gates = VisualGates(
+            tracker,
+            GateBounds(
+                cfg.visual_gate_distance,
+                cfg.visual_gate_angle,
+                cfg.visual_gate_sigmas,
+                cfg.visual_max_bias,
+                cfg.visual_bias_reset_after,
+                cfg.noise.bias_forward_reset,
+                cfg.use_bias,
+            ),
+            self.counts,
+        )
         self._filter = BiasFilter(np.zeros(3), cfg.noise, use_bias=cfg.use_bias and bool(self._has_wheels))
 
     @property
@@ -260,7 +309,9 @@ class FrontEnd:
         if wheel is None:
             return None
         n = self.config.noise
-        return np.array([n.forward_min + n.forward_rel * abs(wheel.forward), n.lateral, n.yaw_min + n.yaw_rel * abs(wheel.yaw)])
+        return np.array(
+            [n.forward_min + n.forward_rel * abs(wheel.forward), n.lateral, n.yaw_min + n.yaw_rel * abs(wheel.yaw)]
+        )
 
     def _fused_step(self, k: int, frame: Frame, wheel: WheelStep | None) -> np.ndarray:
         cfg = self.config
@@ -279,7 +330,9 @@ class FrontEnd:
                 self.counts["depth_too_noisy"] += 1
                 self._depth = np.zeros_like(self._depth)
             clean = frame
-            frame = Frame(clean.index, clean.timestamp, lambda: clean.rgb, self._depth, clean.odometry, clean.intrinsics)
+            frame = Frame(
+                clean.index, clean.timestamp, lambda: clean.rgb, self._depth, clean.odometry, clean.intrinsics
+            )
         flt = self._filter
         assert flt is not None and self._gates is not None and self._extract is not None  # `_start` made them
         cv_step = None
@@ -287,20 +340,26 @@ class FrontEnd:
         vis_sigmas = np.array([cfg.visual_sigma_forward, cfg.visual_sigma_lateral, cfg.visual_sigma_yaw])
         if wheel is not None:
             bias = flt.bias if cfg.use_bias else np.zeros(2)
-            expected = np.array([wheel.forward - (bias[0] if wheel.moving else 0.0), wheel.lateral, wheel.yaw - bias[1]])
+            expected = np.array(
+                [wheel.forward - (bias[0] if wheel.moving else 0.0), wheel.lateral, wheel.yaw - bias[1]]
+            )
             bias_var = flt.forward_bias_variance if cfg.use_bias else 0.0
             flt.predict_wheel(wheel)
-            visual = self._gates.against_wheels(frame, wheel, expected, bias_var, self._wheel_variances(wheel)[0],
-                                                vis_sigmas[0], flt)
+            visual = self._gates.against_wheels(
+                frame, wheel, expected, bias_var, self._wheel_variances(wheel)[0], vis_sigmas[0], flt
+            )
             if visual is not None and cfg.use_bias:
                 raw = np.array([wheel.forward, wheel.yaw])
-                flt.update_bias(raw - visual[[0, 2]], self._wheel_variances(wheel) + vis_sigmas[[0, 2]] ** 2, wheel.moving)
+                flt.update_bias(
+                    raw - visual[[0, 2]], self._wheel_variances(wheel) + vis_sigmas[[0, 2]] ** 2, wheel.moving
+                )
         elif k > 0:
             # No wheels: the visual step where it tracks, else the last step again (constant
             # velocity), loosely.
             cv = relative(self._online.row(-2), self._online.row(-1)) if k > 1 else np.zeros(3)
-            visual = self._gates.against_prediction(frame, cv, cfg.visual_gate_distance_no_wheels,
-                                                    cfg.visual_gate_angle_no_wheels)
+            visual = self._gates.against_prediction(
+                frame, cv, cfg.visual_gate_distance_no_wheels, cfg.visual_gate_angle_no_wheels
+            )
             vis_sigmas = np.asarray(cfg.visual_sigmas_no_wheels, dtype=np.float64)
             if visual is not None:
                 flt.predict_step(visual, vis_sigmas)
@@ -329,12 +388,17 @@ class FrontEnd:
                     flt.update_pose(reg.pose, reg.hessian)
                     anchor = max(0, k - cfg.scan_anchor_lag)
                     if anchor < k:
-                        scan_factor = (anchor, relative(self._online.row(anchor), reg.pose),
-                                       cfg.scan_information_scale * information_in_body(reg.hessian, reg.pose[2]))
+                        scan_factor = (
+                            anchor,
+                            relative(self._online.row(anchor), reg.pose),
+                            cfg.scan_information_scale * information_in_body(reg.hessian, reg.pose[2]),
+                        )
         pose = flt.pose
         if self._axes is not None and len(scan):
             sigma = float(np.radians(cfg.wall_axes.sigma_deg))
-            for frame_k, heading, direction in self._axes.measure(k, float(pose[2]), scan, float(np.sqrt(flt.cov[2, 2]))):
+            for frame_k, heading, direction in self._axes.measure(
+                k, float(pose[2]), scan, float(np.sqrt(flt.cov[2, 2]))
+            ):
                 self.counts["wall_headings"] += 1
                 assert self._axes.axes is not None  # measurements come once the axes have settled
                 self._smoother.axes_initial = float(self._axes.axes)
@@ -343,20 +407,30 @@ class FrontEnd:
                     flt.update_heading(heading, sigma)
                     pose = flt.pose
         last = self._last_insert
-        if len(scan) and (last is None or np.hypot(*(pose[:2] - last[:2])) >= cfg.insert_distance
-                          or abs(wrap_angle(pose[2] - last[2])) >= cfg.insert_angle):
+        if len(scan) and (
+            last is None
+            or np.hypot(*(pose[:2] - last[:2])) >= cfg.insert_distance
+            or abs(wrap_angle(pose[2] - last[2])) >= cfg.insert_angle
+        ):
             self._map.insert(pose, scan)
             self._last_insert = pose
         self._visual_used = visual is not None
-        self._smoother.add_frame(pose, wheel, self._wheel_sigmas(wheel), cv_step, scan_factor,
-                                 flt.bias if wheel is not None else None,
-                                 None if visual is None else (visual, vis_sigmas))
+        self._smoother.add_frame(
+            pose,
+            wheel,
+            self._wheel_sigmas(wheel),
+            cv_step,
+            scan_factor,
+            flt.bias if wheel is not None else None,
+            None if visual is None else (visual, vis_sigmas),
+        )
         return pose
 
     def _wheel_variances(self, wheel: WheelStep) -> np.ndarray:
         n = self.config.noise
-        return np.array([(n.forward_min + n.forward_rel * abs(wheel.forward)) ** 2,
-                         (n.yaw_min + n.yaw_rel * abs(wheel.yaw)) ** 2])
+        return np.array(
+            [(n.forward_min + n.forward_rel * abs(wheel.forward)) ** 2, (n.yaw_min + n.yaw_rel * abs(wheel.yaw)) ** 2]
+        )
 
     # --- loops and the end ---------------------------------------------------------------------
     def add_loop(self, frame_i: int, frame_j: int, delta_xyyaw: np.ndarray, information: np.ndarray) -> None:
@@ -407,21 +481,29 @@ class FrontEnd:
         fate (1 registered, -1 refused as too large a correction, 0 none or unmatched) and how far
         the scan moved the predicted pose (m, deg): the run folder's frontend.csv, which
         `longslam diagnose` reads."""
-        return Table(FRAME_COLUMNS, np.frombuffer(self._frame_rows, dtype=np.float64).reshape(-1, len(FRAME_COLUMNS)).copy())
+        return Table(
+            FRAME_COLUMNS, np.frombuffer(self._frame_rows, dtype=np.float64).reshape(-1, len(FRAME_COLUMNS)).copy()
+        )
 
     def loop_table(self) -> Table:
         """Every constraint a method added (`add_loop`), so that a benchmark can check each
         against ground truth: the run folder's loops.csv."""
         upper = np.triu_indices(3)
-        rows = [[i, j, *map(float, delta), *np.asarray(info, dtype=np.float64)[upper]] for i, j, delta, info in self._smoother.loops]
+        rows = [
+            [i, j, *map(float, delta), *np.asarray(info, dtype=np.float64)[upper]]
+            for i, j, delta, info in self._smoother.loops
+        ]
         return Table(LOOP_COLUMNS, np.array(rows, dtype=np.float64).reshape(-1, len(LOOP_COLUMNS)))
 
     @property
     def stats(self) -> dict[str, Any]:
         out: dict[str, Any] = dict(self.counts)
         out["mode"] = self.config.mode
-        out["odometry_source"] = ("wheels" if self._has_wheels else
-                                  "none: visual steps and scan registration (constant velocity where tracking fails)")
+        out["odometry_source"] = (
+            "wheels"
+            if self._has_wheels
+            else "none: visual steps and scan registration (constant velocity where tracking fails)"
+        )
         out["ms_per_frame"] = 1000.0 * self._time / max(self.counts["frames"], 1)
         if self._smoother.solved_by:
             out["final_solve"] = self._smoother.solved_by
@@ -429,8 +511,11 @@ class FrontEnd:
             out["trusted_range_mean_m"] = self._range_sum / self.counts["depth_limited"]
         if self._axes is not None:
             # Measured wall directions: the first `settle` set the axes, `gated` were off them (a wing).
-            out["wall_directions"] = {"measured": self._axes.measured, "gated": self._axes.gated,
-                                      "axes_deg": None if self._axes.axes is None else float(np.degrees(self._axes.axes))}
+            out["wall_directions"] = {
+                "measured": self._axes.measured,
+                "gated": self._axes.gated,
+                "axes_deg": None if self._axes.axes is None else float(np.degrees(self._axes.axes)),
+            }
         if self._filter is not None and self._has_wheels and self.config.mode == "fused":
             out["bias_final"] = [float(b) for b in self._filter.bias]
         return out

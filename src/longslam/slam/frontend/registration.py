@@ -41,9 +41,14 @@ class RegistrationResult:
     ok: bool
 
 
-def register(scan_xy: np.ndarray, guess: np.ndarray, local_map: LocalMap,
-             prior_information: np.ndarray | None = None, config: RegistrationConfig | None = None,
-             weight: float = 1.0) -> RegistrationResult:
+def register(
+    scan_xy: np.ndarray,
+    guess: np.ndarray,
+    local_map: LocalMap,
+    prior_information: np.ndarray | None = None,
+    config: RegistrationConfig | None = None,
+    weight: float = 1.0,
+) -> RegistrationResult:
     """Align base-frame `scan_xy` (N, 2) to `local_map`, starting at (and pulled towards,
     with `prior_information`) the planar pose `guess`. `weight` scales the scan term's
     information (noisy depth: `depth_trust.scan_weight`)."""
@@ -73,7 +78,7 @@ def register(scan_xy: np.ndarray, guess: np.ndarray, local_map: LocalMap,
         j = np.column_stack([n[:, 0], n[:, 1], n[:, 0] * -rot[:, 1] + n[:, 1] * rot[:, 0]])
         a = np.abs(r)
         w = np.where(a <= cfg.huber, 1.0, cfg.huber / np.maximum(a, 1e-12))
-        scale = weight / (cfg.sigma ** 2 * cfg.correlation)
+        scale = weight / (cfg.sigma**2 * cfg.correlation)
         hessian = (j * w[:, None]).T @ j * scale
         gradient = (j * (w * r)[:, None]).sum(axis=0) * scale
         diff = pose - guess

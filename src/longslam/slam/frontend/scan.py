@@ -35,9 +35,10 @@ class ScanExtractor:
         self.config = config or ScanConfig()
         self.intrinsics = intrinsics
         s = int(self.config.stride) or max(1, round(intrinsics.width / 160))
-        v, u = np.mgrid[0:intrinsics.height:s, 0:intrinsics.width:s]
-        rays = np.stack([(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy,
-                         np.ones(u.shape)], axis=-1).reshape(-1, 3)
+        v, u = np.mgrid[0 : intrinsics.height : s, 0 : intrinsics.width : s]
+        rays = np.stack(
+            [(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones(u.shape)], axis=-1
+        ).reshape(-1, 3)
         pose = np.asarray(camera_in_base, dtype=np.float64)
         # A base-frame point is depth * (R @ ray) + t: precompute R @ ray for every pixel.
         self._dirs = (rays @ pose[:3, :3].T).astype(np.float32)
@@ -47,7 +48,7 @@ class ScanExtractor:
     def __call__(self, depth: np.ndarray) -> np.ndarray:
         """(N, 2) float64 cell-averaged scan points in the base frame."""
         cfg = self.config
-        z = np.asarray(depth, dtype=np.float32)[::self._stride, ::self._stride].reshape(-1)
+        z = np.asarray(depth, dtype=np.float32)[:: self._stride, :: self._stride].reshape(-1)
         ok = np.isfinite(z) & (z > 0)
         # Height first (one column), then only the band's points get their x, y.
         dirs = self._dirs[ok]
@@ -57,5 +58,5 @@ class ScanExtractor:
         z, dirs = z[band], dirs[band]
         xy = z[:, None] * dirs[:, :2] + self._origin[:2]
         r2 = np.einsum("ij,ij->i", xy, xy)
-        keep = (r2 >= cfg.min_range ** 2) & (r2 <= cfg.max_range ** 2)
+        keep = (r2 >= cfg.min_range**2) & (r2 <= cfg.max_range**2)
         return average_2d(xy[keep].astype(np.float64), cfg.cell)

@@ -1,7 +1,8 @@
 """The front end's batch estimator over planar poses (x, y, yaw), run at the end.
 
 `FullSmoother` runs over every frame, as a `slam.graph.FactorGraph`: the wheel factors of the
-online filter (`filter.py`; lateral step held tight, the biases as slowly varying states, one per block of frames), the scan-to-map
+online filter (`filter.py`; lateral step held tight, the biases as slowly varying states, one per block of frames),
+the scan-to-map
 factors (information = the registration's Hessian), and the loop closures a method adds. The
 final trajectory comes from it, so a loop correction spreads as smooth curvature. On a long route
 a method's optimised graph nodes can be held instead, and only the frames between them smoothed
@@ -22,10 +23,9 @@ from longslam.core.errors import InputError
 from longslam.core.geometry import compose_xyyaw, relative_xyyaw
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.frame_store import FrameRecord, FrameStore
-from longslam.slam.graph.factors import X, FactorGraph, WheelStep, pose_array
+from longslam.slam.graph.factors import FactorGraph, WheelStep, X, pose_array
 from longslam.slam.graph.parts import levenberg_marquardt_parts
 from longslam.slam.graph.solver import levenberg_marquardt
-
 
 # Added to a scan's or loop's information: a registration's Hessian is singular along a corridor.
 INFORMATION_RIDGE = 1e-6
@@ -77,14 +77,18 @@ class SmootherConfig:
         if self.optimizer not in self.CHOICES["optimizer"]:
             raise InputError(f"front end: smoother.optimizer must be lm or gn, got {self.optimizer!r}")
         if not self.nonholonomic_sigma >= 0:
-            raise InputError(f"front end: smoother.nonholonomic_sigma must be >= 0 m (0: off), got {self.nonholonomic_sigma}")
+            raise InputError(
+                f"front end: smoother.nonholonomic_sigma must be >= 0 m (0: off), got {self.nonholonomic_sigma}"
+            )
         if self.hold_nodes_beyond < 0:
             raise InputError(f"front end: smoother.hold_nodes_beyond must be >= 0 frames, got {self.hold_nodes_beyond}")
         if self.whole_frames < 0:
             raise InputError(f"front end: smoother.whole_frames must be >= 0, got {self.whole_frames}")
         if self.window != 0 and self.window < 2 * self.bias_block:
-            raise InputError(f"front end: smoother.window must be 0 (no limit) or at least twice bias_block "
-                             f"({2 * self.bias_block} frames), got {self.window}")
+            raise InputError(
+                f"front end: smoother.window must be 0 (no limit) or at least twice bias_block "
+                f"({2 * self.bias_block} frames), got {self.window}"
+            )
 
 
 class FullSmoother:
@@ -105,12 +109,20 @@ class FullSmoother:
         self.bias_init: dict[int, np.ndarray] = {}
         self.solved_by = ""  # how the last solve went: "every frame" or "held nodes"
 
-    def add_frame(self, online_pose: np.ndarray, wheel: WheelStep | None, wheel_sigmas: np.ndarray | None,
-                  cv_step: np.ndarray | None, scan: tuple[int, np.ndarray, np.ndarray] | None,
-                  bias: np.ndarray | None, visual: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    def add_frame(
+        self,
+        online_pose: np.ndarray,
+        wheel: WheelStep | None,
+        wheel_sigmas: np.ndarray | None,
+        cv_step: np.ndarray | None,
+        scan: tuple[int, np.ndarray, np.ndarray] | None,
+        bias: np.ndarray | None,
+        visual: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
         k = len(self.records)
-        self.records.append(np.asarray(online_pose, dtype=np.float64),
-                            FrameRecord(wheel, wheel_sigmas, cv_step, scan, visual, bias))
+        self.records.append(
+            np.asarray(online_pose, dtype=np.float64), FrameRecord(wheel, wheel_sigmas, cv_step, scan, visual, bias)
+        )
         block = k // self.config.bias_block
         if bias is not None and block not in self.bias_init:
             self.bias_init[block] = np.asarray(bias, dtype=np.float64).copy()
@@ -120,7 +132,9 @@ class FullSmoother:
         self.walls.append((int(k), float(direction), float(sigma)))
 
     def add_loop(self, i: int, j: int, delta: np.ndarray, information: np.ndarray) -> None:
-        self.loops.append((int(i), int(j), np.asarray(delta, dtype=np.float64), np.asarray(information, dtype=np.float64)))
+        self.loops.append(
+            (int(i), int(j), np.asarray(delta, dtype=np.float64), np.asarray(information, dtype=np.float64))
+        )
 
     def solve(self, held: Mapping[int, np.ndarray] | None = None, hold: bool = False) -> np.ndarray:
         """Every frame's smoothed base pose (x, y, yaw), (frames, 3). `held`: a method's optimised
@@ -136,8 +150,11 @@ class FullSmoother:
         window = self.config.window
         if window == 0 or n <= max(window, self.config.whole_frames):
             out, self.iterations = self.build_graph().solve(
-                n, iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
-                damping=self.config.optimizer != "gn")
+                n,
+                iterations=self.config.iterations,
+                relative_tolerance=self.config.relative_tolerance,
+                damping=self.config.optimizer != "gn",
+            )
             return out
         return self._solve_in_parts(window)
 
@@ -157,9 +174,14 @@ class FullSmoother:
             return graph.graph
 
         result, self.iterations = levenberg_marquardt_parts(
-            part, len(ranges), variables.values, variables.dims,
-            iterations=self.config.iterations, relative_tolerance=self.config.relative_tolerance,
-            damping=self.config.optimizer != "gn")
+            part,
+            len(ranges),
+            variables.values,
+            variables.dims,
+            iterations=self.config.iterations,
+            relative_tolerance=self.config.relative_tolerance,
+            damping=self.config.optimizer != "gn",
+        )
         return pose_array(result, range(n))
 
     def solve_held(self, held: Mapping[int, np.ndarray]) -> np.ndarray:
@@ -186,21 +208,34 @@ class FullSmoother:
         wall_frames = [k for k, _, _ in walls]
         for first, last in _held_chunks(sorted(held), n, max(self.config.window, 2 * self.config.bias_block)):
             graph = FactorGraph()
-            chunk_walls = walls[bisect.bisect_right(wall_frames, first):bisect.bisect_right(wall_frames, last)]
+            chunk_walls = walls[bisect.bisect_right(wall_frames, first) : bisect.bisect_right(wall_frames, last)]
             self._add_held_chunk(graph, first, last, held, out, chunk_walls, bias_range, solved_bias)
-            result, taken = levenberg_marquardt(graph.graph, graph.values, graph.dims, iterations=self.config.iterations,
-                                                relative_tolerance=self.config.relative_tolerance,
-                                                damping=self.config.optimizer != "gn")
+            result, taken = levenberg_marquardt(
+                graph.graph,
+                graph.values,
+                graph.dims,
+                iterations=self.config.iterations,
+                relative_tolerance=self.config.relative_tolerance,
+                damping=self.config.optimizer != "gn",
+            )
             self.iterations = max(self.iterations, taken)
-            out[first:last + 1] = pose_array(result, range(first, last + 1))
+            out[first : last + 1] = pose_array(result, range(first, last + 1))
             for key in graph.dims:
                 if gtsam.Symbol(key).chr() == ord("b"):
                     solved_bias[gtsam.Symbol(key).index()] = np.asarray(result.atPoint2(key))
         return out
 
-    def _add_held_chunk(self, graph: FactorGraph, first: int, last: int, held: Mapping[int, np.ndarray], out: np.ndarray,
-                        walls: list[tuple[int, float, float]], bias_range: tuple[int, int] | None,
-                        solved_bias: Mapping[int, np.ndarray]) -> None:
+    def _add_held_chunk(
+        self,
+        graph: FactorGraph,
+        first: int,
+        last: int,
+        held: Mapping[int, np.ndarray],
+        out: np.ndarray,
+        walls: list[tuple[int, float, float]],
+        bias_range: tuple[int, int] | None,
+        solved_bias: Mapping[int, np.ndarray],
+    ) -> None:
         """Chunk `first`..`last`'s variables and factors for `solve_held`: its frames from the online
         poses, carried along from the last held frame; frame `first` (solved or held) and the held
         frames held; each frame's own factors, a scan's anchor before the chunk held where it was
@@ -252,8 +287,10 @@ class FullSmoother:
         """The stds of the route's first bias block from zero and of one block's walk from the
         block before it (forward, yaw)."""
         nz = self.noise
-        return (np.array([nz.bias_forward_init, nz.bias_yaw_init]),
-                np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk]))
+        return (
+            np.array([nz.bias_forward_init, nz.bias_yaw_init]),
+            np.sqrt(self.config.bias_block) * np.array([nz.bias_forward_walk, nz.bias_yaw_walk]),
+        )
 
     def _bias_range(self) -> tuple[int, int] | None:
         """The first and last bias block the whole graph has, or None (no bias states)."""
@@ -329,7 +366,9 @@ class FullSmoother:
             else:
                 # The step corrected by the online filter's biases: a plain GTSAM factor.
                 b = rec.bias if (self.use_bias and rec.bias is not None) else np.zeros(2)
-                corrected = WheelStep(step.forward - (b[0] if step.moving else 0.0), step.lateral, step.yaw - b[1], step.moving)
+                corrected = WheelStep(
+                    step.forward - (b[0] if step.moving else 0.0), step.lateral, step.yaw - b[1], step.moving
+                )
                 graph.wheel(k - 1, k, corrected, sig)
         elif rec.cv_step is not None:
             graph.between(k - 1, k, rec.cv_step, sigmas=np.array([nz.cv_forward, nz.cv_lateral, nz.cv_yaw]))

@@ -41,8 +41,9 @@ class VisualStep:
 
 
 class VisualOdometry:
-    def __init__(self, intrinsics: Intrinsics, camera_in_base: np.ndarray, config: VisualConfig | None = None,
-                 seed: int = 0):
+    def __init__(
+        self, intrinsics: Intrinsics, camera_in_base: np.ndarray, config: VisualConfig | None = None, seed: int = 0
+    ):
         self.config = config or VisualConfig()
         self.rng = np.random.default_rng(seed)
         scale = intrinsics.width / 320.0
@@ -63,8 +64,9 @@ class VisualOdometry:
         base = cam @ self.pose[:3, :3].T + self.pose[:3, 3]
         return base[:, :2], ok
 
-    def __call__(self, rgb: np.ndarray, depth: np.ndarray, predicted: np.ndarray | None,
-                 first_inlier: float | None = None) -> VisualStep | None:
+    def __call__(
+        self, rgb: np.ndarray, depth: np.ndarray, predicted: np.ndarray | None, first_inlier: float | None = None
+    ) -> VisualStep | None:
         """The step from the previous frame to this one, fitted around `predicted` (x, y, yaw);
         pairs within `first_inlier` metres of the prediction start the fit. Without a
         prediction (no wheels), a two-point RANSAC finds the starting step."""
@@ -108,7 +110,7 @@ class VisualOdometry:
             threshold = cfg.inlier
         res = np.linalg.norm(b[inl] @ rot.T + t - a[inl], axis=1)
         step = np.array([t[0], t[1], np.arctan2(rot[1, 0], rot[0, 0])])
-        return VisualStep(step, int(inl.sum()), float(np.sqrt(np.mean(res ** 2))))
+        return VisualStep(step, int(inl.sum()), float(np.sqrt(np.mean(res**2))))
 
     def _ransac(self, a: np.ndarray, b: np.ndarray, hypotheses: int = 64) -> np.ndarray:
         """Best planar step (x, y, yaw) with a = R b + t over random pairs of pairs, all at once."""
@@ -120,6 +122,6 @@ class VisualOdometry:
         t = a[i[:, 0]] - np.column_stack([c * b0[:, 0] - s * b0[:, 1], s * b0[:, 0] + c * b0[:, 1]])
         px = c[:, None] * b[None, :, 0] - s[:, None] * b[None, :, 1] + t[:, :1]
         py = s[:, None] * b[None, :, 0] + c[:, None] * b[None, :, 1] + t[:, 1:]
-        inliers = ((px - a[None, :, 0]) ** 2 + (py - a[None, :, 1]) ** 2 < self.config.inlier ** 2).sum(axis=1)
+        inliers = ((px - a[None, :, 0]) ** 2 + (py - a[None, :, 1]) ** 2 < self.config.inlier**2).sum(axis=1)
         best = int(np.argmax(inliers))
         return np.array([t[best, 0], t[best, 1], angle[best]])

@@ -44,9 +44,16 @@ class VisualGates:
         if self.tracker is not None:
             self.tracker(frame.rgb, frame.depth, np.zeros(3))
 
-    def against_wheels(self, frame: Frame, wheel: WheelStep, expected: np.ndarray, bias_variance: float,
-                       wheel_forward_variance: float, visual_forward_sigma: float,
-                       bias_filter: BiasFilter) -> np.ndarray | None:
+    def against_wheels(
+        self,
+        frame: Frame,
+        wheel: WheelStep,
+        expected: np.ndarray,
+        bias_variance: float,
+        wheel_forward_variance: float,
+        visual_forward_sigma: float,
+        bias_filter: BiasFilter,
+    ) -> np.ndarray | None:
         """The RGB-D step if it agrees with the wheels: sideways and in heading within fixed gates
         of the bias-corrected wheel step `expected`; forward within `sigmas` stds of the forward
         bias's own uncertainty (a Mahalanobis gate), so the gate widens when the bias is unsure.
@@ -64,9 +71,12 @@ class VisualGates:
         if abs(d[1]) > g.distance or abs(wrap_angle(d[2])) > g.angle:
             return self._refused()
         if wheel.moving:
-            spread = np.sqrt(bias_variance + wheel_forward_variance + visual_forward_sigma ** 2)
-            if abs(d[0]) > max(g.sigmas * spread, g.distance) and g.use_bias \
-                    or abs(res.step[0] - wheel.forward) > g.max_bias:
+            spread = np.sqrt(bias_variance + wheel_forward_variance + visual_forward_sigma**2)
+            if (
+                abs(d[0]) > max(g.sigmas * spread, g.distance)
+                and g.use_bias
+                or abs(res.step[0] - wheel.forward) > g.max_bias
+            ):
                 self._forward_refusals += 1
                 if self._forward_refusals >= g.reset_after:
                     bias_filter.widen_forward_bias(g.bias_forward_reset)
@@ -78,8 +88,9 @@ class VisualGates:
         self._forward_refusals = 0
         return self._accepted(res.step)
 
-    def against_prediction(self, frame: Frame, expected: np.ndarray, gate_distance: float,
-                           gate_angle: float) -> np.ndarray | None:
+    def against_prediction(
+        self, frame: Frame, expected: np.ndarray, gate_distance: float, gate_angle: float
+    ) -> np.ndarray | None:
         """Without wheels: the RGB-D step fitted without starting from `expected` (RANSAC), if
         it lies within the gates of that prediction."""
         res = self._track(frame, None)

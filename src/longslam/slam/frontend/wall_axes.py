@@ -51,8 +51,10 @@ class WallAxesConfig:
         if not 0 < self.sigma_deg:
             raise InputError(f"front end: wall_axes.sigma_deg must be > 0, got {self.sigma_deg}")
         if not 0 < self.gate_deg <= self.max_gate_deg < 45:
-            raise InputError(f"front end: wall_axes.gate_deg and max_gate_deg must be 0 < gate_deg <= max_gate_deg < 45 "
-                             f"degrees, got {self.gate_deg} and {self.max_gate_deg}")
+            raise InputError(
+                f"front end: wall_axes.gate_deg and max_gate_deg must be 0 < gate_deg <= max_gate_deg < 45 "
+                f"degrees, got {self.gate_deg} and {self.max_gate_deg}"
+            )
         if self.settle < 1:
             raise InputError(f"front end: wall_axes.settle must be at least 1 measurement, got {self.settle}")
 
@@ -70,7 +72,7 @@ def wall_direction(scan_xy: np.ndarray, config: WallAxesConfig = WallAxesConfig(
     near = pts[idx[full]]  # (M, k, 2)
     d = near - near.mean(axis=1, keepdims=True)
     cxx, cyy, cxy = (d[..., 0] ** 2).mean(1), (d[..., 1] ** 2).mean(1), (d[..., 0] * d[..., 1]).mean(1)
-    half = np.sqrt(0.25 * (cxx - cyy) ** 2 + cxy ** 2)
+    half = np.sqrt(0.25 * (cxx - cyy) ** 2 + cxy**2)
     big, small = 0.5 * (cxx + cyy) + half, 0.5 * (cxx + cyy) - half
     straight = small <= config.straightness * np.maximum(big, 1e-12)
     if straight.sum() < config.min_points:
@@ -105,7 +107,9 @@ class WallAxes:
         self.gated = 0  # measurements too far from the axes: another direction (a wing)
         self._settling: list[tuple[int, float, float]] = []  # (frame, yaw, wall direction in the robot's frame)
 
-    def measure(self, frame: int, yaw: float, scan_xy: np.ndarray, yaw_std: float = 0.0) -> list[tuple[int, float, float]]:
+    def measure(
+        self, frame: int, yaw: float, scan_xy: np.ndarray, yaw_std: float = 0.0
+    ) -> list[tuple[int, float, float]]:
         """Walls along the axes, (frame, the heading in rad near that frame's yaw that puts them
         on the current axes, their direction in the robot's frame), that this frame's scan gives:
         none on a frame that does not measure or whose walls show no direction, or while the axes

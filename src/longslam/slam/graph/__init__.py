@@ -9,6 +9,25 @@
 """
 
 from longslam.slam.graph.noise import ROBUST_KERNELS
-from longslam.slam.graph.pose_graph import ANCHOR_SIGMAS, LOOP, ODOMETRY, REGISTRATION, Edge, EdgeError, LoopCheck, PoseGraph
+from longslam.slam.graph.pose_graph import (
+    ANCHOR_SIGMAS,
+    LOOP,
+    ODOMETRY,
+    REGISTRATION,
+    Edge,
+    EdgeError,
+    LoopCheck,
+    PoseGraph,
+)
 
-__all__ = ["ANCHOR_SIGMAS", "LOOP", "ODOMETRY", "REGISTRATION", "ROBUST_KERNELS", "Edge", "EdgeError", "LoopCheck", "PoseGraph"]
+__all__ = [
+    "ANCHOR_SIGMAS",
+    "LOOP",
+    "ODOMETRY",
+    "REGISTRATION",
+    "ROBUST_KERNELS",
+    "Edge",
+    "EdgeError",
+    "LoopCheck",
+    "PoseGraph",
+]

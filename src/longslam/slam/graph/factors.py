@@ -117,7 +117,9 @@ class FactorGraph:
         """Pose k saw a wall at `direction` (rad, robot frame) along the axes (modulo 90 degrees),
         within `sigma`, under a Huber kernel (in stds)."""
         model = noise.robust(noise.diagonal(np.array([sigma])), "huber", huber)
-        self.graph.add(gtsam.CustomFactor(model, [X(k), AXES], lambda this, v, h, d=float(direction): wall_error(d, this, v, h)))
+        self.graph.add(
+            gtsam.CustomFactor(model, [X(k), AXES], lambda this, v, h, d=float(direction): wall_error(d, this, v, h))
+        )
 
     def prior_bias(self, b: int, value: np.ndarray, sigmas: np.ndarray) -> None:
         self.graph.add(gtsam.PriorFactorPoint2(B(b), gtsam.Point2(*value), noise.diagonal(sigmas)))
@@ -126,9 +128,18 @@ class FactorGraph:
         """Bias b = bias a, within `sigmas`: the biases vary slowly."""
         self.graph.add(gtsam.BetweenFactorPoint2(B(a), B(b), gtsam.Point2(0.0, 0.0), noise.diagonal(sigmas)))
 
-    def between(self, i: int, j: int, delta: np.ndarray, *, sigmas: np.ndarray | None = None,
-                information: np.ndarray | None = None, ridge: float = 0.0,
-                kernel: str = "none", k: float = 1.0) -> None:
+    def between(
+        self,
+        i: int,
+        j: int,
+        delta: np.ndarray,
+        *,
+        sigmas: np.ndarray | None = None,
+        information: np.ndarray | None = None,
+        ridge: float = 0.0,
+        kernel: str = "none",
+        k: float = 1.0,
+    ) -> None:
         """Pose j in pose i's frame is `delta`, with diagonal `sigmas` or a 3x3 `information` (body
         dx, dy, dyaw; `ridge` * I added to it), optionally under a robust kernel."""
         model = noise.diagonal(sigmas) if information is None else noise.gaussian(information, ridge)
@@ -138,15 +149,27 @@ class FactorGraph:
         """The wheel step from pose i to pose j, corrected by bias vector `bias` (or as given)."""
         model = noise.diagonal(sigmas)
         if bias is None:
-            self.graph.add(gtsam.BetweenFactorPose2(X(i), X(j), gtsam.Pose2(step.forward, step.lateral, step.yaw), model))
+            self.graph.add(
+                gtsam.BetweenFactorPose2(X(i), X(j), gtsam.Pose2(step.forward, step.lateral, step.yaw), model)
+            )
             return
-        self.graph.add(gtsam.CustomFactor(model, [X(i), X(j), B(bias)],
-                                          lambda this, v, h, step=step: wheel_error(step, this, v, h)))
+        self.graph.add(
+            gtsam.CustomFactor(
+                model, [X(i), X(j), B(bias)], lambda this, v, h, step=step: wheel_error(step, this, v, h)
+            )
+        )
 
     # --- solving
-    def solve(self, poses: int | range, *, iterations: int, relative_tolerance: float,
-              damping: bool = True) -> tuple[np.ndarray, int]:
+    def solve(
+        self, poses: int | range, *, iterations: int, relative_tolerance: float, damping: bool = True
+    ) -> tuple[np.ndarray, int]:
         """Poses 0..`poses`-1 (or the keys of a range) optimised, (poses, 3), and the iterations taken."""
-        result, taken = levenberg_marquardt(self.graph, self.values, self.dims, iterations=iterations,
-                                            relative_tolerance=relative_tolerance, damping=damping)
+        result, taken = levenberg_marquardt(
+            self.graph,
+            self.values,
+            self.dims,
+            iterations=iterations,
+            relative_tolerance=relative_tolerance,
+            damping=damping,
+        )
         return pose_array(result, range(poses) if isinstance(poses, int) else poses), taken

@@ -42,8 +42,9 @@ def shared_keys(build: PartBuilder, parts: int) -> set[int]:
     return {int(key) for key in unique[counts > 1]}
 
 
-def _eliminate(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, shared: set[int], dims: dict[int, int],
-               lam: float) -> tuple[gtsam.GaussianBayesNet, gtsam.GaussianFactorGraph]:
+def _eliminate(
+    graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, shared: set[int], dims: dict[int, int], lam: float
+) -> tuple[gtsam.GaussianBayesNet, gtsam.GaussianFactorGraph]:
     """A part linearised at `values` (damped by `lam`), its own variables eliminated: their
     conditionals on the shared ones, and the factor it leaves on those."""
     linear = graph.linearize(values)
@@ -110,7 +111,9 @@ def solve_shared(graph: gtsam.GaussianFactorGraph, dims: dict[int, int]) -> gtsa
         offset[key] = size
         size += dims[key]
     factors = [graph.at(i) for i in range(graph.size())]
-    indices = [np.concatenate([np.arange(offset[k], offset[k] + dims[k], dtype=np.int32) for k in f.keys()]) for f in factors]
+    indices = [
+        np.concatenate([np.arange(offset[k], offset[k] + dims[k], dtype=np.int32) for k in f.keys()]) for f in factors
+    ]
     entries = sum(len(index) ** 2 for index in indices)
     # One preallocated triplet array (no list of per-factor copies to concatenate): it is the
     # step's largest allocation, 16 bytes an entry.
@@ -121,9 +124,9 @@ def solve_shared(graph: gtsam.GaussianFactorGraph, dims: dict[int, int]) -> gtsa
     for factor, index in zip(factors, indices):
         m = len(index)
         augmented = factor.augmentedInformation()
-        rows[at:at + m * m] = np.repeat(index, m)
-        cols[at:at + m * m] = np.tile(index, m)
-        values[at:at + m * m] = augmented[:m, :m].ravel()
+        rows[at : at + m * m] = np.repeat(index, m)
+        cols[at : at + m * m] = np.tile(index, m)
+        values[at : at + m * m] = augmented[:m, :m].ravel()
         np.add.at(rhs, index, augmented[:m, m])
         at += m * m
     hessian = scipy.sparse.csc_matrix((values, (rows, cols)), shape=(size, size))
@@ -133,13 +136,20 @@ def solve_shared(graph: gtsam.GaussianFactorGraph, dims: dict[int, int]) -> gtsa
         raise RuntimeError("the windows' shared system is singular")
     out = gtsam.VectorValues()
     for key in keys:
-        out.insert(key, solution[offset[key]:offset[key] + dims[key]])
+        out.insert(key, solution[offset[key] : offset[key] + dims[key]])
     return out
 
 
-def levenberg_marquardt_parts(build: PartBuilder, parts: int, values: gtsam.Values, dims: dict[int, int], *,
-                              iterations: int, relative_tolerance: float,
-                              damping: bool = True) -> tuple[gtsam.Values, int]:
+def levenberg_marquardt_parts(
+    build: PartBuilder,
+    parts: int,
+    values: gtsam.Values,
+    dims: dict[int, int],
+    *,
+    iterations: int,
+    relative_tolerance: float,
+    damping: bool = True,
+) -> tuple[gtsam.Values, int]:
     """`solver.levenberg_marquardt`'s loop (the same damping and convergence test) over a graph
     given part by part: the optimised values and the iterations taken. A candidate's error is
     found in the same pass as the first half of the next step from it, which is kept if the
@@ -155,7 +165,9 @@ def levenberg_marquardt_parts(build: PartBuilder, parts: int, values: gtsam.Valu
                 if on_shared is None:
                     raise RuntimeError("a part is indeterminate")
                 candidate = values.retract(graph.backward(values, on_shared, lam))
-                on_shared = None  # not used again (a failed step redoes it more damped): freed before the next one is made
+                on_shared = (
+                    None  # not used again (a failed step redoes it more damped): freed before the next one is made
+                )
                 new_error, next_shared = graph.forward(candidate, next_lam)
             except RuntimeError:  # an indeterminate (or nearly so) system: damp it
                 new_error = np.inf

@@ -141,7 +141,9 @@ class PoseGraph:
     def has_node(self, node_id: int) -> bool:
         return int(node_id) in self._initial
 
-    def add_edge(self, a: int, b: int, delta, *, sigmas=None, information=None, kind: str = ODOMETRY, robust: bool = False) -> int:
+    def add_edge(
+        self, a: int, b: int, delta, *, sigmas=None, information=None, kind: str = ODOMETRY, robust: bool = False
+    ) -> int:
         """Add a constraint: the pose of b in a's frame, with `sigmas` (x, y, yaw) or a 3x3
         `information` matrix (exactly one of them). Returns the edge id."""
         a, b = int(a), int(b)
@@ -190,8 +192,17 @@ class PoseGraph:
         self._components = None  # the edge may have held two parts together
 
     def try_loop(
-        self, a: int, b: int, delta_xyyaw, *, max_error: float, sigmas=None, information=None,
-        check: Literal["graph", "edge"] = "graph", kind: str = LOOP, free: Collection[int] | None = None,
+        self,
+        a: int,
+        b: int,
+        delta_xyyaw,
+        *,
+        max_error: float,
+        sigmas=None,
+        information=None,
+        check: Literal["graph", "edge"] = "graph",
+        kind: str = LOOP,
+        free: Collection[int] | None = None,
     ) -> LoopCheck:
         """Add a closure, optimise (warm), and keep it only if the graph agrees; else remove it and
         re-optimise, so a rejected closure leaves the estimates as they were before it.
@@ -224,8 +235,12 @@ class PoseGraph:
             error = self.edge_error(edge_id)
         else:
             # One numpy pass: edge by edge in Python, the check cost more than the solve.
-            error = _max_split_error(np.array([e.delta for e in edges]), np.array([e.information for e in edges]),
-                                     self.estimates([e.a for e in edges]), self.estimates([e.b for e in edges]))
+            error = _max_split_error(
+                np.array([e.delta for e in edges]),
+                np.array([e.information for e in edges]),
+                self.estimates([e.a for e in edges]),
+                self.estimates([e.b for e in edges]),
+            )
         if error > max_error:
             self.remove_edge(edge_id)
             # The free nodes go back to where they were: the rest never moved.
@@ -279,7 +294,8 @@ class PoseGraph:
         for e in edges:
             graph.add(self._factor(e, keep=False))
         result, self.last_iterations = gtsam_levenberg_marquardt(
-            graph, values, self.max_iterations if max_iterations is None else max_iterations)
+            graph, values, self.max_iterations if max_iterations is None else max_iterations
+        )
         self.optimizations += 1
         for n in touched:
             if n not in held:
@@ -377,7 +393,9 @@ class PoseGraph:
                 f"{first} (e.g. {missing[:5]})"
             )
 
-    def optimize(self, max_iterations: int | None = None, warm_start: bool = False) -> dict[int, tuple[float, float, float]]:
+    def optimize(
+        self, max_iterations: int | None = None, warm_start: bool = False
+    ) -> dict[int, tuple[float, float, float]]:
         """Optimise all nodes, the first added node fixed; returns {node_id: (x, y, yaw)}.
 
         By default the optimisation starts from the nodes' initial estimates, so the result
@@ -405,7 +423,8 @@ class PoseGraph:
             start = self._optimized.get(node, xyyaw) if warm_start else xyyaw
             values.insert(node, gtsam.Pose2(*start))
         result, self.last_iterations = gtsam_levenberg_marquardt(
-            graph, values, self.max_iterations if max_iterations is None else max_iterations)
+            graph, values, self.max_iterations if max_iterations is None else max_iterations
+        )
         self.last_error = float(graph.error(result))
         self.optimizations += 1
         out: dict[int, tuple[float, float, float]] = {}
@@ -448,10 +467,18 @@ class PoseGraph:
                 error = float(np.sqrt(max(residual @ info @ residual, 0.0)))
                 translation = float(np.sqrt(max(residual[:2] @ info[:2, :2] @ residual[:2], 0.0)))
                 rotation = float(abs(residual[2]) * np.sqrt(info[2, 2]))
-            out.append(EdgeError(
-                e.edge_id, e.a, e.b, e.kind, error=error, translation_error=translation, rotation_error=rotation,
-                residual=(float(residual[0]), float(residual[1]), float(residual[2])),
-            ))
+            out.append(
+                EdgeError(
+                    e.edge_id,
+                    e.a,
+                    e.b,
+                    e.kind,
+                    error=error,
+                    translation_error=translation,
+                    rotation_error=rotation,
+                    residual=(float(residual[0]), float(residual[1]), float(residual[2])),
+                )
+            )
         return out
 
     def max_edge_error(self, kind: str | None = LOOP) -> EdgeError | None:
@@ -495,6 +522,8 @@ def _max_split_error(delta: np.ndarray, information: np.ndarray, a: np.ndarray, 
     `information` between poses `a` and `b` (N, 3), each judged in its own sigmas as
     `PoseGraph.edge_errors` does, in one numpy pass."""
     residual = log_xyyaw(relative_xyyaw(delta, relative_xyyaw(a, b)))
-    translation = np.sqrt(np.maximum(np.einsum("ni,nij,nj->n", residual[:, :2], information[:, :2, :2], residual[:, :2]), 0.0))
+    translation = np.sqrt(
+        np.maximum(np.einsum("ni,nij,nj->n", residual[:, :2], information[:, :2, :2], residual[:, :2]), 0.0)
+    )
     rotation = np.abs(residual[:, 2]) * np.sqrt(information[:, 2, 2])
     return float(max(translation.max(), rotation.max()))

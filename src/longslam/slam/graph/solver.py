@@ -27,7 +27,9 @@ def add_damping(linear: gtsam.GaussianFactorGraph, keys: Iterable[int], dims: di
     root = np.sqrt(lam)
     for key in keys:
         dim = dims[key]
-        linear.push_back(gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)))
+        linear.push_back(
+            gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim))
+        )
 
 
 def _damped(linear: gtsam.GaussianFactorGraph, dims: dict[int, int], lam: float) -> gtsam.GaussianFactorGraph:
@@ -52,9 +54,15 @@ def converged(decrease: float, error: float, relative_tolerance: float) -> bool:
     return decrease <= relative_tolerance * (error + decrease) or decrease <= 1e-5
 
 
-def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, dims: dict[int, int], *,
-                        iterations: int, relative_tolerance: float,
-                        damping: bool = True) -> tuple[gtsam.Values, int]:
+def levenberg_marquardt(
+    graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    dims: dict[int, int],
+    *,
+    iterations: int,
+    relative_tolerance: float,
+    damping: bool = True,
+) -> tuple[gtsam.Values, int]:
     """The optimised values and the iterations taken. `dims` holds each variable's dimension;
     without `damping` the loop stops where a Gauss-Newton step fails to lower the error."""
     error = graph.error(values)
@@ -83,8 +91,9 @@ def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
     return values, iteration
 
 
-def gtsam_levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
-                              max_iterations: int) -> tuple[gtsam.Values, int]:
+def gtsam_levenberg_marquardt(
+    graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, max_iterations: int
+) -> tuple[gtsam.Values, int]:
     """GTSAM's own Levenberg-Marquardt (its default tolerances): the optimised values and the
     iterations taken."""
     params = gtsam.LevenbergMarquardtParams()

@@ -10,7 +10,6 @@ from longslam.core.settings import check_limits
 from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.place_recognition import WORD_INDEXES
 
-
 # Size-like parameters held to ranges that keep a run within a machine's memory: a grid's cells
 # grow as 1/cell^2 (a micrometre cell exhausts any machine's memory at the first node), and feature and
 # word counts size per-node arrays. (least, most, unit and why), both ends inclusive.
@@ -122,11 +121,27 @@ class KeyframeConfig:
         return self.frontend.mode == "fused" if self.scan_proximity is None else self.scan_proximity
 
     def __post_init__(self) -> None:
-        positive = ("detection_rate", "max_features", "max_words", "min_inliers", "grid_cell", "grid_range",
-                    "odom_sigma_min", "loop_sigma_linear", "loop_sigma_angular", "optimize_max_error",
-                    "scan_proximity_radius", "scan_proximity_max_correction", "scan_proximity_max_angle",
-                    "scan_proximity_min_overlap", "scan_proximity_max_rmse",
-                    "cloud_voxel", "cloud_stride", "grid_stride", "loop_candidates")
+        positive = (
+            "detection_rate",
+            "max_features",
+            "max_words",
+            "min_inliers",
+            "grid_cell",
+            "grid_range",
+            "odom_sigma_min",
+            "loop_sigma_linear",
+            "loop_sigma_angular",
+            "optimize_max_error",
+            "scan_proximity_radius",
+            "scan_proximity_max_correction",
+            "scan_proximity_max_angle",
+            "scan_proximity_min_overlap",
+            "scan_proximity_max_rmse",
+            "cloud_voxel",
+            "cloud_stride",
+            "grid_stride",
+            "loop_candidates",
+        )
         for name in positive:
             if not getattr(self, name) > 0:
                 raise InputError(f"method 'keyframe': parameter {name} must be positive, got {getattr(self, name)}")
@@ -136,7 +151,9 @@ class KeyframeConfig:
                 raise InputError(f"method 'keyframe': parameter {name} must not be negative, got {value}")
         check_limits(self, SIZE_LIMITS, "method 'keyframe'")
         if self.vocabulary_index not in WORD_INDEXES:
-            raise InputError(f"method 'keyframe': parameter vocabulary_index must be one of {', '.join(WORD_INDEXES)}, "
-                             f"got {self.vocabulary_index!r}")
+            raise InputError(
+                f"method 'keyframe': parameter vocabulary_index must be one of {', '.join(WORD_INDEXES)}, "
+                f"got {self.vocabulary_index!r}"
+            )
         if self.obstacle_max_height <= self.obstacle_min_height:
             raise InputError("method 'keyframe': obstacle_max_height must exceed obstacle_min_height")

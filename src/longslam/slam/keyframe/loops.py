@@ -30,9 +30,9 @@ UNHELD_BY_DEPTH = "visual_rejected_depth"
 
 def counter_names() -> list[str]:
     """The per-source counters this module keeps (hypotheses, accepted, rejected and why)."""
-    return [f"{s}_{what}" for s in SOURCES
-            for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")] + [
-        f"{SCAN}_one_direction", UNHELD_BY_DEPTH]
+    return [
+        f"{s}_{what}" for s in SOURCES for what in ("hypotheses", "accepted", "rejected_verification", "rejected_graph")
+    ] + [f"{SCAN}_one_direction", UNHELD_BY_DEPTH]
 
 
 class NodePositions:
@@ -48,7 +48,7 @@ class NodePositions:
     def sync(self, nodes: dict[int, Node], graph: PoseGraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The arrays, with the nodes added since the last call (`nodes` in the order they were made)."""
         if len(nodes) > len(self.ids):
-            new = list(nodes)[len(self.ids):]
+            new = list(nodes)[len(self.ids) :]
             for i in new:
                 self._rows[i] = len(self._rows)
             self.ids = np.concatenate([self.ids, np.array(new, np.int64)])
@@ -58,7 +58,7 @@ class NodePositions:
 
     def refresh(self, graph: PoseGraph, ids: set[int] | None) -> None:
         """Take the graph's estimates of `ids` (None: every node) after it moved them."""
-        for i in (self._rows if ids is None else ids):
+        for i in self._rows if ids is None else ids:
             row = self._rows.get(i)
             if row is not None:
                 self.estimates[row] = graph.estimate(i)
@@ -114,10 +114,16 @@ class LoopCloser:
         if not near.any():
             return False
         self.counts[f"{SCAN}_hypotheses"] += 1
-        settings = ScanLinkSettings(cfg.scan_proximity_radius, cfg.scan_proximity_min_age, cfg.scan_proximity_max_correction,
-                                    cfg.scan_proximity_max_angle, cfg.scan_proximity_min_overlap, cfg.scan_proximity_max_rmse,
-                                    (cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular),
-                                    cfg.scan_proximity_min_constraining)
+        settings = ScanLinkSettings(
+            cfg.scan_proximity_radius,
+            cfg.scan_proximity_min_age,
+            cfg.scan_proximity_max_correction,
+            cfg.scan_proximity_max_angle,
+            cfg.scan_proximity_min_overlap,
+            cfg.scan_proximity_max_rmse,
+            (cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular),
+            cfg.scan_proximity_min_constraining,
+        )
         candidates = []
         # The nearest few: a corridor driven for the n-th time has n passes of nodes within the
         # radius, and the registration's cost (and the map's) would grow with every lap.
@@ -147,8 +153,9 @@ class LoopCloser:
     def _try_loop(self, node: Node, anchor: int, delta: np.ndarray, **uncertainty) -> LoopCheck:
         """The graph's verdict on a link from `anchor` to the new node, the nodes in memory free."""
         free = self.free_nodes(node)
-        check = self.graph.try_loop(anchor, node.id, delta, max_error=self.config.optimize_max_error, check="graph",
-                                    free=free, **uncertainty)
+        check = self.graph.try_loop(
+            anchor, node.id, delta, max_error=self.config.optimize_max_error, check="graph", free=free, **uncertainty
+        )
         # A rejected try in working memory leaves every estimate as it was.
         if check.accepted:
             self.positions.refresh(self.graph, free)
@@ -182,7 +189,9 @@ class LoopCloser:
         check = verify(query, candidate, self.intrinsics, cfg.min_inliers)
         if not check.accepted:
             return None
-        transform = depth_held_transform(query, candidate, check.transform, self.intrinsics.fx, cfg.refine_3d, min_support)
+        transform = depth_held_transform(
+            query, candidate, check.transform, self.intrinsics.fx, cfg.refine_3d, min_support
+        )
         if transform is None:
             self.counts[UNHELD_BY_DEPTH] += 1
             return None

@@ -47,4 +47,3 @@ def assemble_maps(
         fused = votes.grid()
         del votes  # the vote array goes before the cloud is filtered
         return fused, cloud.result()
-

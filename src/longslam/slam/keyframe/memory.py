@@ -46,8 +46,14 @@ class Node:
 
 
 class KeyframeMemory:
-    def __init__(self, config: KeyframeConfig, db: MemoryDatabase, vocabulary: Vocabulary, node_poses: NodePoses,
-                 counts: dict[str, int]):
+    def __init__(
+        self,
+        config: KeyframeConfig,
+        db: MemoryDatabase,
+        vocabulary: Vocabulary,
+        node_poses: NodePoses,
+        counts: dict[str, int],
+    ):
         self.config = config
         self.db = db
         self.vocabulary = vocabulary
@@ -92,11 +98,16 @@ class KeyframeMemory:
     def transfer(self, node_id: int, count: bool = True) -> None:
         """Working memory -> long-term memory: the node's data go to the database and leave RAM."""
         node = self.nodes[node_id]
-        assert node.features is not None and node.grid is not None  # in working or short-term memory: its data are in RAM
+        assert (
+            node.features is not None and node.grid is not None
+        )  # in working or short-term memory: its data are in RAM
         arrays = {
-            "keypoints": node.features.keypoints, "descriptors": node.features.descriptors,
-            "points3d": node.features.points, "grid_obstacles": node.grid.obstacles,
-            "grid_free": node.grid.free, "cloud": node.points,
+            "keypoints": node.features.keypoints,
+            "descriptors": node.features.descriptors,
+            "points3d": node.features.points,
+            "grid_obstacles": node.grid.obstacles,
+            "grid_free": node.grid.free,
+            "cloud": node.points,
         }
         pose, odom = self.node_poses(node_id)
         self.db.put_node(node_id, node.stamp, pose, odom, arrays, weight=node.last_access)
@@ -171,7 +182,8 @@ class KeyframeMemory:
 
     def census(self) -> dict[str, int]:
         return {
-            "wm_nodes": len(self.wm), "stm_nodes": len(self.stm),
+            "wm_nodes": len(self.wm),
+            "stm_nodes": len(self.stm),
             "ltm_nodes": sum(1 for n in self.nodes.values() if not n.in_ram),
         }
 

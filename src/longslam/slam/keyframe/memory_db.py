@@ -108,7 +108,15 @@ class MemoryDatabase:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def put_node(self, node_id: int, stamp: float, pose: np.ndarray, odometry: np.ndarray, arrays: dict[str, np.ndarray], weight: int = 0) -> None:
+    def put_node(
+        self,
+        node_id: int,
+        stamp: float,
+        pose: np.ndarray,
+        odometry: np.ndarray,
+        arrays: dict[str, np.ndarray],
+        weight: int = 0,
+    ) -> None:
         buffer = io.BytesIO()
         # Stored as they are: deflating costs milliseconds a node for a file a little smaller on
         # disk; the descriptors hardly compress anyway.
@@ -126,7 +134,8 @@ class MemoryDatabase:
 
     def get_node(self, node_id: int) -> StoredNode:
         row = self._db.execute(
-            "SELECT Node.id, stamp, pose, odometry, weight, arrays FROM Node JOIN Data ON Node.id = Data.id WHERE Node.id=?",
+            "SELECT Node.id, stamp, pose, odometry, weight, arrays FROM Node JOIN Data ON Node.id = Data.id "
+            "WHERE Node.id=?",
             (int(node_id),),
         ).fetchone()
         if row is None:
@@ -158,7 +167,11 @@ class MemoryDatabase:
             return {name: npz[name] for name in names}
 
     def links(self, kind: str | None = None) -> list[tuple[int, int, str, np.ndarray]]:
-        query = "SELECT from_id, to_id, type, transform FROM Link" + (" WHERE type=?" if kind else "") + " ORDER BY from_id, to_id"
+        query = (
+            "SELECT from_id, to_id, type, transform FROM Link"
+            + (" WHERE type=?" if kind else "")
+            + " ORDER BY from_id, to_id"
+        )
         rows = self._db.execute(query, (kind,) if kind else ())
         return [(a, b, t, _matrix(m, (4, 4))) for a, b, t, m in rows]
 

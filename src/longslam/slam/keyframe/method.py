@@ -23,6 +23,7 @@ from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.geometry import CameraMount, compose_xyyaw, pose_from_xyyaw, relative_xyyaw
 from longslam.core.memory_release import release_free_memory
+from longslam.core.trajectory import Trajectory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result, Table
 from longslam.slam.features import Features, extract
@@ -36,7 +37,6 @@ from longslam.slam.keyframe.memory_db import MemoryDatabase
 from longslam.slam.occupancy import depth_points_in_base, local_grid
 from longslam.slam.place_recognition import Vocabulary
 from longslam.slam.rows import Rows
-from longslam.core.trajectory import Trajectory
 
 
 class KeyframeMethod:
@@ -53,9 +53,15 @@ class KeyframeMethod:
         self.db = MemoryDatabase(self.db_path)
         self.graph = PoseGraph()
         self.counts = {
-            stats.FRAMES: 0, stats.NODES: 0, stats.FRAMES_WITHOUT_DEPTH: 0, "frames_no_features": 0, stats.ODOMETRY_JUMPS: 0,
+            stats.FRAMES: 0,
+            stats.NODES: 0,
+            stats.FRAMES_WITHOUT_DEPTH: 0,
+            "frames_no_features": 0,
+            stats.ODOMETRY_JUMPS: 0,
             **{name: 0 for name in counter_names()},
-            "nodes_transferred": 0, "nodes_retrieved": 0, stats.OPTIMIZATIONS: 0,
+            "nodes_transferred": 0,
+            "nodes_retrieved": 0,
+            stats.OPTIMIZATIONS: 0,
         }
         vocabulary = Vocabulary(self.config.word_distance, self.config.max_words, self.config.vocabulary_index)
         self.memory = KeyframeMemory(self.config, self.db, vocabulary, self._node_camera_poses, self.counts)
@@ -112,7 +118,9 @@ class KeyframeMethod:
         """At the first frame: where the camera sits, and the loop closer that needs it."""
         self._mount = mount
         self._camera_in_base = mount.camera_in_base
-        self.loops = LoopCloser(self.config, self.intrinsics, self.graph, self.memory, self._camera_in_base, self.counts)
+        self.loops = LoopCloser(
+            self.config, self.intrinsics, self.graph, self.memory, self._camera_in_base, self.counts
+        )
 
     def _is_new_node(self, stamp: float, odom: np.ndarray) -> bool:
         last = self._last_node
@@ -138,8 +146,16 @@ class KeyframeMethod:
         if has_depth and len(features) == 0:
             self.counts["frames_no_features"] += 1
         features = self._drop_floor_and_ceiling_points(features)
-        grid = local_grid(depth, self.intrinsics, self._camera_in_base, cfg.grid_cell, cfg.grid_range,
-                          cfg.obstacle_min_height, cfg.obstacle_max_height, cfg.grid_stride)
+        grid = local_grid(
+            depth,
+            self.intrinsics,
+            self._camera_in_base,
+            cfg.grid_cell,
+            cfg.grid_range,
+            cfg.obstacle_min_height,
+            cfg.obstacle_max_height,
+            cfg.grid_stride,
+        )
         points = depth_points_in_base(depth, self.intrinsics, self._camera_in_base, cfg.cloud_stride).astype(np.float32)
         node = Node(node_id, frame.timestamp, odom.copy(), features, grid, points, last_access=node_id)
         self.memory.add(node)
@@ -190,7 +206,11 @@ class KeyframeMethod:
         """Every frame's pose from the front end's smoother, with the graph's accepted loop
         closures (node to node) added as constraints between the nodes' frames."""
         self.frontend.add_graph_edges([e for e in self.graph.edges if e.kind != ODOMETRY], self._node_frame)
-        held = {frame: self.graph.estimate(node_id) for node_id, frame in self._node_frame.items() if self.graph.has_node(node_id)}
+        held = {
+            frame: self.graph.estimate(node_id)
+            for node_id, frame in self._node_frame.items()
+            if self.graph.has_node(node_id)
+        }
         return self.frontend.final_trajectory(held)
 
     def memory_bytes(self) -> dict[str, int]:
@@ -204,8 +224,10 @@ class KeyframeMethod:
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations
         map_bytes = self.memory_bytes()
         census = self.memory.census()
-        vocabulary = {"vocabulary_words": self.memory.vocabulary.n_words,
-                      "vocabulary_index_rebuilds": self.memory.vocabulary.index_rebuilds}
+        vocabulary = {
+            "vocabulary_words": self.memory.vocabulary.n_words,
+            "vocabulary_index_rebuilds": self.memory.vocabulary.index_rebuilds,
+        }
         # Mapping is over: every node to the database and the vocabulary dropped before the final
         # smoother, the finish's peak, is built; the maps read the nodes' grids back.
         self.memory.flush()
@@ -218,24 +240,36 @@ class KeyframeMethod:
         trajectory = Trajectory(stamps, poses, source="keyframe")
         online = Trajectory(stamps, self._mount.to_camera(self._online.array()), source="keyframe online")
 
-        grid_map, cloud = assemble_maps(sorted(self.nodes), lambda node_id: final[self._node_frame[node_id]], self.memory.grid_and_points,
-                                        self._mount, self.config.grid_cell, self.config.cloud_voxel,
-                                        scratch_dir=self.db_path.parent, grid_reach=self.config.grid_range)
+        grid_map, cloud = assemble_maps(
+            sorted(self.nodes),
+            lambda node_id: final[self._node_frame[node_id]],
+            self.memory.grid_and_points,
+            self._mount,
+            self.config.grid_cell,
+            self.config.cloud_voxel,
+            scratch_dir=self.db_path.parent,
+            grid_reach=self.config.grid_range,
+        )
 
         # The database ends holding every node at its optimised pose, so a user can reopen it.
         self.db.update_poses({i: self._node_camera_poses(i)[0] for i in self.nodes})
         counts = self.counts
         run_stats: dict[str, object] = dict(counts)
-        run_stats.update({
-            stats.LOOP_HYPOTHESES: sum(counts[f"{p}_hypotheses"] for p in SOURCES),
-            stats.LOOPS_ACCEPTED: sum(counts[f"{p}_accepted"] for p in SOURCES),
-            stats.LOOPS_REJECTED: sum(counts[f"{p}_rejected_{why}"] for p in SOURCES for why in ("verification", "graph")),
-            stats.MAP_BYTES: map_bytes,
-            stats.CAMERA_HEIGHT: self._mount.camera_height,
-            **census,
-            **vocabulary, "graph_loops": self.graph.num_loops,
-            "database": str(self.db_path) if self._own_dir is None else None,
-        })
+        run_stats.update(
+            {
+                stats.LOOP_HYPOTHESES: sum(counts[f"{p}_hypotheses"] for p in SOURCES),
+                stats.LOOPS_ACCEPTED: sum(counts[f"{p}_accepted"] for p in SOURCES),
+                stats.LOOPS_REJECTED: sum(
+                    counts[f"{p}_rejected_{why}"] for p in SOURCES for why in ("verification", "graph")
+                ),
+                stats.MAP_BYTES: map_bytes,
+                stats.CAMERA_HEIGHT: self._mount.camera_height,
+                **census,
+                **vocabulary,
+                "graph_loops": self.graph.num_loops,
+                "database": str(self.db_path) if self._own_dir is None else None,
+            }
+        )
         run_stats["frontend"] = self.frontend.stats
         # The database names itself by file name: its folder is still a temporary one while the
         # run is under way (stats.json gets the final path from the run engine).
@@ -244,10 +278,22 @@ class KeyframeMethod:
         if self._own_dir is not None:
             shutil.rmtree(self._own_dir, ignore_errors=True)
         # Per node (nodes.csv), so that a benchmark can tell whether its cost grows with the route.
-        nodes = Table(("node", "time_ms"), np.column_stack([np.arange(len(self._node_seconds)),
-                                                            1000.0 * np.asarray(self._node_seconds, dtype=np.float64)]))
-        return Result(trajectory=trajectory, online=online, grid=grid_map, cloud=cloud, stats=run_stats,
-                      tables={"loops": self.frontend.loop_table(), "frontend": self.frontend.frame_table(), "nodes": nodes})
+        nodes = Table(
+            ("node", "time_ms"),
+            np.column_stack(
+                [np.arange(len(self._node_seconds)), 1000.0 * np.asarray(self._node_seconds, dtype=np.float64)]
+            ),
+        )
+        return Result(
+            trajectory=trajectory,
+            online=online,
+            grid=grid_map,
+            cloud=cloud,
+            stats=run_stats,
+            tables={"loops": self.frontend.loop_table(), "frontend": self.frontend.frame_table(), "nodes": nodes},
+        )
 
 
-SPEC = MethodSpec("keyframe", KeyframeConfig, KeyframeMethod, "RTAB-Map's design: keyframes, bag of words, SQLite memory")
+SPEC = MethodSpec(
+    "keyframe", KeyframeConfig, KeyframeMethod, "RTAB-Map's design: keyframes, bag of words, SQLite memory"
+)

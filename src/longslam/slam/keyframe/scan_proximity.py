@@ -60,16 +60,25 @@ def shares_open_space(a: np.ndarray, b: np.ndarray, a_grid: LocalGrid) -> bool:
     return bool(near.any())
 
 
-def scan_link(node: Node, node_pose: np.ndarray, candidates: list[tuple[Node, np.ndarray]],
-              settings: ScanLinkSettings, registration: RegistrationConfig | None = None) -> ScanLink | None:
+def scan_link(
+    node: Node,
+    node_pose: np.ndarray,
+    candidates: list[tuple[Node, np.ndarray]],
+    settings: ScanLinkSettings,
+    registration: RegistrationConfig | None = None,
+) -> ScanLink | None:
     """Register `node`'s obstacle cells against `candidates` (older nodes with their graph
     estimates) starting from `node_pose`, its own estimate; None when no candidate shares open
     space with it or the registration is refused."""
     if node.grid is None or not len(node.grid.obstacles):
         return None
-    near = [(c, pose) for c, pose in candidates
-            if c.grid is not None and len(c.grid.obstacles)
-            and (shares_open_space(pose, node_pose, c.grid) or shares_open_space(node_pose, pose, node.grid))]
+    near = [
+        (c, pose)
+        for c, pose in candidates
+        if c.grid is not None
+        and len(c.grid.obstacles)
+        and (shares_open_space(pose, node_pose, c.grid) or shares_open_space(node_pose, pose, node.grid))
+    ]
     if not near:
         return None
     local = LocalMap(LocalMapConfig(max_scans=len(near) + 1, radius=2.0 * settings.radius + 8.0))
@@ -80,12 +89,15 @@ def scan_link(node: Node, node_pose: np.ndarray, candidates: list[tuple[Node, np
     scan = node.grid.obstacle_points()
     # A weak pull to the estimate: along a corridor the walls do not hold the node, and it should
     # stay where the odometry put it rather than slide.
-    prior = np.diag([settings.max_correction ** -2, settings.max_correction ** -2, settings.max_correction_angle ** -2])
+    prior = np.diag([settings.max_correction**-2, settings.max_correction**-2, settings.max_correction_angle**-2])
     result = register(scan, node_pose, local, prior, registration)
     if not result.ok or result.matches < settings.min_overlap * len(scan) or result.rmse > settings.max_rmse:
         return None
     correction = float(np.hypot(*(result.pose[:2] - node_pose[:2])))
-    if correction > settings.max_correction or abs(wrap_angle(result.pose[2] - node_pose[2])) > settings.max_correction_angle:
+    if (
+        correction > settings.max_correction
+        or abs(wrap_angle(result.pose[2] - node_pose[2])) > settings.max_correction_angle
+    ):
         return None
     anchor, anchor_pose = min(near, key=lambda item: float(np.hypot(*(item[1][:2] - result.pose[:2]))))
     body = information_in_body(result.hessian, float(result.pose[2]))
@@ -101,11 +113,18 @@ def scan_link(node: Node, node_pose: np.ndarray, candidates: list[tuple[Node, np
             # Nothing faces this way: the Hessian's share of it comes from tilted normals, and the
             # registration stayed where the estimate put it. Free it.
             v = np.array([c * direction[0] + s * direction[1], -s * direction[0] + c * direction[1], 0.0])
-            covariance = covariance + UNHELD_SIGMA ** 2 * np.outer(v, v)
+            covariance = covariance + UNHELD_SIGMA**2 * np.outer(v, v)
             freed += 1
     information = np.linalg.inv(covariance)
-    return ScanLink(anchor.id, relative_xyyaw(anchor_pose, result.pose), 0.5 * (information + information.T),
-                    correction, result.matches, held, freed)
+    return ScanLink(
+        anchor.id,
+        relative_xyyaw(anchor_pose, result.pose),
+        0.5 * (information + information.T),
+        correction,
+        result.matches,
+        held,
+        freed,
+    )
 
 
 # m: the std a link gives a direction no wall cell faces (as good as none, but positive definite).
@@ -114,8 +133,14 @@ UNHELD_SIGMA = 100.0
 FACING = np.cos(np.pi / 4)
 
 
-def facing_cells(scan_xy: np.ndarray, pose: np.ndarray, local: LocalMap, directions: np.ndarray,
-                 max_residual: float = 0.1, max_distance: float = 0.3) -> tuple[int, ...]:
+def facing_cells(
+    scan_xy: np.ndarray,
+    pose: np.ndarray,
+    local: LocalMap,
+    directions: np.ndarray,
+    max_residual: float = 0.1,
+    max_distance: float = 0.3,
+) -> tuple[int, ...]:
     """How many of the scan's cells, at `pose` against `local`, match a map cell (within
     `max_distance`, point-to-line within `max_residual`) whose normal faces each of `directions`
     (rows of world-frame unit vectors: the eigen directions of the registration's translation

@@ -14,7 +14,6 @@ from longslam.core.errors import InputError
 from longslam.core.settings import check_limits
 from longslam.slam.frontend import FrontEndConfig
 
-
 # Size-like parameters held to ranges that keep a run within a machine's memory: a TSDF's voxels
 # near the surface grow as truncation / voxel_size^3, a grid's cells as 1/resolution^2.
 # (least, most, unit and why), both ends inclusive.
@@ -91,12 +90,14 @@ class SubmapConfig:
     loop_frame_sigma_xy: float = 0.05  # m: std of a loop's translation between its two frames
     loop_frame_sigma_yaw: float = 0.02  # rad: std of a loop's heading between its two frames
     loop_refine_3d: bool = True  # polish PnP's transform on the 3D-3D matches (keyframe's refine_3d)
-    loop_min_depth_support: int = 10  # 3D-3D matches that must hold a loop (keyframe's loop_min_depth_support; 0: not checked)
+    # 3D-3D matches that must hold a loop (keyframe's loop_min_depth_support; 0: not checked).
+    loop_min_depth_support: int = 10
     loop_max_error: float = 3.0  # reject a closure whose error after optimisation exceeds this (sigmas)
     # On a route that drives the same corridors again, place-recognition keyframes and their words
     # stop growing: a keyframe is kept only where no kept one stands, so their memory follows the
     # building's size, not the route's length (0 keeps every keyframe).
-    loop_keyframe_min_distance: float = 1.5  # m between camera positions at the graph's estimates (0: keep every keyframe)
+    # Metres between camera positions at the graph's estimates (0: keep every keyframe).
+    loop_keyframe_min_distance: float = 1.5
     loop_keyframe_min_angle: float = 0.5  # rad between camera headings for a kept keyframe to stand there
     # The 2D map sliced from the fused TSDF
     grid_min_height: float = 0.2
@@ -117,12 +118,29 @@ class SubmapConfig:
 
     def __post_init__(self) -> None:
         positive = [
-            "voxel_size", "truncation", "max_ray_length", "integration_stride", "submap_interval",
-            "registration_sampling_ratio", "registration_min_points", "registration_max_points",
-            "registration_max_rms", "registration_max_correction", "registration_effective_points",
-            "odometry_sigma_xy", "odometry_sigma_yaw", "robust_k", "loop_keyframe_interval", "loop_max_features",
-            "loop_min_inliers", "loop_sigma_xy", "loop_sigma_yaw", "loop_frame_sigma_xy", "loop_frame_sigma_yaw",
-            "loop_max_error", "grid_resolution",
+            "voxel_size",
+            "truncation",
+            "max_ray_length",
+            "integration_stride",
+            "submap_interval",
+            "registration_sampling_ratio",
+            "registration_min_points",
+            "registration_max_points",
+            "registration_max_rms",
+            "registration_max_correction",
+            "registration_effective_points",
+            "odometry_sigma_xy",
+            "odometry_sigma_yaw",
+            "robust_k",
+            "loop_keyframe_interval",
+            "loop_max_features",
+            "loop_min_inliers",
+            "loop_sigma_xy",
+            "loop_sigma_yaw",
+            "loop_frame_sigma_xy",
+            "loop_frame_sigma_yaw",
+            "loop_max_error",
+            "grid_resolution",
         ]
         for name in positive:
             value = getattr(self, name)
@@ -132,16 +150,25 @@ class SubmapConfig:
             if getattr(self, name) < 0:
                 raise InputError(f"submap parameter {name} must be >= 0, got {getattr(self, name)!r}")
         if self.grid_free_space_margin < 0:
-            raise InputError(f"submap parameter grid_free_space_margin must be >= 0, got {self.grid_free_space_margin!r}")
-        for name in ("registration_min_overlap_area", "loop_min_score", "loop_min_age", "loop_keyframe_min_distance",
-                     "loop_keyframe_min_angle"):
+            raise InputError(
+                f"submap parameter grid_free_space_margin must be >= 0, got {self.grid_free_space_margin!r}"
+            )
+        for name in (
+            "registration_min_overlap_area",
+            "loop_min_score",
+            "loop_min_age",
+            "loop_keyframe_min_distance",
+            "loop_keyframe_min_angle",
+        ):
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:
                 raise InputError(f"submap parameter {name} must be >= 0, got {value!r}")
         check_limits(self, SIZE_LIMITS, "method 'submap'")
         if self.truncation > MAX_TRUNCATION_VOXELS * self.voxel_size:
-            raise InputError(f"truncation ({self.truncation:g}) may be at most {MAX_TRUNCATION_VOXELS} x voxel_size "
-                             f"({MAX_TRUNCATION_VOXELS * self.voxel_size:g} m): each surface holds that many voxels across")
+            raise InputError(
+                f"truncation ({self.truncation:g}) may be at most {MAX_TRUNCATION_VOXELS} x voxel_size "
+                f"({MAX_TRUNCATION_VOXELS * self.voxel_size:g} m): each surface holds that many voxels across"
+            )
         if self.truncation <= self.voxel_size:
             raise InputError(f"truncation ({self.truncation}) must exceed voxel_size ({self.voxel_size})")
         if self.registration_sampling_ratio > 1:

@@ -42,13 +42,18 @@ class SubmapFreeSpace:
         self.cells: LocalGrid | None = None  # the decided cells, once finished
 
     def add(
-        self, depth: np.ndarray, intrinsics: Intrinsics, camera_in_base: np.ndarray, robot_in_submap: np.ndarray,
+        self,
+        depth: np.ndarray,
+        intrinsics: Intrinsics,
+        camera_in_base: np.ndarray,
+        robot_in_submap: np.ndarray,
     ) -> None:
         """Vote one depth image taken with the robot at (x, y, yaw) `robot_in_submap`."""
         if self._votes is None:
             raise RuntimeError("a finished submap's free space takes no more frames")
-        seen = local_grid(depth, intrinsics, camera_in_base, self.cell, self.range_max, self.min_height,
-                          self.max_height, self.stride)
+        seen = local_grid(
+            depth, intrinsics, camera_in_base, self.cell, self.range_max, self.min_height, self.max_height, self.stride
+        )
         self._votes.add(seen, robot_in_submap)
 
     def finish(self) -> LocalGrid:
@@ -116,6 +121,6 @@ def carve(grid: GridMap, free_space: GridMap, margin: int = 1) -> GridMap:
     hi = np.maximum(corner[0] + grid.data.shape[::-1], corner[1] + free_space.data.shape[::-1])
     data = np.full((hi[1] - lo[1], hi[0] - lo[0]), UNKNOWN, np.int8)
     (c0, r0), (c1, r1) = corner[0] - lo, corner[1] - lo
-    data[r0:r0 + grid.data.shape[0], c0:c0 + grid.data.shape[1]] = grid.data
+    data[r0 : r0 + grid.data.shape[0], c0 : c0 + grid.data.shape[1]] = grid.data
     data[free_rc[:, 0] + r1, free_rc[:, 1] + c1] = FREE
     return GridMap(data, res, (float(lo[0] * res), float(lo[1] * res)))

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from longslam.io.ply import vertex_rows, write_ply
-from longslam.core.memory_release import release_free_memory
-from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 from longslam.core.geometry.cells import pack_3d
+from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
+from longslam.core.memory_release import release_free_memory
+from longslam.io.ply import vertex_rows, write_ply
 from longslam.slam.submap.tsdf import BLOCK, TSDF
 
 
@@ -28,7 +28,9 @@ def fuse_submaps(load: Callable[[int], TSDF], poses: Sequence[np.ndarray], voxel
     # growing them by doubling would copy 32 MB at 1 km, with the old copy still held.
     blocks = np.zeros(0, np.int64)
     for i, pose in enumerate(poses):
-        blocks = np.unique(np.concatenate([blocks] + [_fused_blocks(moved, voxel) for moved, _, _ in _moved_voxels(load(i), pose)]))
+        blocks = np.unique(
+            np.concatenate([blocks] + [_fused_blocks(moved, voxel) for moved, _, _ in _moved_voxels(load(i), pose)])
+        )
     fused.reserve(len(blocks))
     del blocks
     for i, pose in enumerate(poses):
@@ -60,8 +62,12 @@ SLICE_VOXELS = 4_096  # band voxels sampled at once: bounds the interpolation's 
 
 
 def grid_from_tsdf(
-    tsdf: TSDF, surface: np.ndarray, floor_z: float,
-    min_height: float = 0.2, max_height: float = 1.5, resolution: float = 0.1,
+    tsdf: TSDF,
+    surface: np.ndarray,
+    floor_z: float,
+    min_height: float = 0.2,
+    max_height: float = 1.5,
+    resolution: float = 0.1,
 ) -> GridMap:
     """2D occupancy sliced from a world-frame TSDF between `min_height` and `max_height` above
     the floor, at the grid's own resolution.
@@ -89,7 +95,7 @@ def grid_from_tsdf(
             continue
         in_band = np.flatnonzero(band)
         for part in range(0, len(in_band), SLICE_VOXELS):
-            pick = in_band[part:part + SLICE_VOXELS]
+            pick = in_band[part : part + SLICE_VOXELS]
             occupied_part, free_part = _slice_cells(tsdf, ijk[pick], sdf[pick], centres[pick, 2], res, step)
             occupied_keys.append(occupied_part)
             free_keys.append(free_part)
@@ -112,7 +118,12 @@ def grid_from_tsdf(
 
 
 def _slice_cells(
-    tsdf: TSDF, ijk: np.ndarray, sdf: np.ndarray, z: np.ndarray, res: float, step: np.ndarray,
+    tsdf: TSDF,
+    ijk: np.ndarray,
+    sdf: np.ndarray,
+    z: np.ndarray,
+    res: float,
+    step: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(occupied, free) grid cells under some band voxels (`grid_from_tsdf`): the cells whose
     centres lie in each voxel's footprint, sampled at the voxel's height."""
@@ -159,13 +170,21 @@ def block_meshes(tsdf: TSDF) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarra
         if volume[observed].min() > 0 or volume[observed].max() < 0:
             continue
         # A cube counts only if all its corners are observed: erode the mask by one cube.
-        cube = observed[:-1, :-1, :-1] & observed[1:, :-1, :-1] & observed[:-1, 1:, :-1] & observed[:-1, :-1, 1:] \
-            & observed[1:, 1:, :-1] & observed[1:, :-1, 1:] & observed[:-1, 1:, 1:] & observed[1:, 1:, 1:]
+        cube = (
+            observed[:-1, :-1, :-1]
+            & observed[1:, :-1, :-1]
+            & observed[:-1, 1:, :-1]
+            & observed[:-1, :-1, 1:]
+            & observed[1:, 1:, :-1]
+            & observed[1:, :-1, 1:]
+            & observed[:-1, 1:, 1:]
+            & observed[1:, 1:, 1:]
+        )
         # As in TSDF.surface_points: a cube whose distances span more than the truncation joins
         # two unrelated surfaces (the clamped far side of a wall and a ray that grazed past it),
         # and would draw a sheet of mesh in the wall's shadow.
         n = volume.shape[0] - 1
-        corners = np.stack([volume[a:a + n, b:b + n, c:c + n] for a in (0, 1) for b in (0, 1) for c in (0, 1)])
+        corners = np.stack([volume[a : a + n, b : b + n, c : c + n] for a in (0, 1) for b in (0, 1) for c in (0, 1)])
         cube &= corners.max(axis=0) - corners.min(axis=0) <= tsdf.truncation
         if not cube.any():
             continue
@@ -197,8 +216,11 @@ def write_mesh(tsdf: TSDF, path: Path) -> Path | None:
     None when there is no surface. Block by block (io/ply.py): building the whole mesh in memory
     first (and trimesh's vertex merging) raised the 1 km run's peak by 85 MB. A vertex on a
     block's face is written once per block that meshes it (viewers show no seam)."""
-    _, n_faces = write_ply(path, ((vertex_rows(v, normals), f) for v, normals, f in block_meshes(tsdf)),
-                           comment="made by longslam (submap method)")
+    _, n_faces = write_ply(
+        path,
+        ((vertex_rows(v, normals), f) for v, normals, f in block_meshes(tsdf)),
+        comment="made by longslam (submap method)",
+    )
     if not n_faces:
         Path(path).unlink()
         return None

@@ -1,7 +1,8 @@
 """The `submap` method: Voxgraph's design, TSDF submaps in a pose graph.
 
 - Each frame's motion comes from the shared front end (`longslam.slam.frontend`). Its depth is
-  integrated into the active submap's TSDF at the front end's pose relative to the submap's origin (the robot's floor pose at the submap's first frame).
+  integrated into the active submap's TSDF at the front end's pose relative to the submap's origin (the robot's floor
+  pose at the submap's first frame).
 - Every `submap_interval` seconds of frame time the active submap is finished and a new one
   starts. A finished submap keeps its compacted TSDF (int8 distances), a sample of its
   iso-surface points for registration and its bounding box; nothing else.
@@ -36,20 +37,28 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
-from longslam.core.geometry import CameraMount, compose_xyyaw, invert, pose_from_xyyaw, relative_xyyaw, wrap_angle, xyyaw_from_pose
+from longslam.core.geometry import (
+    CameraMount,
+    compose_xyyaw,
+    invert,
+    pose_from_xyyaw,
+    relative_xyyaw,
+    wrap_angle,
+    xyyaw_from_pose,
+)
 from longslam.core.memory_release import release_free_memory
+from longslam.core.trajectory import Trajectory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.frontend import FrontEnd
+from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
+from longslam.slam.rows import Rows
 from longslam.slam.submap.config import SubmapConfig
 from longslam.slam.submap.free_space import SubmapFreeSpace, carve, fuse_free_space
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
-from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
-from longslam.slam.rows import Rows
 from longslam.slam.submap.registration import RegistrationSettings, register
 from longslam.slam.submap.store import SubmapStore
 from longslam.slam.submap.tsdf import TSDF
-from longslam.core.trajectory import Trajectory
 
 MIN_VERTICAL_NORMAL = 0.7  # |normal z| above this: floor or ceiling, useless for x, y, yaw
 
@@ -83,7 +92,8 @@ class _Counts:
     submaps_too_few_points: int = 0
     loops_accepted: int = 0
     loops_rejected: int = 0
-    loops_rejected_depth: int = 0  # of loops_rejected: PnP verified, both images' depth did not hold (loop_min_depth_support)
+    # Of loops_rejected, those PnP verified and both images' depth did not hold (loop_min_depth_support).
+    loops_rejected_depth: int = 0
     loop_hypotheses: int = 0
     loop_keyframes_kept: int = 0
     loop_keyframes_known_place: int = 0  # not kept: a kept one stands there (loop_keyframe_min_distance)
@@ -98,8 +108,10 @@ class SubmapMethod:
         self.context = context
         c = self.config
         self.registration_settings = RegistrationSettings(
-            min_points=c.registration_min_points, max_rms=c.registration_max_rms,
-            max_translation=c.registration_max_correction, effective_points=c.registration_effective_points,
+            min_points=c.registration_min_points,
+            max_rms=c.registration_max_rms,
+            max_translation=c.registration_max_correction,
+            effective_points=c.registration_effective_points,
         )
         self.graph = PoseGraph(c.robust_kernel, c.robust_k, max_iterations=50)
         self.submaps: list[Submap] = []
@@ -176,11 +188,16 @@ class SubmapMethod:
             self.counts.frames_without_depth += 1
         elif active.free_space is not None:
             # For the 2D map only: nothing here feeds registration or the trajectory.
-            active.free_space.add(depth, frame.intrinsics, self._mount.camera_in_base,
-                                  self._mount.to_planar(in_submap[None])[0])
+            active.free_space.add(
+                depth, frame.intrinsics, self._mount.camera_in_base, self._mount.to_planar(in_submap[None])[0]
+            )
         active.frames += 1
         self.counts.frames += 1
-        if self._vocabulary is not None and updates and frame.timestamp - self._last_keyframe_time >= self.config.loop_keyframe_interval:
+        if (
+            self._vocabulary is not None
+            and updates
+            and frame.timestamp - self._last_keyframe_time >= self.config.loop_keyframe_interval
+        ):
             self._last_keyframe_time = frame.timestamp
             self._loop_closure(frame, active, in_submap, depth)
         self._pose_in_active = in_submap
@@ -205,8 +222,9 @@ class SubmapMethod:
             self.graph.add_node(index, origin)
         free_space = None
         if c.grid_free_space:
-            free_space = SubmapFreeSpace(c.grid_resolution, self._max_depth, c.grid_min_height, c.grid_max_height,
-                                         c.integration_stride)
+            free_space = SubmapFreeSpace(
+                c.grid_resolution, self._max_depth, c.grid_min_height, c.grid_max_height, c.integration_stride
+            )
         submap = Submap(index, time, TSDF(c.voxel_size, c.truncation), free_space=free_space)
         self.submaps.append(submap)
         return submap
@@ -233,7 +251,9 @@ class SubmapMethod:
         n = min(int(np.ceil(len(candidates) * c.registration_sampling_ratio)), c.registration_max_points)
         n = max(n, min(len(candidates), c.registration_min_points))  # a small submap keeps what it has
         rng = np.random.default_rng(submap.index)
-        submap.points = candidates[np.sort(rng.choice(len(candidates), n, replace=False))] if n else np.zeros((0, 3), np.float32)
+        submap.points = (
+            candidates[np.sort(rng.choice(len(candidates), n, replace=False))] if n else np.zeros((0, 3), np.float32)
+        )
         if len(submap.points) < c.registration_min_points:
             self.counts.submaps_too_few_points += 1
         elif c.registration:
@@ -281,8 +301,14 @@ class SubmapMethod:
             result = register(self.store.get(reference.index), reading.points, initial, self.registration_settings)
             if result.accepted:
                 self.counts.registrations_accepted += 1
-                self.graph.add_edge(reference.index, reading.index, result.relative, information=result.information,
-                                    kind=REGISTRATION, robust=True)
+                self.graph.add_edge(
+                    reference.index,
+                    reading.index,
+                    result.relative,
+                    information=result.information,
+                    kind=REGISTRATION,
+                    robust=True,
+                )
             else:
                 self.counts.registrations_rejected += 1
                 key = _reason_key(result.reason)
@@ -299,8 +325,10 @@ class SubmapMethod:
         feats = feature_module.extract(frame.rgb, depth, frame.intrinsics, max_features=c.loop_max_features)
         if len(feats) == 0:
             return
-        old = np.flatnonzero((frame.timestamp - self._keyframe_times.array() >= c.loop_min_age)
-                             & (self._keyframe_submaps.array() < active.index - 1))
+        old = np.flatnonzero(
+            (frame.timestamp - self._keyframe_times.array() >= c.loop_min_age)
+            & (self._keyframe_submaps.array() < active.index - 1)
+        )
         if len(old):
             hits = self._vocabulary.query(feats.descriptors, candidates=old, top_k=1)
             if hits and hits[0][1] >= c.loop_min_score:
@@ -309,8 +337,14 @@ class SubmapMethod:
                 check = verify(feats, candidate.features, frame.intrinsics, min_inliers=c.loop_min_inliers)
                 transform = None
                 if check.accepted:
-                    transform = depth_held_transform(feats, candidate.features, check.transform, frame.intrinsics.fx,
-                                                     c.loop_refine_3d, c.loop_min_depth_support)
+                    transform = depth_held_transform(
+                        feats,
+                        candidate.features,
+                        check.transform,
+                        frame.intrinsics.fx,
+                        c.loop_refine_3d,
+                        c.loop_min_depth_support,
+                    )
                     if transform is None:
                         self.counts.loops_rejected_depth += 1
                 link = planar_link(self._mount.camera_in_base, transform) if transform is not None else None
@@ -351,8 +385,14 @@ class SubmapMethod:
         turned = np.abs(wrap_angle(turn)) <= c.loop_keyframe_min_angle
         return bool(np.any(near & turned))
 
-    def _add_loop(self, candidate: _Keyframe, query_in_candidate: np.ndarray, link: np.ndarray, active: Submap,
-                  in_submap: np.ndarray) -> None:
+    def _add_loop(
+        self,
+        candidate: _Keyframe,
+        query_in_candidate: np.ndarray,
+        link: np.ndarray,
+        active: Submap,
+        in_submap: np.ndarray,
+    ) -> None:
         """`query_in_candidate`: the query camera in the candidate camera; `link`: the same as the
         query robot's planar pose in the candidate robot's frame."""
         c = self.config
@@ -360,7 +400,9 @@ class SubmapMethod:
         origin = candidate.in_submap @ query_in_candidate @ invert(in_submap)
         delta = xyyaw_from_pose(origin)
         info = np.diag([c.loop_sigma_xy**-2, c.loop_sigma_xy**-2, c.loop_sigma_yaw**-2])
-        check = self.graph.try_loop(candidate.submap, active.index, delta, information=info, max_error=c.loop_max_error, check="edge")
+        check = self.graph.try_loop(
+            candidate.submap, active.index, delta, information=info, max_error=c.loop_max_error, check="edge"
+        )
         if check.accepted:
             self.counts.loops_accepted += 1
             assert check.edge_id is not None  # an accepted loop's edge is kept
@@ -414,12 +456,19 @@ class SubmapMethod:
         submaps_read = self.store.reads
         self.store.close()
         cloud, _ = fused.surface_points(with_normals=False)
-        grid = grid_from_tsdf(fused, cloud, self._mount.floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution)
+        grid = grid_from_tsdf(
+            fused, cloud, self._mount.floor_z, c.grid_min_height, c.grid_max_height, c.grid_resolution
+        )
         if c.grid_free_space:
             # The submaps' rays at their final origins, as the TSDF's voxels were fused.
-            free = fuse_free_space(((s.free_space.finish(), final[self._submap_frame[s.index]]) for s in self.submaps
-                                    if s.free_space is not None),
-                                   c.grid_resolution)
+            free = fuse_free_space(
+                (
+                    (s.free_space.finish(), final[self._submap_frame[s.index]])
+                    for s in self.submaps
+                    if s.free_space is not None
+                ),
+                c.grid_resolution,
+            )
             grid = carve(grid, free, c.grid_free_space_margin)
         mesh_path = None
         if c.write_mesh and self.context.output_dir:
@@ -450,9 +499,14 @@ class SubmapMethod:
             "mesh": mesh_path.name if mesh_path else None,  # in the run folder
         }
         run_stats["frontend"] = self.frontend.stats
-        return Result(trajectory=trajectory, online=online, grid=grid, cloud=cloud.astype(np.float64), stats=run_stats,
-                      tables={"loops": self.frontend.loop_table(), "frontend": self.frontend.frame_table()})
-
+        return Result(
+            trajectory=trajectory,
+            online=online,
+            grid=grid,
+            cloud=cloud.astype(np.float64),
+            stats=run_stats,
+            tables={"loops": self.frontend.loop_table(), "frontend": self.frontend.frame_table()},
+        )
 
     def _frontend_final(self) -> np.ndarray:
         """Every frame's pose from the front end's smoother, with the submap graph's loops
@@ -465,8 +519,10 @@ class SubmapMethod:
         if registrations is None:
             registrations = c.frontend.mode == "wheel"
         edges = [
-            e for e in self.graph.edges
-            if e.kind != ODOMETRY and (e.kind != REGISTRATION or registrations)
+            e
+            for e in self.graph.edges
+            if e.kind != ODOMETRY
+            and (e.kind != REGISTRATION or registrations)
             and self.graph.edge_error(e.edge_id) <= c.frontend_max_edge_error
         ]
         # A loop fixes two frames, not two submaps: between its own frames it needs no submap to
@@ -477,7 +533,11 @@ class SubmapMethod:
                 frame_i, frame_j, link = self._frame_loops[edge.edge_id]
                 self.frontend.add_loop(frame_i, frame_j, link, loop_information)
         self.frontend.add_graph_edges([e for e in edges if e.edge_id not in self._frame_loops], self._submap_frame)
-        held = {frame: self.graph.estimate(index) for index, frame in enumerate(self._submap_frame) if self.graph.has_node(index)}
+        held = {
+            frame: self.graph.estimate(index)
+            for index, frame in enumerate(self._submap_frame)
+            if self.graph.has_node(index)
+        }
         return self.frontend.final_trajectory(held)
 
 

@@ -77,7 +77,10 @@ def _linearise(reference: TSDF, points: np.ndarray, xyyaw: np.ndarray, huber: fl
 
 
 def register(
-    reference: TSDF, points: np.ndarray, initial: np.ndarray, settings: RegistrationSettings = RegistrationSettings(),
+    reference: TSDF,
+    points: np.ndarray,
+    initial: np.ndarray,
+    settings: RegistrationSettings = RegistrationSettings(),
 ) -> RegistrationResult:
     """Align `points` (N, 3, in B's frame) to `reference` (A) starting from `initial` = (x, y, yaw)
     of B in A. Never raises on bad data: a failure is a rejected result with its reason."""
@@ -86,13 +89,17 @@ def register(
     x = initial.copy()
     zero = np.zeros((3, 3))
     if len(points) < settings.min_points:
-        return RegistrationResult(False, f"{len(points)} surface points, need {settings.min_points}", x, zero, np.nan, 0, 0, False)
+        return RegistrationResult(
+            False, f"{len(points)} surface points, need {settings.min_points}", x, zero, np.nan, 0, 0, False
+        )
     converged = False
     iterations = 0
     for iterations in range(1, settings.max_iterations + 1):
         r, jac, w, n = _linearise(reference, points, x, settings.huber)
         if n < settings.min_points:
-            return RegistrationResult(False, f"{n} points overlap, need {settings.min_points}", x, zero, np.nan, n, iterations, False)
+            return RegistrationResult(
+                False, f"{n} points overlap, need {settings.min_points}", x, zero, np.nan, n, iterations, False
+            )
         jw = jac * w[:, None] / settings.residual_sigma**2
         h = jac.T @ jw
         b = jw.T @ r

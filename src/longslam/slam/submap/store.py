@@ -75,9 +75,14 @@ class SubmapStore:
         """Store a compacted TSDF under `index`; it stays in the cache as the most recent."""
         arrays = tsdf.compacted_arrays()
         with self._sqlite():
-            self._db.execute("INSERT OR REPLACE INTO Submap VALUES (?, ?, ?, ?, ?)",
-                             (int(index), len(arrays["keys"]), *(np.ascontiguousarray(arrays[k]).tobytes()
-                                                                 for k in ("keys", "sdf", "weight"))))
+            self._db.execute(
+                "INSERT OR REPLACE INTO Submap VALUES (?, ?, ?, ?, ?)",
+                (
+                    int(index),
+                    len(arrays["keys"]),
+                    *(np.ascontiguousarray(arrays[k]).tobytes() for k in ("keys", "sdf", "weight")),
+                ),
+            )
         self._stored_bytes += sum(a.nbytes for a in arrays.values())
         self._remember(int(index), tsdf)
 
@@ -95,9 +100,12 @@ class SubmapStore:
         blocks, keys, sdf, weight = row
         self.reads += 1
         tsdf = TSDF.from_compacted_arrays(
-            self.voxel, self.truncation, np.frombuffer(keys, np.int64).copy(),
+            self.voxel,
+            self.truncation,
+            np.frombuffer(keys, np.int64).copy(),
             np.frombuffer(sdf, np.int8).reshape(blocks, BLOCK_VOXELS).copy(),
-            np.frombuffer(weight, np.float16).reshape(blocks, BLOCK_VOXELS).copy())
+            np.frombuffer(weight, np.float16).reshape(blocks, BLOCK_VOXELS).copy(),
+        )
         if cache:
             self._remember(index, tsdf)
         return tsdf

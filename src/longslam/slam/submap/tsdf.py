@@ -92,7 +92,7 @@ class TSDF:
             need = len(self._slot)
             if need > len(self._sdf):
                 self._grow(max(need, 2 * len(self._sdf), 16))
-            self._keys[need - len(new): need] = new
+            self._keys[need - len(new) : need] = new
             self._sorted = None
         return slots
 
@@ -139,7 +139,9 @@ class TSDF:
             weight[ok] = self._weight[slots[ok], local]
         return sdf, weight
 
-    def observed(self, min_weight: float = 0.0, blocks: slice | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def observed(
+        self, min_weight: float = 0.0, blocks: slice | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Voxels with weight > min_weight (of the block slots in `blocks`, default all):
         (N, 3) indices, (N,) distances, (N,) weights."""
         first, stop, _ = (blocks or slice(None)).indices(len(self._slot))
@@ -179,16 +181,25 @@ class TSDF:
         return {"keys": self._keys[:n], "sdf": self._sdf[:n], "weight": self._weight[:n]}
 
     @classmethod
-    def from_compacted_arrays(cls, voxel: float, truncation: float, keys: np.ndarray, sdf: np.ndarray,
-                              weight: np.ndarray, max_weight: float = MAX_WEIGHT) -> "TSDF":
+    def from_compacted_arrays(
+        cls,
+        voxel: float,
+        truncation: float,
+        keys: np.ndarray,
+        sdf: np.ndarray,
+        weight: np.ndarray,
+        max_weight: float = MAX_WEIGHT,
+    ) -> "TSDF":
         """The compacted, read-only TSDF whose `compacted_arrays` these are."""
         tsdf = cls(voxel, truncation, max_weight)
         tsdf._keys = np.asarray(keys, np.int64)
         tsdf._sdf = np.asarray(sdf, np.int8).reshape(-1, BLOCK_VOXELS)
         tsdf._weight = np.asarray(weight, np.float16).reshape(-1, BLOCK_VOXELS)
         if not len(tsdf._keys) == len(tsdf._sdf) == len(tsdf._weight):
-            raise InputError(f"a stored TSDF needs one distance and one weight block per key; got {len(tsdf._keys)} keys, "
-                             f"{len(tsdf._sdf)} and {len(tsdf._weight)} blocks")
+            raise InputError(
+                f"a stored TSDF needs one distance and one weight block per key; got {len(tsdf._keys)} keys, "
+                f"{len(tsdf._sdf)} and {len(tsdf._weight)} blocks"
+            )
         tsdf._slot = {int(k): i for i, k in enumerate(tsdf._keys.tolist())}
         tsdf._sdf_scale = truncation / 127.0
         tsdf.compacted = True
@@ -196,7 +207,10 @@ class TSDF:
 
     # --- integration ----------------------------------------------------------------------------
     def integrate_points(
-        self, points: np.ndarray, origin: np.ndarray, normals: np.ndarray | None = None,
+        self,
+        points: np.ndarray,
+        origin: np.ndarray,
+        normals: np.ndarray | None = None,
         weights: np.ndarray | None = None,
     ) -> int:
         """Integrate surface points (N, 3) seen from `origin` (3,), both in this TSDF's frame.
@@ -248,8 +262,10 @@ class TSDF:
             mx, my, mz, dx, dy, dz, w_sum, nx, ny, nz = (a[ok] for a in (mx, my, mz, dx, dy, dz, w_sum, nx, ny, nz))
         # Samples every half voxel through the band; each sample names the voxel it falls in.
         offsets = np.arange(-tau, tau + 1e-9, 0.5 * v)
-        i, j, k = (np.floor((m[:, None] + d[:, None] * offsets[None, :]) / v).astype(np.int64).reshape(-1)
-                   for m, d in ((mx, dx), (my, dy), (mz, dz)))
+        i, j, k = (
+            np.floor((m[:, None] + d[:, None] * offsets[None, :]) / v).astype(np.int64).reshape(-1)
+            for m, d in ((mx, dx), (my, dy), (mz, dz))
+        )
         # One update per (ray, voxel): a ray's samples are in order along it, so the samples it
         # takes in one voxel are adjacent and a comparison with the previous sample finds them.
         first = np.ones(len(i), bool)
@@ -284,7 +300,9 @@ class TSDF:
         d_new = np.bincount(inv, weights=np.asarray(weight, np.float64) * sdf, minlength=len(uv[0]))
         self._accumulate(uv, w_new, d_new)
 
-    def _accumulate(self, cells: tuple[np.ndarray, np.ndarray, np.ndarray], w_new: np.ndarray, wd_new: np.ndarray) -> int:
+    def _accumulate(
+        self, cells: tuple[np.ndarray, np.ndarray, np.ndarray], w_new: np.ndarray, wd_new: np.ndarray
+    ) -> int:
         """Weighted running average: unique voxel indices (i, j, k arrays) in packed-key order,
         with their summed new weights and summed weight * distance. Allocates missing blocks;
         returns the number of voxels updated."""
@@ -302,8 +320,12 @@ class TSDF:
         return int(len(i))
 
     def integrate_depth(
-        self, depth: np.ndarray, intrinsics: Intrinsics, camera_pose: np.ndarray,
-        max_depth: float | None = None, stride: int = 1,
+        self,
+        depth: np.ndarray,
+        intrinsics: Intrinsics,
+        camera_pose: np.ndarray,
+        max_depth: float | None = None,
+        stride: int = 1,
     ) -> int:
         """Integrate a depth image (metres, 0 = no return) taken at `camera_pose` (camera in this
         TSDF's frame, OpenCV axes). Returns the number of voxel updates (0 without valid depth)."""
@@ -338,13 +360,23 @@ class TSDF:
         sx = np.where(c[..., 0] == 1, 1.0, -1.0)
         sy = np.where(c[..., 1] == 1, 1.0, -1.0)
         sz = np.where(c[..., 2] == 1, 1.0, -1.0)
-        grad = np.column_stack([
-            (sdf * sx * wy * wz).sum(axis=1), (sdf * wx * sy * wz).sum(axis=1), (sdf * wx * wy * sz).sum(axis=1),
-        ]) / self.voxel
+        grad = (
+            np.column_stack(
+                [
+                    (sdf * sx * wy * wz).sum(axis=1),
+                    (sdf * wx * sy * wz).sum(axis=1),
+                    (sdf * wx * wy * sz).sum(axis=1),
+                ]
+            )
+            / self.voxel
+        )
         return value, grad, valid
 
     def surface_points(
-        self, min_weight: float = 0.0, max_jump: float | None = None, with_normals: bool = True,
+        self,
+        min_weight: float = 0.0,
+        max_jump: float | None = None,
+        with_normals: bool = True,
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """Iso-surface points: zero crossings between observed neighbouring voxels along x, y, z.
 
@@ -389,7 +421,10 @@ class TSDF:
 
 
 def depth_points(
-    depth: np.ndarray, intrinsics: Intrinsics, stride: int = 1, max_depth: float | None = None,
+    depth: np.ndarray,
+    intrinsics: Intrinsics,
+    stride: int = 1,
+    max_depth: float | None = None,
     with_normals: bool = False,
 ):
     """Camera-frame points (N, 3) of the pixels with a return (every `stride`-th pixel); with

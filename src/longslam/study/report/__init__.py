@@ -15,10 +15,31 @@ paper-1km).
 from longslam.study.report.figures import Figure, make_figures
 from longslam.study.report.render import Report, build_report, render_html, render_markdown, write_report
 from longslam.study.report.results import StudyResults, load_results
-from longslam.study.report.tables import Cell, Table, accuracy_table, format_mean_std, format_number, map_table, memory_table
+from longslam.study.report.tables import (
+    Cell,
+    Table,
+    accuracy_table,
+    format_mean_std,
+    format_number,
+    map_table,
+    memory_table,
+)
 
 __all__ = [
-    "Cell", "Figure", "Report", "StudyResults", "Table", "accuracy_table", "build_report", "format_mean_std",
-    "format_number", "load_results", "make_figures", "map_table", "memory_table", "render_html", "render_markdown",
+    "Cell",
+    "Figure",
+    "Report",
+    "StudyResults",
+    "Table",
+    "accuracy_table",
+    "build_report",
+    "format_mean_std",
+    "format_number",
+    "load_results",
+    "make_figures",
+    "map_table",
+    "memory_table",
+    "render_html",
+    "render_markdown",
     "write_report",
 ]

@@ -48,8 +48,14 @@ def _sequence(run: dict[str, Any]) -> tuple:
 
 def dead_reckoning_ates(runs: list[dict[str, Any]]) -> dict[tuple, float]:
     """Dead reckoning's ATE on each sequence of `runs` (its first repeat's), by sequence."""
-    return {_sequence(r): r["ate"] for r in runs if r["status"] == "ok"
-            and r.get("method_name") == "odometry" and r.get("ate") is not None and not r.get("repeat")}
+    return {
+        _sequence(r): r["ate"]
+        for r in runs
+        if r["status"] == "ok"
+        and r.get("method_name") == "odometry"
+        and r.get("ate") is not None
+        and not r.get("repeat")
+    }
 
 
 def failures_text(runs: list[dict[str, Any]], dead: dict[tuple, float]) -> str:
@@ -82,8 +88,15 @@ def distribution_table(results: StudyResults) -> Table | None:
     if not labels:
         return None
     dead = dead_reckoning_ates(results.runs)
-    headings = ("runs", "ATE median [m]", "ATE quartiles [m]", "ATE min-max [m]", "ATE mean +- std [m]", "failed",
-                "starved")
+    headings = (
+        "runs",
+        "ATE median [m]",
+        "ATE quartiles [m]",
+        "ATE min-max [m]",
+        "ATE mean +- std [m]",
+        "failed",
+        "starved",
+    )
     columns = [(f"{route} {noise}", heading) for route, noise in results.columns for heading in headings]
     table = Table(
         "Distributions",
@@ -91,7 +104,9 @@ def distribution_table(results: StudyResults) -> Table | None:
         "(seeds and repeats): the ATE's median, quartiles (25th-75th percentile) and range beside the mean +- std; "
         "the share of runs that failed (the rule is below the tables) and the runs starved of CPU (a CPU wait "
         f"share over {STARVED_SHARE:g}).",
-        columns, [], group_title=results.group_title or "camera",
+        columns,
+        [],
+        group_title=results.group_title or "camera",
     )
     for method in (m for m in results.methods if m in labels):
         for group in results.row_cameras:
@@ -113,9 +128,12 @@ def _cells(runs: list[dict[str, Any]], dead: dict[tuple, float]) -> list[Cell]:
     starved_runs = sum(1 for r in runs if starved(r.get("cpu_wait_share")))
     if len(ates):
         q1, median, q3 = np.percentile(ates, [25, 50, 75])
-        spread = [Cell(format_number(median), float(median)), Cell(f"{format_number(q1)}-{format_number(q3)}"),
-                  Cell(f"{format_number(ates.min())}-{format_number(ates.max())}"),
-                  Cell(f"{format_number(ates.mean())} +- {format_number(ates.std())}")]
+        spread = [
+            Cell(format_number(median), float(median)),
+            Cell(f"{format_number(q1)}-{format_number(q3)}"),
+            Cell(f"{format_number(ates.min())}-{format_number(ates.max())}"),
+            Cell(f"{format_number(ates.mean())} +- {format_number(ates.std())}"),
+        ]
     else:
         spread = [Cell("–") for _ in range(4)]
     return [Cell(str(len(runs))), *spread, Cell(failures_text(runs, dead)), Cell(f"{starved_runs} / {len(runs)}")]

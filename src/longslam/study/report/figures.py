@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from longslam.core.errors import InputError
-from longslam.study.report.results import RowGroup, StudyResults, on_camera
 from longslam.io.grid_files import read_grid
+from longslam.study.report.results import RowGroup, StudyResults, on_camera
 
 FIGURES_DIR = "report_files"
 
@@ -27,7 +27,9 @@ class Figure:
     interactive: Any = None  # a plotly figure that report.html shows instead of the PNG
 
 
-def _seed_runs(results: StudyResults, route: str, noise: str, camera: RowGroup | str | None = None) -> dict[str, list[dict]]:
+def _seed_runs(
+    results: StudyResults, route: str, noise: str, camera: RowGroup | str | None = None
+) -> dict[str, list[dict]]:
     """method -> its successful runs of (route, noise, camera), by seed."""
     chosen: dict[str, list[dict]] = defaultdict(list)
     for run in sorted(results.ok, key=lambda r: r["seed"]):
@@ -36,7 +38,9 @@ def _seed_runs(results: StudyResults, route: str, noise: str, camera: RowGroup |
     return {m: chosen[m] for m in results.methods if m in chosen}
 
 
-def _first_seed_runs(results: StudyResults, route: str, noise: str, camera: RowGroup | str | None = None) -> dict[str, dict]:
+def _first_seed_runs(
+    results: StudyResults, route: str, noise: str, camera: RowGroup | str | None = None
+) -> dict[str, dict]:
     chosen: dict[str, dict] = {}
     for run in sorted(results.ok, key=lambda r: r["seed"]):
         if (run["route"], run["noise"]) == (route, noise) and on_camera(run, camera) and run["method"] not in chosen:
@@ -72,15 +76,16 @@ def make_figures(results: StudyResults, left_out: list[str] | None = None) -> li
     return figures
 
 
-def _route_figures(results: StudyResults, route: str, camera: RowGroup | str | None, truth_grid,
-                   left_out: list[str]) -> list[Figure]:
+def _route_figures(
+    results: StudyResults, route: str, camera: RowGroup | str | None, truth_grid, left_out: list[str]
+) -> list[Figure]:
     """The figures of one route: of one row group's runs (a camera, a sensor and/or a
     perturbation), or of all (camera None: one of each)."""
     from longslam.eval.map_quality import map_scores
     from longslam.io.trajectory_files import read_tum
-    from longslam.study.report.interactive import curves_figure, trajectories_figure
-    from longslam.viz.plots import plot_curves_by_distance, plot_map_over_truth, plot_maps, plan_view, plot_plans
     from longslam.study.prepare import load_route_data
+    from longslam.study.report.interactive import curves_figure, trajectories_figure
+    from longslam.viz.plots import plan_view, plot_curves_by_distance, plot_map_over_truth, plot_maps, plot_plans
 
     out = results.out
     figures: list[Figure] = []
@@ -120,13 +125,33 @@ def _route_figures(results: StudyResults, route: str, camera: RowGroup | str | N
         name = Path(FIGURES_DIR) / f"trajectories-{tag}-{_safe(noise)}.png"
         seed_text = ", ".join(p.split()[1] for p in panels)
         shown = f"route {route} ({data.length_m:.0f} m)" + (f", {results.group_title} {camera}" if camera else "")
-        plot_plans(truth_grid, out / name, panels, waypoints=data.waypoints, zoom_margin=6.0, errors=errors,
-                   title=f"{shown}, noise {noise}, seed{'s' if len(panels) > 1 else ''} {seed_text}")
+        plot_plans(
+            truth_grid,
+            out / name,
+            panels,
+            waypoints=data.waypoints,
+            zoom_margin=6.0,
+            errors=errors,
+            title=f"{shown}, noise {noise}, seed{'s' if len(panels) > 1 else ''} {seed_text}",
+        )
         view = plan_view(truth_grid, {k: v for p in panels.values() for k, v in p.items()}, 6.0)
-        interactive = trajectories_figure(truth_grid, view, truth_xy, dict(estimates), ates, data.waypoints,
-                                          title=f"{shown}, noise {noise}: every seed (menu: one seed)")
-        figures.append(Figure(name, f"Estimated trajectories over the floor plan with the ground truth: {where}, noise {noise}, "
-                                    f"one panel per seed ({seed_text}); ATE of each in its legend.", interactive))
+        interactive = trajectories_figure(
+            truth_grid,
+            view,
+            truth_xy,
+            dict(estimates),
+            ates,
+            data.waypoints,
+            title=f"{shown}, noise {noise}: every seed (menu: one seed)",
+        )
+        figures.append(
+            Figure(
+                name,
+                f"Estimated trajectories over the floor plan with the ground truth: {where}, noise {noise}, "
+                f"one panel per seed ({seed_text}); ATE of each in its legend.",
+                interactive,
+            )
+        )
 
     for column, ylabel, scale, what in (
         ("error_curve", "position error [m]", 1.0, "ATE (position error, no alignment)"),
@@ -150,11 +175,21 @@ def _route_figures(results: StudyResults, route: str, camera: RowGroup | str | N
             name = Path(FIGURES_DIR) / f"{kind}-{tag}.png"
             plot_curves_by_distance(curve_panels, out / name, ylabel, title=where)
             interactive = curves_figure(by_seed, ylabel, title=f"{what}, {where}: each run")
-            figures.append(Figure(name, f"{what} against distance travelled, {where}: mean over the seeds, band from the "
-                                        "lowest to the highest run (on the page: each run's own line).", interactive))
+            figures.append(
+                Figure(
+                    name,
+                    f"{what} against distance travelled, {where}: mean over the seeds, band from the "
+                    "lowest to the highest run (on the page: each run's own line).",
+                    interactive,
+                )
+            )
 
     # The maps are shown over the walls the camera could see from the route, and the route.
-    seen = truth_grid.cell_to_world(np.argwhere(data.observed)) if data.observed.shape == truth_grid.data.shape else np.zeros((0, 2))
+    seen = (
+        truth_grid.cell_to_world(np.argwhere(data.observed))
+        if data.observed.shape == truth_grid.data.shape
+        else np.zeros((0, 2))
+    )
     extent = np.vstack([truth_xy, seen])
     lo, hi = extent.min(axis=0) - 1.0, extent.max(axis=0) + 1.0
     view = (lo[0], hi[0], lo[1], hi[1])
@@ -173,9 +208,20 @@ def _route_figures(results: StudyResults, route: str, camera: RowGroup | str | N
             captions[method] = f"precision {p:.2f}, recall {r:.2f}" if p is not None and r is not None else ""
         if maps:
             name = Path(FIGURES_DIR) / f"maps-{tag}-{_safe(noise)}.png"
-            plot_maps(truth_grid, maps, out / name, view=view, path=truth_xy, captions=captions,
-                      title=f"occupancy maps, {where}, noise {noise}, first seed")
-            figures.append(Figure(name, f"Each method's occupancy grid beside the ground truth: {where}, noise {noise} (first seed)."))
+            plot_maps(
+                truth_grid,
+                maps,
+                out / name,
+                view=view,
+                path=truth_xy,
+                captions=captions,
+                title=f"occupancy maps, {where}, noise {noise}, first seed",
+            )
+            figures.append(
+                Figure(
+                    name, f"Each method's occupancy grid beside the ground truth: {where}, noise {noise} (first seed)."
+                )
+            )
         # Each map again, large enough to read, with the true walls over it and its doubled walls.
         for method, grid in maps.items():
             run = first[method]
@@ -187,8 +233,19 @@ def _route_figures(results: StudyResults, route: str, camera: RowGroup | str | N
             name = Path(FIGURES_DIR) / f"map-{tag}-{_safe(noise)}-{_safe(method)}.png"
             share = quality.get("map_doubled_walls")
             more = f", walls shown twice {100 * share:.1f}%" if share is not None else ""
-            plot_map_over_truth(grid, truth_grid, out / name, view=view, doubled=quality.get("map_doubled_places"),
-                                title=f"{method}: {where}, noise {noise}, seed {run['seed']} ({captions[method]}{more})")
-            figures.append(Figure(name, f"{method}'s occupancy grid as it is (black), the true walls over it "
-                                        f"(orange), the walls it shows twice ringed (magenta): {where}, noise {noise}."))
+            plot_map_over_truth(
+                grid,
+                truth_grid,
+                out / name,
+                view=view,
+                doubled=quality.get("map_doubled_places"),
+                title=f"{method}: {where}, noise {noise}, seed {run['seed']} ({captions[method]}{more})",
+            )
+            figures.append(
+                Figure(
+                    name,
+                    f"{method}'s occupancy grid as it is (black), the true walls over it "
+                    f"(orange), the walls it shows twice ringed (magenta): {where}, noise {noise}.",
+                )
+            )
     return figures

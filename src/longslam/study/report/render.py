@@ -10,17 +10,24 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from longslam.core.errors import InputError
+from longslam.core.file_kinds import special_file_kind
 from longslam.io.atomic import write_text_atomic
 from longslam.run.process_tree import STARVED_SHARE, starved
 from longslam.study.database import DB_NAME
-from longslam.study.report.distribution import FAILURE_RULE, distribution_table
 from longslam.study.paper import CITATION
+from longslam.study.report.distribution import FAILURE_RULE, distribution_table
 from longslam.study.report.figures import Figure, make_figures
 from longslam.study.report.results import load_results
 from longslam.study.report.runs import RunsTable, every_run_table, runs_html, runs_markdown
-from longslam.core.file_kinds import special_file_kind
 from longslam.study.report.tables import (
-    Table, _paper_columns, accuracy_table, field_table, map_table, memory_table, paper_tables, runs_table,
+    Table,
+    _paper_columns,
+    accuracy_table,
+    field_table,
+    map_table,
+    memory_table,
+    paper_tables,
+    runs_table,
 )
 
 
@@ -37,8 +44,12 @@ def _row_cameras(table: Table) -> list[str] | None:
 def table_markdown(table: Table) -> str:
     has_metric = any(label[1] for label in table.row_labels)
     cameras = _row_cameras(table)
-    header = (["method"] + ([table.group_title] if cameras else []) + (["metric"] if has_metric else [])
-              + [_column_title(c) for c in table.columns])
+    header = (
+        ["method"]
+        + ([table.group_title] if cameras else [])
+        + (["metric"] if has_metric else [])
+        + [_column_title(c) for c in table.columns]
+    )
     lines = [f"### {table.title}", "", table.caption, "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     previous = previous_camera = None
     for i, ((method, metric), cells) in enumerate(zip(table.row_labels, table.rows)):
@@ -76,12 +87,21 @@ def table_html(table: Table) -> str:
             routes[-1] = (route, routes[-1][1] + 1)
         else:
             routes.append((route, 1))
-    parts = [f'<h3>{esc(table.title)}</h3><p class="caption">{esc(table.caption)}</p>'
-             f'<table class="results" data-title="{esc(table.title)}"><thead>']
+    parts = [
+        f'<h3>{esc(table.title)}</h3><p class="caption">{esc(table.caption)}</p>'
+        f'<table class="results" data-title="{esc(table.title)}"><thead>'
+    ]
     if any(route for route, _ in routes):
-        parts.append(f'<tr><th colspan="{lead}"></th>' + "".join(f'<th colspan="{n}">{esc(r)}</th>' for r, n in routes) + "</tr>")
-    parts.append("<tr><th>method</th>" + (f"<th>{esc(table.group_title)}</th>" if cameras else "") + ("<th>metric</th>" if has_metric else "")
-                 + "".join(f"<th>{esc(noise)}</th>" for _, noise in table.columns) + "</tr></thead><tbody>")
+        parts.append(
+            f'<tr><th colspan="{lead}"></th>' + "".join(f'<th colspan="{n}">{esc(r)}</th>' for r, n in routes) + "</tr>"
+        )
+    parts.append(
+        "<tr><th>method</th>"
+        + (f"<th>{esc(table.group_title)}</th>" if cameras else "")
+        + ("<th>metric</th>" if has_metric else "")
+        + "".join(f"<th>{esc(noise)}</th>" for _, noise in table.columns)
+        + "</tr></thead><tbody>"
+    )
     counts: dict[str, int] = defaultdict(int)
     for method, _ in table.row_labels:
         counts[method] += 1
@@ -153,15 +173,18 @@ def _world_shown(world: str) -> str:
 
 
 def _camera_shown(camera: dict) -> str:
-    return (f"{camera.get('width', '?')} x {camera.get('height', '?')}, {camera.get('hfov_deg', '?')} degree field "
-            f"of view, depth to {camera.get('max_depth', '?')} m")
+    return (
+        f"{camera.get('width', '?')} x {camera.get('height', '?')}, {camera.get('hfov_deg', '?')} degree field "
+        f"of view, depth to {camera.get('max_depth', '?')} m"
+    )
 
 
 E_ROT_NOTE = (
     "E_rot (Table 1) is the paper's: each frame's rotation error divided by that frame's travel, averaged. On "
     "short steps small per-frame jitter dominates it (a system that re-estimates each pose independently, as "
     "ORB-SLAM3 does, gets tens of deg/m from a fraction of a degree per frame); RPE rot in Table 1b, over "
-    "travelled-distance segments, measures rotation drift.")
+    "travelled-distance segments, measures rotation drift."
+)
 
 
 def build_report(out: str | Path, figures: bool = True, left_out: list[str] | None = None) -> Report:
@@ -178,8 +201,11 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
         + (f"sensors {', '.join(results.sensors)}, " if config.get("sensors") else "")
         + (f"perturbations {', '.join(results.perturbations)}, " if config.get("perturbations") else "")
         + f"seeds {', '.join(map(str, seeds))}.",
-        (f"Cameras: {'; '.join(f'{n}: {_camera_shown(c)}' for n, c in named.items())}. {counts}" if named
-         else f"Camera {_camera_shown(config.get('camera', {}))}. {counts}"),
+        (
+            f"Cameras: {'; '.join(f'{n}: {_camera_shown(c)}' for n, c in named.items())}. {counts}"
+            if named
+            else f"Camera {_camera_shown(config.get('camera', {}))}. {counts}"
+        ),
     ]
     tables = [accuracy_table(results), field_table(results), memory_table(results)]
     quality = map_table(results)
@@ -194,14 +220,20 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
         notes.append(FAILURE_RULE)
     starved_runs = [r["key"] for r in results.ok if starved(r.get("cpu_wait_share"))]
     if starved_runs:
-        notes.append(f"{len(starved_runs)} run(s) waited for a CPU for more than {STARVED_SHARE:.0%} of their time (marked "
-                     "'starved' in All runs): their times, and for a real-time system their results, are not the "
-                     "system's own; `longslam study FILE --out DIR --retry-starved` runs them again.")
+        notes.append(
+            f"{len(starved_runs)} run(s) waited for a CPU for more than {STARVED_SHARE:.0%} of their time (marked "
+            "'starved' in All runs): their times, and for a real-time system their results, are not the "
+            "system's own; `longslam study FILE --out DIR --retry-starved` runs them again."
+        )
     if _paper_columns(results.columns):
-        notes.append(f"Rows marked (paper) are the paper's own numbers for its route of the same length ({CITATION}); "
-                     "its building and systems differ from longslam's, so they are a reference, not a target.")
+        notes.append(
+            f"Rows marked (paper) are the paper's own numbers for its route of the same length ({CITATION}); "
+            "its building and systems differ from longslam's, so they are a reference, not a target."
+        )
     if quality is None:
-        notes.append("No method of this study builds an occupancy grid, so there is no map quality table or map figure.")
+        notes.append(
+            "No method of this study builds an occupancy grid, so there is no map quality table or map figure."
+        )
     appendix = [] if _paper_columns(results.columns) else paper_tables()
     failures = [f"{r['key']}: {r['error']}" for r in results.runs if r["status"] != "ok"]
     missing: list[str] = []
@@ -209,8 +241,9 @@ def build_report(out: str | Path, figures: bool = True, left_out: list[str] | No
     notes += [f"Left out: {m}." for m in missing]
     if left_out is not None:
         left_out.extend(missing)
-    return Report(f"longslam study report: {name}", intro, tables, figs, failures, appendix, notes,
-                  every_run_table(results))
+    return Report(
+        f"longslam study report: {name}", intro, tables, figs, failures, appendix, notes, every_run_table(results)
+    )
 
 
 def render_markdown(report: Report) -> str:
@@ -226,9 +259,13 @@ def render_markdown(report: Report) -> str:
         for fig in report.figures:
             parts += [f"![{fig.caption}]({fig.path.as_posix()})", "", f"*{fig.caption}*", ""]
     if report.appendix:
-        parts += ["## The paper's numbers", "",
-                  "No route of this study is one of the paper's (paper-300m, paper-1km), so its numbers are given "
-                  "here as published, for reference.", ""]
+        parts += [
+            "## The paper's numbers",
+            "",
+            "No route of this study is one of the paper's (paper-300m, paper-1km), so its numbers are given "
+            "here as published, for reference.",
+            "",
+        ]
         parts += [table_markdown(t) for t in report.appendix]
     return "\n".join(parts).rstrip() + "\n"
 
@@ -236,7 +273,8 @@ def render_markdown(report: Report) -> str:
 def render_html(report: Report, out: Path) -> str:
     esc = html.escape
     parts = [
-        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
         f"<title>{esc(report.title)}</title><style>{CSS}</style></head><body>",
         f"<h1>{esc(report.title)}</h1>",
     ]
@@ -259,17 +297,23 @@ def render_html(report: Report, out: Path) -> str:
             if fig.interactive is not None:
                 from longslam.study.report.interactive import figure_div
 
-                parts.append(f'<figure class="interactive"><div class="plot">{figure_div(fig.interactive, f"figure-{i}")}</div>'
-                             f"<figcaption>{esc(fig.caption)} Interactive: zoom, pan, hover; click a legend entry "
-                             "to hide a line; where there are several seeds, the menu shows one or all."
-                             "</figcaption></figure>")
+                parts.append(
+                    f'<figure class="interactive"><div class="plot">{figure_div(fig.interactive, f"figure-{i}")}</div>'
+                    f"<figcaption>{esc(fig.caption)} Interactive: zoom, pan, hover; click a legend entry "
+                    "to hide a line; where there are several seeds, the menu shows one or all."
+                    "</figcaption></figure>"
+                )
                 continue
             data = base64.b64encode((out / fig.path).read_bytes()).decode("ascii")
-            parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{esc(fig.caption)}">'
-                         f"<figcaption>{esc(fig.caption)}</figcaption></figure>")
+            parts.append(
+                f'<figure><img src="data:image/png;base64,{data}" alt="{esc(fig.caption)}">'
+                f"<figcaption>{esc(fig.caption)}</figcaption></figure>"
+            )
     if report.appendix:
-        parts.append("<h2>The paper's numbers</h2><p>No route of this study is one of the paper's (paper-300m, "
-                     "paper-1km), so its numbers are given here as published, for reference.</p>")
+        parts.append(
+            "<h2>The paper's numbers</h2><p>No route of this study is one of the paper's (paper-300m, "
+            "paper-1km), so its numbers are given here as published, for reference.</p>"
+        )
         parts += [table_html(t) for t in report.appendix]
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
@@ -295,12 +339,15 @@ def check_report_files(out: str | Path, overwrite: bool = False) -> None:
             except OSError as err:
                 raise InputError(f"{path} cannot be read to check it is longslam's report: {err.strerror}") from None
             if opening not in head:
-                raise InputError(f"{path} exists and is not a report longslam wrote; choose another folder, "
-                                 "move it, or pass --overwrite")
+                raise InputError(
+                    f"{path} exists and is not a report longslam wrote; choose another folder, "
+                    "move it, or pass --overwrite"
+                )
 
 
-def write_report(out: str | Path, figures: bool = True, overwrite: bool = False,
-                 left_out: list[str] | None = None) -> Path:
+def write_report(
+    out: str | Path, figures: bool = True, overwrite: bool = False, left_out: list[str] | None = None
+) -> Path:
     """Write DIR/report.md (+ DIR/report_files/*.png) and DIR/report.html; returns the HTML's path."""
     out = Path(out)
     check_report_files(out, overwrite)

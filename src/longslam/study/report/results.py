@@ -84,16 +84,25 @@ class StudyResults:
     def group_title(self) -> str:
         """The heading of the tables' group column: 'camera', 'sensor', 'camera, sensor',
         'perturbation'..."""
-        return ", ".join(name for name, split in (("camera", self.by_camera), ("sensor", self.by_sensor),
-                                                  ("perturbation", self.by_perturbation)) if split)
+        return ", ".join(
+            name
+            for name, split in (
+                ("camera", self.by_camera),
+                ("sensor", self.by_sensor),
+                ("perturbation", self.by_perturbation),
+            )
+            if split
+        )
 
     def group_of(self, run: dict[str, Any]) -> RowGroup | None:
         """The row group a run belongs to (see `row_cameras`)."""
         if not self._split:
             return None
-        return RowGroup(run.get("camera_name", DEFAULT_CAMERA) if self.by_camera else None,
-                        (run.get("sensor") or IDEAL) if self.by_sensor else None,
-                        (run.get("perturbation") or NONE) if self.by_perturbation else None)
+        return RowGroup(
+            run.get("camera_name", DEFAULT_CAMERA) if self.by_camera else None,
+            (run.get("sensor") or IDEAL) if self.by_sensor else None,
+            (run.get("perturbation") or NONE) if self.by_perturbation else None,
+        )
 
     def camera_of(self, group: "RowGroup | str | None") -> str:
         """The camera of a row group (the study's first when the group does not split cameras)."""
@@ -105,11 +114,18 @@ class StudyResults:
         "" for the one camera of a [camera] study (whose folders have no camera in them)."""
         return camera if self.config.get("cameras") else ""
 
-    def values(self, method: str, route: str, noise: str, column: str, camera: "RowGroup | str | None" = None) -> list[float]:
+    def values(
+        self, method: str, route: str, noise: str, column: str, camera: "RowGroup | str | None" = None
+    ) -> list[float]:
         """A database column of the successful runs of (method, route, noise); of one camera's
         runs if `camera` is given."""
-        return [r[column] for r in self.ok if (r["method"], r["route"], r["noise"]) == (method, route, noise)
-                and r[column] is not None and on_camera(r, camera)]
+        return [
+            r[column]
+            for r in self.ok
+            if (r["method"], r["route"], r["noise"]) == (method, route, noise)
+            and r[column] is not None
+            and on_camera(r, camera)
+        ]
 
 
 def on_camera(run: dict[str, Any], camera: "RowGroup | str | None") -> bool:
@@ -118,9 +134,11 @@ def on_camera(run: dict[str, Any], camera: "RowGroup | str | None") -> bool:
     if camera is None:
         return True
     if isinstance(camera, RowGroup):
-        return ((camera.camera is None or run.get("camera_name", DEFAULT_CAMERA) == camera.camera)
-                and (camera.sensor is None or (run.get("sensor") or IDEAL) == camera.sensor)
-                and (camera.perturbation is None or (run.get("perturbation") or NONE) == camera.perturbation))
+        return (
+            (camera.camera is None or run.get("camera_name", DEFAULT_CAMERA) == camera.camera)
+            and (camera.sensor is None or (run.get("sensor") or IDEAL) == camera.sensor)
+            and (camera.perturbation is None or (run.get("perturbation") or NONE) == camera.perturbation)
+        )
     return run.get("camera_name", DEFAULT_CAMERA) == camera
 
 
@@ -142,10 +160,14 @@ def load_results(out: str | Path) -> StudyResults:
     out = Path(out)
     path = out / DB_NAME
     if out.is_file():  # the study file given in place of the folder its study wrote
-        raise InputError(f"{out} is a file, not a study folder; give the folder a study wrote "
-                         f"(`longslam study {out} --out FOLDER`, then `longslam report FOLDER`)")
+        raise InputError(
+            f"{out} is a file, not a study folder; give the folder a study wrote "
+            f"(`longslam study {out} --out FOLDER`, then `longslam report FOLDER`)"
+        )
     if not path.is_file():
-        raise InputError(f"{out} holds no study results ({DB_NAME} is missing); run `longslam study FILE --out {out}` first")
+        raise InputError(
+            f"{out} holds no study results ({DB_NAME} is missing); run `longslam study FILE --out {out}` first"
+        )
     check_results_tables(path)
     with ResultsDB(path) as db:
         config = db.study() or {}
@@ -156,6 +178,7 @@ def load_results(out: str | Path) -> StudyResults:
     methods = _ordered([m["label"] for m in config.get("methods", [])], [r["method"] for r in runs])
     cameras = _ordered(list(config.get("cameras", {})), [r["camera_name"] for r in runs]) or [DEFAULT_CAMERA]
     sensors = _ordered(list(config.get("sensors", [])), [r.get("sensor") or IDEAL for r in runs]) or [IDEAL]
-    perturbations = _ordered(list(config.get("perturbations", [])),
-                             [r.get("perturbation") or NONE for r in runs]) or [NONE]
+    perturbations = _ordered(list(config.get("perturbations", [])), [r.get("perturbation") or NONE for r in runs]) or [
+        NONE
+    ]
     return StudyResults(out, config, runs, ok, routes, noise, methods, cameras, sensors, perturbations)

@@ -120,13 +120,20 @@ def _value(run: dict[str, Any], column: str, scale: float) -> str:
 
 def _order(results: StudyResults):
     """Runs in the study's order: route, camera, noise, method as the study names them, then seed."""
+
     def index(values: list[str], value: str) -> int:
         return values.index(value) if value in values else len(values)
 
-    return lambda r: (index(results.routes, r["route"]), index(results.cameras, r.get("camera_name", "")),
-                      index(results.sensors, r.get("sensor") or "ideal"),
-                      index(results.perturbations, r.get("perturbation") or "none"), index(results.noise, r["noise"]),
-                      index(results.methods, r["method"]), r["seed"], r.get("repeat") or 0)
+    return lambda r: (
+        index(results.routes, r["route"]),
+        index(results.cameras, r.get("camera_name", "")),
+        index(results.sensors, r.get("sensor") or "ideal"),
+        index(results.perturbations, r.get("perturbation") or "none"),
+        index(results.noise, r["noise"]),
+        index(results.methods, r["method"]),
+        r["seed"],
+        r.get("repeat") or 0,
+    )
 
 
 def every_run_table(results: StudyResults) -> RunsTable:
@@ -134,18 +141,25 @@ def every_run_table(results: StudyResults) -> RunsTable:
     with_maps = any(r.get("map_precision") is not None for r in results.ok)
     columns = METRICS + (MAP_METRICS if with_maps else ()) + FIGURES
     repeats = any(r.get("repeat") for r in results.runs)
-    identity = (["route"] + (["camera"] if results.by_camera else []) + (["sensor"] if results.by_sensor else [])
-                + (["perturbation"] if results.by_perturbation else [])
-                + ["noise", "method", "seed"] + (["repeat"] if repeats else []))
+    identity = (
+        ["route"]
+        + (["camera"] if results.by_camera else [])
+        + (["sensor"] if results.by_sensor else [])
+        + (["perturbation"] if results.by_perturbation else [])
+        + ["noise", "method", "seed"]
+        + (["repeat"] if repeats else [])
+    )
     table = RunsTable(
         "All runs",
         "Every recorded run, one row each: its metrics (ATE, E_trans and E_rot as in Table 1, APE and RPE as "
         "in Table 1b, the ATE of the online trajectory), peak memory (MB, as in Table 2), the time of its "
         "process from start to end, its CPU wait share (how long its threads were ready but waited for a core, "
-        f"over that wait plus their CPU time; 'starved' above {STARVED_SHARE:g}), and links to the files of its folder (final trajectory, stats.json, "
+        f"over that wait plus their CPU time; 'starved' above {STARVED_SHARE:g}), and links to the files of its "
+        "folder (final trajectory, stats.json, "
         "config.toml, and console.log: what native code such as ORB-SLAM3 printed) and to its log when the log "
         "holds anything. A cell of Tables 1 to 3 links to its rows.",
-        identity, ["status"] + [heading for _, heading, _ in columns] + ["files"],
+        identity,
+        ["status"] + [heading for _, heading, _ in columns] + ["files"],
     )
     seen: set[str] = set()
     for run in sorted(results.runs, key=_order(results)):
@@ -156,16 +170,24 @@ def every_run_table(results: StudyResults) -> RunsTable:
         status = "ok" if ok else f"{run['status']}: {error[:ERROR_SHOWN]}" + ("…" if len(error) > ERROR_SHOWN else "")
         if ok and starved(run.get("cpu_wait_share")):
             status = "ok, starved"
-        table.rows.append(RunRow(
-            key=run["key"], status=status, ok=ok,
-            identity=([run["route"]] + ([group.camera or ""] if results.by_camera and group is not None else [])
-                      + ([group.sensor or ""] if results.by_sensor and group is not None else [])
-                      + ([group.perturbation or ""] if results.by_perturbation and group is not None else []) + [run["noise"], run["method"], str(run["seed"])]
-                      + ([str(run.get("repeat") or 0)] if repeats else [])),
-            cells=[_value(run, column, scale) for column, _, scale in columns],
-            links=_links(out, run),
-            anchor=None if anchor in seen else anchor,
-        ))
+        table.rows.append(
+            RunRow(
+                key=run["key"],
+                status=status,
+                ok=ok,
+                identity=(
+                    [run["route"]]
+                    + ([group.camera or ""] if results.by_camera and group is not None else [])
+                    + ([group.sensor or ""] if results.by_sensor and group is not None else [])
+                    + ([group.perturbation or ""] if results.by_perturbation and group is not None else [])
+                    + [run["noise"], run["method"], str(run["seed"])]
+                    + ([str(run.get("repeat") or 0)] if repeats else [])
+                ),
+                cells=[_value(run, column, scale) for column, _, scale in columns],
+                links=_links(out, run),
+                anchor=None if anchor in seen else anchor,
+            )
+        )
         seen.add(anchor)
     return table
 
@@ -187,16 +209,23 @@ def runs_html(table: RunsTable) -> str:
     import html
 
     esc = html.escape
-    parts = [f'<h3 id="all-runs">{esc(table.title)}</h3><p class="caption">{esc(table.caption)}</p>'
-             f'<table class="results runs" data-title="{esc(table.title)}"><thead><tr>'
-             + "".join(f"<th>{esc(h)}</th>" for h in table.identity + table.headings) + "</tr></thead><tbody>"]
+    parts = [
+        f'<h3 id="all-runs">{esc(table.title)}</h3><p class="caption">{esc(table.caption)}</p>'
+        f'<table class="results runs" data-title="{esc(table.title)}"><thead><tr>'
+        + "".join(f"<th>{esc(h)}</th>" for h in table.identity + table.headings)
+        + "</tr></thead><tbody>"
+    ]
     for row in table.rows:
         anchor = f' id="{esc(row.anchor)}"' if row.anchor else ""
         status = "ok" if row.ok else "failed"
         cells = "".join(f'<td class="id">{esc(c)}</td>' for c in row.identity)
         cells += f'<td class="status {status}">{esc(row.status)}</td>'
         cells += "".join(f"<td>{esc(c)}</td>" for c in row.cells)
-        cells += '<td class="files">' + " ".join(f'<a href="{esc(link.href)}">{esc(link.text)}</a>' for link in row.links) + "</td>"
+        cells += (
+            '<td class="files">'
+            + " ".join(f'<a href="{esc(link.href)}">{esc(link.text)}</a>' for link in row.links)
+            + "</td>"
+        )
         parts.append(f'<tr{anchor} data-key="{esc(row.key)}">{cells}</tr>')
     parts.append("</tbody></table>")
     return "".join(parts)

@@ -11,7 +11,14 @@ import numpy as np
 from longslam.run.process_tree import starved
 from longslam.run.speed import format_real_time_factor
 from longslam.study.paper import (
-    ACCURACY_METRICS, CITATION, PAPER_METHODS, PAPER_NOISE, PAPER_ROUTES, paper_accuracy, paper_memory_gb, paper_route,
+    ACCURACY_METRICS,
+    CITATION,
+    PAPER_METHODS,
+    PAPER_NOISE,
+    PAPER_ROUTES,
+    paper_accuracy,
+    paper_memory_gb,
+    paper_route,
 )
 from longslam.study.report.results import RowGroup, StudyResults, on_camera, runs_anchor
 
@@ -79,7 +86,9 @@ class Table:
         self.row_labels.append(label)
         self.rows.append(cells)
         if camera is not None or self.row_cameras:
-            self.row_cameras += [""] * (len(self.rows) - 1 - len(self.row_cameras)) + ["" if camera is None else str(camera)]
+            self.row_cameras += [""] * (len(self.rows) - 1 - len(self.row_cameras)) + [
+                "" if camera is None else str(camera)
+            ]
 
     def mark_best(self, higher_is_better: bool = False, reversed_metrics: tuple[str, ...] = ()) -> None:
         """Bold the best mean of each column among the rows of each metric (the metrics named in
@@ -101,14 +110,21 @@ def _paper_columns(columns: list[tuple[str, str]]) -> bool:
     return any(paper_route(route) and noise in PAPER_NOISE for route, noise in columns)
 
 
-def _our_cells(results: StudyResults, method: str, column: str, scale: float = 1.0, camera: RowGroup | str | None = None) -> list[Cell]:
+def _our_cells(
+    results: StudyResults, method: str, column: str, scale: float = 1.0, camera: RowGroup | str | None = None
+) -> list[Cell]:
     """A method's mean ± std of one database column (of one camera's runs if `camera` is given),
     per (route, noise) column of the table."""
     cells = []
     for route, noise in results.columns:
         values = [scale * v for v in results.values(method, route, noise, column, camera)]
-        cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None,
-                          link=f"#{runs_anchor(route, noise, method, camera)}" if values else None))
+        cells.append(
+            Cell(
+                format_mean_std(values),
+                float(np.mean(values)) if values else None,
+                link=f"#{runs_anchor(route, noise, method, camera)}" if values else None,
+            )
+        )
     return cells
 
 
@@ -121,8 +137,9 @@ def _paper_cells(columns: list[tuple[str, str]], lookup) -> list[Cell]:
     return cells
 
 
-def _comparison_table(results: StudyResults, title: str, caption: str, metrics: list[tuple[str, str, float]],
-                      paper_numbers) -> Table:
+def _comparison_table(
+    results: StudyResults, title: str, caption: str, metrics: list[tuple[str, str, float]], paper_numbers
+) -> Table:
     """One row per (method, metric): ours (mean ± std of a database column times a scale), then
     the paper's published rows where the table has the paper's routes. `paper_numbers()` gives
     {(paper method, route, noise, column): value}."""
@@ -138,7 +155,9 @@ def _comparison_table(results: StudyResults, title: str, caption: str, metrics: 
         numbers = paper_numbers()
         for key, name in PAPER_METHODS.items():
             for column, label, _ in metrics:
-                cells = _paper_cells(columns, lambda route, noise: numbers.get((key, route, noise, column)))
+                cells = _paper_cells(
+                    columns, lambda route, noise, key=key, column=column: numbers.get((key, route, noise, column))
+                )
                 if any(c.value is not None for c in cells):  # the paper has no APE or RPE
                     table.add_row((f"{name} (paper)", label), cells)
     table.mark_best()
@@ -152,10 +171,12 @@ def _has_runs(results: StudyResults, method: str, camera: RowGroup | str | None)
 
 def accuracy_table(results: StudyResults) -> Table:
     return _comparison_table(
-        results, "Table 1: accuracy",
+        results,
+        "Table 1: accuracy",
         "E_trans (unitless), E_rot (deg/m) and ATE (m, no alignment): mean ± std over the n seeds; "
         "lower is better, the best of each column in bold.",
-        [(metric, METRIC_LABELS[metric], 1.0) for metric in ACCURACY_METRICS], paper_accuracy,
+        [(metric, METRIC_LABELS[metric], 1.0) for metric in ACCURACY_METRICS],
+        paper_accuracy,
     )
 
 
@@ -166,11 +187,13 @@ def field_table(results: StudyResults) -> Table:
     """The field's metrics (as evo computes them) of each method: the paper has no such numbers."""
     align = results.config.get("align", "none")
     return _comparison_table(
-        results, "Table 1b: APE and RPE",
+        results,
+        "Table 1b: APE and RPE",
         f"The field's standard metrics, as evo computes them (alignment: {align}): APE RMSE (m) of the "
         "positions; RPE RMSE over consecutive 1 m segments of ground-truth path, translation (m) and "
         "rotation (deg); mean ± std over the n seeds; lower is better, the best of each column in bold.",
-        [(metric, label, 1.0) for metric, label in FIELD_METRICS], lambda: {},
+        [(metric, label, 1.0) for metric, label in FIELD_METRICS],
+        lambda: {},
     )
 
 
@@ -178,19 +201,24 @@ def _paper_memory_mb() -> dict:
     """The paper's Table 2 (GB) in MB, the one memory unit of the report and the CLI."""
     from longslam.study.paper import PaperValue
 
-    return {(*key, "peak_rss_bytes"): PaperValue(1000 * value.mean, None, format_number(1000 * value.mean))
-            for key, value in paper_memory_gb().items()}
+    return {
+        (*key, "peak_rss_bytes"): PaperValue(1000 * value.mean, None, format_number(1000 * value.mean))
+        for key, value in paper_memory_gb().items()
+    }
 
 
 def memory_table(results: StudyResults) -> Table:
     return _comparison_table(
-        results, "Table 2: peak memory",
+        results,
+        "Table 2: peak memory",
         "Peak resident memory (MB, 10^6 bytes) of the run: the highest VmHWM of the run's own process, "
         "which runs nothing but that run, read by longslam's harness inside that process once the "
         "method has finished and its files are written (so Python, the frame reader and writing the "
-        "files are in it; the scoring after is not); mean ± std over the n seeds; lower is better, the best of each column in bold. "
+        "files are in it; the scoring after is not); mean ± std over the n seeds; lower is better, the best of "
+        "each column in bold. "
         "The paper's rows are its Table 2 (GB) in MB.",
-        [("peak_rss_bytes", "", 1e-6)], _paper_memory_mb,
+        [("peak_rss_bytes", "", 1e-6)],
+        _paper_memory_mb,
     )
 
 
@@ -204,7 +232,9 @@ MAP_ROWS = (
 
 
 def map_table(results: StudyResults) -> Table | None:
-    with_maps = [m for m in results.methods if any(r["map_precision"] is not None for r in results.ok if r["method"] == m)]
+    with_maps = [
+        m for m in results.methods if any(r["map_precision"] is not None for r in results.ok if r["method"] == m)
+    ]
     if not with_maps:
         return None
     tolerance = results.config.get("map_tolerance_cells", 2)
@@ -216,7 +246,9 @@ def map_table(results: StudyResults) -> Table | None:
         "loses only the first pair), and the share of those walls the aligned map shows twice, a corridor "
         "width apart (a fake corridor; lower is better); mean ± std over the seeds; the best of each "
         "column in bold.",
-        results.columns, [], group_title=results.group_title or "camera",
+        results.columns,
+        [],
+        group_title=results.group_title or "camera",
     )
     for method in with_maps:
         for camera in results.row_cameras:
@@ -225,11 +257,20 @@ def map_table(results: StudyResults) -> Table | None:
             for column, label in MAP_ROWS:
                 cells = []
                 for route, noise in results.columns:
-                    values = [v for r in results.ok
-                              if (r["method"], r["route"], r["noise"]) == (method, route, noise) and on_camera(r, camera)
-                              and (v := r.get(column)) is not None]  # studies recorded before a column have none
-                    cells.append(Cell(format_mean_std(values), float(np.mean(values)) if values else None,
-                                      link=f"#{runs_anchor(route, noise, method, camera)}" if values else None))
+                    values = [
+                        v
+                        for r in results.ok
+                        if (r["method"], r["route"], r["noise"]) == (method, route, noise)
+                        and on_camera(r, camera)
+                        and (v := r.get(column)) is not None
+                    ]  # studies recorded before a column have none
+                    cells.append(
+                        Cell(
+                            format_mean_std(values),
+                            float(np.mean(values)) if values else None,
+                            link=f"#{runs_anchor(route, noise, method, camera)}" if values else None,
+                        )
+                    )
                 if label != "precision" and label != "recall" and all(c.value is None for c in cells):
                     continue
                 table.add_row((method, label), cells, camera)
@@ -245,8 +286,16 @@ def runs_table(results: StudyResults) -> Table:
         "own processing time, the real-time factor (simulated seconds per second of the method's "
         "processing) and the frames per run; and the runs starved of CPU (their threads waited for a core for "
         "more than 10% of their time) with the largest CPU wait share.",
-        [("", "runs ok / failed"), ("", "time per run [s]"), ("", "method time [s]"), ("", "real-time factor"), ("", "frames"),
-         ("", "starved"), ("", "CPU wait share, max")], [],
+        [
+            ("", "runs ok / failed"),
+            ("", "time per run [s]"),
+            ("", "method time [s]"),
+            ("", "real-time factor"),
+            ("", "frames"),
+            ("", "starved"),
+            ("", "CPU wait share, max"),
+        ],
+        [],
         group_title=results.group_title or "camera",
     )
     for method in results.methods:
@@ -255,13 +304,24 @@ def runs_table(results: StudyResults) -> Table:
             if not mine:
                 continue
             ok = [r for r in mine if r["status"] == "ok"]
-            def mean(column: str, form=format_number) -> str:
+
+            def mean(column: str, form=format_number, ok=ok) -> str:
                 values = [r[column] for r in ok if r.get(column) is not None]
                 return form(float(np.mean(values))) if values else "–"
-            table.add_row((method, ""), [Cell(f"{len(ok)} / {len(mine) - len(ok)}"), Cell(mean("elapsed_s")),
-                                         Cell(mean("method_time_s")), Cell(mean("real_time_factor", format_real_time_factor)),
-                                         Cell(mean("frames")), Cell(_starved(ok)), Cell(_max(ok, "cpu_wait_share"))],
-                          camera)
+
+            table.add_row(
+                (method, ""),
+                [
+                    Cell(f"{len(ok)} / {len(mine) - len(ok)}"),
+                    Cell(mean("elapsed_s")),
+                    Cell(mean("method_time_s")),
+                    Cell(mean("real_time_factor", format_real_time_factor)),
+                    Cell(mean("frames")),
+                    Cell(_starved(ok)),
+                    Cell(_max(ok, "cpu_wait_share")),
+                ],
+                camera,
+            )
     return table
 
 
@@ -291,13 +351,20 @@ def paper_tables() -> list[Table]:
             accuracy.row_labels.append((name, METRIC_LABELS[metric]))
             accuracy.rows.append(cells)
     accuracy.mark_best()
-    memory = Table("The paper's Table 2 as published",
-                   f"{CITATION}, Table 2: memory, in MB (the paper gives GB) like every memory figure of this report.",
-                   columns, [])
+    memory = Table(
+        "The paper's Table 2 as published",
+        f"{CITATION}, Table 2: memory, in MB (the paper gives GB) like every memory figure of this report.",
+        columns,
+        [],
+    )
     mem = _paper_memory_mb()
     for key, name in PAPER_METHODS.items():
         memory.row_labels.append((name, ""))
-        memory.rows.append([Cell(mem[(key, route, noise, "peak_rss_bytes")].text, mem[(key, route, noise, "peak_rss_bytes")].mean)
-                            for route, noise in columns])
+        memory.rows.append(
+            [
+                Cell(mem[(key, route, noise, "peak_rss_bytes")].text, mem[(key, route, noise, "peak_rss_bytes")].mean)
+                for route, noise in columns
+            ]
+        )
     memory.mark_best()
     return [accuracy, memory]
