@@ -64,25 +64,13 @@ def run_frames(
         if context.output_dir is not None:
             log = stack.enter_context(native_output_to(Path(context.output_dir) / CONSOLE_LOG))
             context = dataclasses.replace(context, console_log=str(log))
-        return _run_method(method, frames, context, total, progress, observer, baseline_rss)
-
-
-def _run_method(
-    choice: MethodChoice,
-    frames: Iterable[Frame],
-    context: MethodContext,
-    total: int | None,
-    progress: bool,
-    observer: RunObserver | None,
-    baseline_rss: int,
-) -> tuple[Result, RunMeasurements]:
-    method = choice.spec.build(context, choice.config)
-    try:
-        return _feed(choice, method, frames, context, total, progress, observer, baseline_rss)
-    except BaseException:  # an error or Ctrl-C before finish returned: nothing of the method outlives the run
-        if isinstance(method, Closable):
-            method.close()
-        raise
+        built = method.spec.build(context, method.config)
+        try:
+            return _feed(method, built, frames, context, total, progress, observer, baseline_rss)
+        except BaseException:  # an error or Ctrl-C before finish returned: nothing of the method outlives the run
+            if isinstance(built, Closable):
+                built.close()
+            raise
 
 
 # What a method's code may raise and still be reporting, not breaking: longslam's own errors (a

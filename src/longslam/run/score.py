@@ -222,22 +222,9 @@ def read_source(
     return trajectory, fmt, str(path)
 
 
-def score_files(
-    estimate: str | Path,
-    truth: str | Path,
-    align: str | bool = "none",
-    max_diff: float = MAX_DIFF,
-    min_step: float = MIN_STEP,
-    warnings: list[str] | None = None,
-    offset: float = 0.0,
-    estimate_topic: str | None = None,
-    truth_topic: str | None = None,
-    **options: Any,
-) -> dict[str, Any]:
-    """`score_files_full`'s scores."""
-    return score_files_full(
-        estimate, truth, align, max_diff, min_step, warnings, offset, estimate_topic, truth_topic, **options
-    ).scores
+def score_files(*args: Any, **kwargs: Any) -> dict[str, Any]:
+    """`score_files_full`'s scores (the same arguments)."""
+    return score_files_full(*args, **kwargs).scores
 
 
 def score_files_full(
