@@ -602,7 +602,7 @@ def test_ros2_folder_without_metadata_and_one_topic_in_two_roles(seq, tmp_path, 
 
 def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
     pytest.importorskip("trimesh")
-    from building_mesh import write_building
+    from longslam.world.wing_building import write_building
 
     ply, _ = write_building(tmp_path / "b")
     assert main(["world", "--world", str(ply), "--units", "mm", "--out", str(tmp_path / "p.png")]) == 2

@@ -4,10 +4,15 @@ of the wing is axis-aligned. Every surface is a mosaic of 0.25 m tiles of random
 colours in the PLY, a texture in the GLB), so the SLAM methods find visual features in it.
 
 The GLB is written y-up, as glTF wants it (and as Habitat's scenes are); the PLY z-up.
+
+It lives in the package, not with the tests, because the tests, `benchmarks/own_building.py` and
+`benchmarks/held_out.py` all drive it: `write_building` writes the meshes, `write_loop_route` them
+and a route file through the hall and the wing.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -113,3 +118,17 @@ def write_building(folder: Path, seed: int = 0) -> tuple[Path, Path]:
     glb = folder / "building.glb"
     trimesh.Trimesh(y_up, faces, visual=visual, process=False).export(glb)
     return ply, glb
+
+
+# A 49 m loop that drives the hall and the wing twice, so a method can close a loop across the
+# angled wing's walls.
+LOOP_WAYPOINTS = ((1.0, 1.0), (8.5, 2.6), WING_END, (8.5, 2.6), (1.5, 3.2), (1.0, 1.0), (8.5, 2.6), WING_END)
+
+
+def write_loop_route(folder: Path, seed: int = 0) -> Path:
+    """Write the building (`write_building`) and loop.json, a route file of LOOP_WAYPOINTS whose
+    world is building.glb, into `folder`; returns the route file's path."""
+    write_building(folder, seed)
+    route = folder / "loop.json"
+    route.write_text(json.dumps({"world": "building.glb", "waypoints": [list(map(float, w)) for w in LOOP_WAYPOINTS]}))
+    return route
