@@ -29,8 +29,8 @@ A dead reckoning that moved means the sequence itself changed (the simulator), n
 The record, benchmarks/held_out.json, holds each row's ATE and the commit and date it was run at.
 Without --record the record is only read; with --record the rows run now replace theirs in it
 (rows not run now are kept, with their own commit). --resume skips a sequence folder that exists
-and a run whose folder has a trajectory.txt: only for runs of the same code (a run folder does not
-say which code made it). Exit status 1 when a run failed.
+and a run whose folder has a trajectory.txt and was made by the same code (the commit in its
+stats.json, or one with no change under src/ or plugins/ since). Exit status 1 when a run failed.
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # This checkout's code simulates, runs and scores, whichever longslam the interpreter has installed.
 sys.path.insert(0, str(ROOT / "src"))
 
+from longslam.run.provenance import source_commit  # noqa: E402
 from longslam.run.score import score_files  # noqa: E402
 
 ROUTES = ("paper-300m", "paper-1km", "annex-tour", "wing-loop")
@@ -206,10 +207,21 @@ def git(*args: str) -> str:
 
 
 def code_commit() -> str:
-    """HEAD's short hash, with '+changes' when files under src/ or plugins/ differ from it: a
-    record made then is of code no commit holds."""
-    changed = git("status", "--porcelain", "--", "src", "plugins")
-    return git("rev-parse", "--short=7", "HEAD") + ("+changes" if changed else "")
+    """The commit of the code that runs, as a run folder's stats.json names it ('+dirty' when
+    files under src/ or plugins/ differ from it: a record made then is of code no commit holds)."""
+    return source_commit() or "unknown"
+
+
+def same_code(run_commit: str | None, commit: str) -> bool:
+    """Whether a run made at `run_commit` ran the code of `commit`: the same commit, or two
+    commits with no change under src/ or plugins/ between them (neither with uncommitted changes)."""
+    if not run_commit or "+" in run_commit or "+" in commit or commit == "unknown":
+        return False
+    if run_commit == commit:
+        return True
+    diff = subprocess.run(["git", "-C", str(ROOT), "diff", "--quiet", run_commit, commit, "--", "src", "plugins"],
+                          capture_output=True)
+    return diff.returncode == 0
 
 
 def longslam(args: list[str], log: Path) -> int:
@@ -237,8 +249,8 @@ def route_argument(route: str, work: Path) -> str:
 class Runner:
     """Sequences and runs under `work`, counted for the progress lines."""
 
-    def __init__(self, work: Path, methods: list[str], resume: bool, total: int) -> None:
-        self.work, self.methods, self.resume, self.total = work, methods, resume, total
+    def __init__(self, work: Path, methods: list[str], resume: bool, total: int, commit: str) -> None:
+        self.work, self.methods, self.resume, self.total, self.commit = work, methods, resume, total, commit
         self.done = 0
         self.start = time.perf_counter()
 
@@ -263,11 +275,13 @@ class Runner:
         return path
 
     def run(self, seq: Path, method: str) -> float | None:
-        """The run's ATE (reused with --resume when its folder has a trajectory); None if it failed."""
+        """The run's ATE; None if it failed. With --resume a run folder of the same code (its
+        stats.json's commit) is reused: the methods are deterministic, so running it again would
+        give the same trajectory."""
         out = self.work / "runs" / seq.name / method
         trajectory = out / "trajectory.txt"
         started = time.perf_counter()
-        reused = self.resume and trajectory.exists()
+        reused = self.resume and trajectory.exists() and same_code(self._run_commit(out), self.commit)
         if not reused:
             out.parent.mkdir(parents=True, exist_ok=True)
             status = longslam(["run", str(seq), "--method", method, "--out", str(out), "--overwrite"],
@@ -279,6 +293,13 @@ class Runner:
         how = "reused" if reused else f"{time.perf_counter() - started:.0f} s"
         self._progress(f"{seq.name} {method}: ATE {ate:.3f} m ({how})")
         return ate
+
+    @staticmethod
+    def _run_commit(out: Path) -> str | None:
+        try:
+            return json.loads((out / "stats.json").read_text()).get("longslam_commit")
+        except (OSError, ValueError):
+            return None
 
     def cell(self, route: str, noise: str, seed: int) -> dict[Key, float | None]:
         """Every method's ATE on one sequence, dead reckoning's first (it is quick)."""
@@ -303,7 +324,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--jobs", type=int, default=1, help="runs at once, each its own process (default 1)")
     parser.add_argument("--work", default="out/held-out", help="folder for sequences, runs and logs (default out/held-out)")
     parser.add_argument("--resume", action="store_true",
-                        help="reuse sequences and runs already under --work (only for the same code)")
+                        help="reuse the sequences under --work, and the runs there made by the same code")
     parser.add_argument("--record", action="store_true", help=f"write this run's ATEs into {RECORD.name}")
     parser.add_argument("--record-file", type=Path, default=RECORD, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -322,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:
     # The longest routes first, so that the last runs of a parallel pool are short ones.
     length = {"paper-1km": 0, "annex-tour": 1, "paper-300m": 2, WING_LOOP: 3}
     cells = sorted(((r, n, s) for r in args.routes for n in args.noises for s in args.seeds), key=lambda c: length[c[0]])
-    runner = Runner(work, args.methods, args.resume, len(cells) * (1 + len(args.methods)))
+    runner = Runner(work, args.methods, args.resume, len(cells) * (1 + len(args.methods)), commit)
     print(f"held-out benchmark at {commit}: routes {' '.join(args.routes)}, noise {' '.join(args.noises)}, "
           f"seeds {' '.join(map(str, args.seeds))}, methods {' '.join(args.methods)} and dead reckoning; "
           f"{args.jobs} at once, work {work}")
@@ -350,7 +371,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\nfailed: {', '.join(key_text(k) for k in failed)}")
     if args.record:
         date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-        write_record(args.record_file, updated_record(record, ates, commit, date))
+        # Read again: another run of the benchmark (other routes) may have recorded since this one began.
+        write_record(args.record_file, updated_record(read_record(args.record_file), ates, commit, date))
         print(f"\nrecorded {sum(a is not None for a in ates.values())} rows at {commit} in {args.record_file}")
     return 1 if failed else 0
 

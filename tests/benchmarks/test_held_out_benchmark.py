@@ -114,3 +114,10 @@ def test_the_options():
 
 def test_no_published_seed_is_held_out():
     assert not set(held_out.SEEDS) & {0, 1, 2, 3, 4, 7, 8, 31, 32}
+
+
+def test_resume_reuses_only_runs_of_the_same_code():
+    assert held_out.same_code("abc1234", "abc1234")
+    assert not held_out.same_code("abc1234+dirty", "abc1234")
+    assert not held_out.same_code("abc1234", "abc1234+dirty")
+    assert not held_out.same_code(None, "abc1234")
