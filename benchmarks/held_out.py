@@ -138,7 +138,10 @@ def _metres(value: float | None) -> str:
 
 
 def _percent(share: float | None) -> str:
-    return "-" if share is None else f"{100 * share:+.1f} %"
+    if share is None:
+        return "-"
+    # The record keeps 6 decimals, so an unchanged row can differ by a rounding: not "-0.0 %".
+    return f"{100 * share:+.1f} %" if round(100 * share, 1) != 0 else "0.0 %"
 
 
 def _table(head: list[str], cells: list[list[str]], left: int) -> list[str]:
@@ -364,8 +367,10 @@ def main(argv: list[str] | None = None) -> int:
     if flagged:
         print(f"\n<< {len(flagged)} rows moved more than {MOVED:.0%} from the record"
               + ("; dead reckoning moved too, so the sequences changed" if any(k[3] == DEAD_RECKONING for k in flagged) else ""))
-    elif record.commit:
-        print(f"\nno row moved more than {MOVED:.0%} from the record")
+    else:
+        compared = sum(a is not None and k in record.ates for k, a in ates.items())
+        print(f"\nnone of the {compared} rows the record has moved more than {MOVED:.0%}" if compared
+              else "\nthe record has none of these rows")
     failed = [k for k, a in ates.items() if a is None]
     if failed:
         print(f"\nfailed: {', '.join(key_text(k) for k in failed)}")

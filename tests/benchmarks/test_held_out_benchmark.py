@@ -60,6 +60,7 @@ def test_more_than_20_percent_either_way_is_flagged():
     assert not held_out.moved(held_out.change(0.081, 0.100))
     assert held_out.change(None, 0.1) is None and held_out.change(0.1, None) is None
     assert not held_out.moved(None)
+    assert held_out._percent(-1e-7) == "0.0 %" and held_out._percent(0.25) == "+25.0 %"
 
 
 def test_the_row_table_flags_the_row_that_moved(record):
