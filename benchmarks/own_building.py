@@ -5,7 +5,7 @@ method's accuracy, memory and speed on a route through it.
     python benchmarks/own_building.py --route myroute.json --seeds 0 1 2 --compare demo
     python benchmarks/own_building.py --render-only                    # loading and render speed, seconds
 
-Without --route, the test suite's generated building (tests/helpers/building_mesh.py: a hall and a wing
+Without --route, the generated test building (longslam.world.wing_building: a hall and a wing
 at 30 degrees, written as GLB) is written to a temporary folder with a 49 m loop route through
 it. --compare names a university route run the same way (default demo). Render speed is one
 core's (Open3D given one thread) at the default 320 x 240 camera, along the route's ground truth.
@@ -14,8 +14,6 @@ core's (Open3D given one thread) at the default 320 x 240 camera, along the rout
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -27,18 +25,12 @@ from longslam.sim.camera import CameraSettings, RGBDCamera
 from longslam.sim.drive import camera_trajectory, drive_route
 from longslam.sim.routes import get_route
 from longslam.world import load_world
+from longslam.world.wing_building import write_loop_route
 
 
 def test_building(folder: Path) -> Path:
-    """The test suite's building and a loop through it that drives the hall and the wing twice."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the generator lives with the tests
-    from helpers.building_mesh import WING_END, write_building
-
-    write_building(folder)
-    route = folder / "loop.json"
-    waypoints = [[1.0, 1.0], [8.5, 2.6], list(WING_END), [8.5, 2.6], [1.5, 3.2], [1.0, 1.0], [8.5, 2.6], list(WING_END)]
-    route.write_text(json.dumps({"world": "building.glb", "waypoints": waypoints}))
-    return route
+    """The test building and a loop through it that drives the hall and the wing twice."""
+    return write_loop_route(folder)
 
 
 def render_speed(route_arg: str, frames: int = 300) -> tuple[float, dict]:

@@ -210,7 +210,7 @@ def test_evaluate_warns_on_partial_coverage_and_on_another_sequence(tmp_path, ca
 
 def test_units_mm_on_a_metre_mesh_says_so(tmp_path, capsys):
     pytest.importorskip("trimesh")
-    from helpers.building_mesh import write_building
+    from longslam.world.wing_building import write_building
 
     ply, _ = write_building(tmp_path / "b")
     assert main(["world", "--world", str(ply), "--units", "mm", "--out", str(tmp_path / "p.png")]) == 2

@@ -1,7 +1,7 @@
 """What several test files share, named by what it makes or checks (fixtures stay in conftest.py):
 
 - `tiny_sequences`: tiny synthetic sequences written in a moment (`write_tiny_sequence`);
-- `building_mesh`: a generated building of a shape the university does not have, as a mesh file;
+- (the generated building with a wing at 30 degrees is `longslam.world.wing_building`, which the benchmarks use too);
 - `flat_walls`: flat walls rendered by the paper's camera;
 - `pose_graphs`: a square route and a drifting odometry for pose-graph tests;
 - `tiny_vocabulary`: the smallest sound ORB vocabulary file;

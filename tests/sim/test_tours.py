@@ -78,7 +78,7 @@ def test_a_tour_between_places_at_one_spot_is_refused_at_once(tmp_path, capsys, 
     import signal
     import time
 
-    from helpers.building_mesh import write_building
+    from longslam.world.wing_building import write_building
 
     monkeypatch.setenv("LONGSLAM_CACHE", str(tmp_path / "cache"))
     ply, _ = write_building(tmp_path / "b")

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from helpers.building_mesh import WING_END, write_building
+from longslam.world.wing_building import WING_END, write_building
 from longslam.cli.main import main
 from longslam.core.errors import InputError
 from longslam.sim.simulate import cache_key

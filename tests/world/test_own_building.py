@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from helpers.building_mesh import CRATE, WING_END, WING_MID, write_building
+from longslam.world.wing_building import CRATE, WING_END, WING_MID, write_building
 from longslam.cli.main import main
 from longslam.core.gridmap import FREE, OCCUPIED
 from longslam.io.sequence import SequenceReader

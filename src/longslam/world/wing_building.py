@@ -4,10 +4,15 @@ of the wing is axis-aligned. Every surface is a mosaic of 0.25 m tiles of random
 colours in the PLY, a texture in the GLB), so the SLAM methods find visual features in it.
 
 The GLB is written y-up, as glTF wants it (and as Habitat's scenes are); the PLY z-up.
+
+It lives in the package, not with the tests, because the tests, `benchmarks/own_building.py` and
+`benchmarks/held_out.py` all drive it: `write_building` writes the meshes, `write_loop_route` them
+and a route file through the hall and the wing.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -30,9 +35,18 @@ def _x_crossing(point: np.ndarray) -> np.ndarray:
 
 _LOW, _HIGH = _START - _N * _W / 2, _START + _N * _W / 2  # corners of the wing's base
 # The outline of the free floor, counter-clockwise.
-OUTLINE = np.array([
-    (0.0, 0.0), (10.0, 0.0), _x_crossing(_LOW), _LOW + _L * _D, _HIGH + _L * _D, _x_crossing(_HIGH), (10.0, 4.0), (0.0, 4.0),
-])
+OUTLINE = np.array(
+    [
+        (0.0, 0.0),
+        (10.0, 0.0),
+        _x_crossing(_LOW),
+        _LOW + _L * _D,
+        _HIGH + _L * _D,
+        _x_crossing(_HIGH),
+        (10.0, 4.0),
+        (0.0, 4.0),
+    ]
+)
 FLOOR_PIECES = [OUTLINE[[0, 1, 6, 7]], OUTLINE[[2, 3, 4, 5]]]  # the hall and the wing, both convex
 CRATE = ((3.0, 1.7), (3.5, 2.3), 1.0)  # x0, y0 / x1, y1 / height
 WING_END = tuple(_START + (_L - 1.2) * _D)  # a point on the floor near the end of the wing
@@ -60,8 +74,13 @@ def _convex_floor_tiles(polygon: np.ndarray, z: float) -> list[np.ndarray]:
     def at(s, t):
         return (1 - s) * (1 - t) * a + s * (1 - t) * b + s * t * c + (1 - s) * t * d
 
-    return [np.array([at(i / nu, j / nv), at((i + 1) / nu, j / nv), at((i + 1) / nu, (j + 1) / nv), at(i / nu, (j + 1) / nv)])
-            for i in range(nu) for j in range(nv)]
+    return [
+        np.array(
+            [at(i / nu, j / nv), at((i + 1) / nu, j / nv), at((i + 1) / nu, (j + 1) / nv), at(i / nu, (j + 1) / nv)]
+        )
+        for i in range(nu)
+        for j in range(nv)
+    ]
 
 
 def building_quads() -> list[np.ndarray]:
@@ -108,8 +127,24 @@ def write_building(folder: Path, seed: int = 0) -> tuple[Path, Path]:
     uv[:, 1] = 1.0 - uv[:, 1]  # trimesh's uvs have v up
     y_up = np.column_stack([vertices[:, 0], vertices[:, 2], -vertices[:, 1]])
     # A colour factor of 1: trimesh would otherwise write its default diffuse, 0.4, which glTF multiplies in.
-    material = trimesh.visual.material.PBRMaterial(baseColorTexture=Image.fromarray(image), baseColorFactor=[255, 255, 255, 255])
+    material = trimesh.visual.material.PBRMaterial(
+        baseColorTexture=Image.fromarray(image), baseColorFactor=[255, 255, 255, 255]
+    )
     visual = trimesh.visual.TextureVisuals(uv=uv, material=material)
     glb = folder / "building.glb"
     trimesh.Trimesh(y_up, faces, visual=visual, process=False).export(glb)
     return ply, glb
+
+
+# A 49 m loop that drives the hall and the wing twice, so a method can close a loop across the
+# angled wing's walls.
+LOOP_WAYPOINTS = ((1.0, 1.0), (8.5, 2.6), WING_END, (8.5, 2.6), (1.5, 3.2), (1.0, 1.0), (8.5, 2.6), WING_END)
+
+
+def write_loop_route(folder: Path, seed: int = 0) -> Path:
+    """Write the building (`write_building`) and loop.json, a route file of LOOP_WAYPOINTS whose
+    world is building.glb, into `folder`; returns the route file's path."""
+    write_building(folder, seed)
+    route = folder / "loop.json"
+    route.write_text(json.dumps({"world": "building.glb", "waypoints": [list(map(float, w)) for w in LOOP_WAYPOINTS]}))
+    return route
