@@ -57,9 +57,14 @@ RENAMED_PARAMS = {
     "frontend.mode": ("frontend", "6bd1c3d"),
 }
 
-# Checks a method's parameters in a side's own code, as its `longslam run` would (no frames read).
-PROBE = ("import sys; from longslam.core.settings import parse_key_values; "
-         "from longslam.slam.catalog import check_params; check_params(sys.argv[1], parse_key_values(sys.argv[2:]))")
+# Checks a method's parameters in a side's own code, as its `longslam run` would (no frames read);
+# `parse_key_values` is in `longslam.core.settings` since the package's restructure, in
+# `longslam.settings` before it.
+PROBE = ("import sys\n"
+         "try:\n    from longslam.core.settings import parse_key_values\n"
+         "except ImportError:\n    from longslam.settings import parse_key_values\n"
+         "from longslam.slam.catalog import check_params\n"
+         "check_params(sys.argv[1], parse_key_values(sys.argv[2:]))")
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -198,7 +203,8 @@ def measure(src: Path, seq: Path, method: str, pairs: list[str], out: Path) -> d
     """One `longslam run` of the code under `src`: wall_s, peak_mb, ate_m (and the run's own
     stats.json peak), or failed (its exit status)."""
     out.parent.mkdir(parents=True, exist_ok=True)
-    command = [sys.executable, "-m", "longslam", "run", str(seq), "--method", method, "--out", str(out), "--overwrite"]
+    # `-m longslam.cli` runs the command in every revision (`-m longslam` only since the restructure).
+    command = [sys.executable, "-m", "longslam.cli", "run", str(seq), "--method", method, "--out", str(out), "--overwrite"]
     for pair in pairs:
         command += ["--param", pair]
     wall, peak_mib, cpu, status = run_process_usage(command, out.with_name(out.name + ".log"), env=side_env(src))
