@@ -46,7 +46,7 @@ def imports_by_part(package: Path = PACKAGE) -> dict[str, dict[str, list[str]]]:
                 names = [a.name for a in node.names]
             for name in names:
                 there = part_of(name)
-                if there is not None and there != here and (PACKAGE / there).exists() | (PACKAGE / f"{there}.py").exists():
+                if there is not None and there != here and ((package / there).exists() or (package / f"{there}.py").exists()):
                     found[here][there].append(f"{relative}:{node.lineno}")
     return {part: dict(targets) for part, targets in found.items()}
 

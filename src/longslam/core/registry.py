@@ -53,7 +53,7 @@ class Registry(Generic[T]):
         self.entry_point_group = entry_point_group
         self._accept = accept
         self._items: dict[str, T | _Lazy] = {}
-        self._plugins_by_path: dict[tuple[str, ...], dict[str, EntryPoint]] = {}
+        self._plugins_seen: tuple[tuple[str, ...], dict[str, EntryPoint]] | None = None  # (sys.path, plugins)
 
     def register(self, name: str, item: T) -> T:
         if name in self._items:
@@ -76,13 +76,13 @@ class Registry(Generic[T]):
     def _plugins(self) -> dict[str, EntryPoint]:
         if self.entry_point_group is None:
             return {}
-        # Keyed on sys.path: a package made importable later (a test, a notebook) is then found.
+        # Read again when sys.path changes: a package made importable later (a test, a notebook) is
+        # then found; one entry, as the path changes and never changes back for good.
         key = tuple(sys.path)
-        if key not in self._plugins_by_path:
-            self._plugins_by_path[key] = {
-                ep.name: ep for ep in entry_points(group=self.entry_point_group) if ep.name not in self._items
-            }
-        return self._plugins_by_path[key]
+        if self._plugins_seen is None or self._plugins_seen[0] != key:
+            found = {ep.name: ep for ep in entry_points(group=self.entry_point_group) if ep.name not in self._items}
+            self._plugins_seen = (key, found)
+        return self._plugins_seen[1]
 
     def builtin_names(self) -> list[str]:
         return list(self._items)

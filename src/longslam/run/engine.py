@@ -79,15 +79,17 @@ _REPORTED = (LongslamError, OSError, MemoryError, KeyboardInterrupt, SystemExit)
 
 
 @contextlib.contextmanager
-def _method_code(method_name: str, call: str) -> Iterator[None]:
+def _method_code(method_name: str, call: str, frame: int | None = None) -> Iterator[None]:
     """Around a call into a method: any other exception is the method's bug, raised as a MethodError
-    that names the method and the call, chained to the original so its traceback is kept."""
+    that names the method and the call (of `frame`), chained to the original so its traceback is
+    kept. The message is made only on failure: this wraps every step."""
     try:
         yield
     except _REPORTED:
         raise
     except Exception as err:
-        raise MethodError(f"method {method_name!r}: {call} raised {type(err).__name__}: {err}") from err
+        where = call if frame is None else f"{call} of frame {frame}"
+        raise MethodError(f"method {method_name!r}: {where} raised {type(err).__name__}: {err}") from err
 
 
 def _feed(
@@ -111,7 +113,7 @@ def _feed(
             with meter.observer():
                 observer.start(method, context)
         for frame in bar(frames, total=total, desc=method_name, unit="frame", disable=not progress, leave=False):
-            with meter.step(), _method_code(method_name, f"step() of frame {frame.index}"):
+            with meter.step(), _method_code(method_name, "step()", frame.index):
                 pose = method.step(frame)
             if np.shape(pose) != (4, 4):
                 raise MethodError(

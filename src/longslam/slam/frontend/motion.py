@@ -217,7 +217,7 @@ class FrontEnd:
         }
         self._axes = WallAxes(self.config.wall_axes) if self.config.wall_axes.use else None
         self._range_sum = 0.0  # of the trusted ranges of the frames whose depth was limited
-        self._depth_limit: tuple[int, float | None] | None = None  # (frame index, its trusted range)
+        self._depth_limit: float | None = None  # the latest fused frame's trusted range
         self._depth: np.ndarray | None = None
 
     # --- per frame ---------------------------------------------------------------------------
@@ -244,9 +244,10 @@ class FrontEnd:
         self._online.append(pose)
         self.counts["frames"] += 1
         self._time += time.perf_counter() - t0
-        measured = self._depth_limit is not None and self._depth_limit[0] == frame.index
-        limit = self._depth_limit[1] if measured and self._depth_limit is not None else None
-        return FrameStep(frame.index, pose.copy(), self.config.depth_trust, measured, limit)
+        # A fused step measured this frame's trusted range; on wheels alone the method measures it.
+        fused = self.config.mode == "fused"
+        limit = self._depth_limit if fused else None
+        return FrameStep(frame.index, pose.copy(), self.config.depth_trust, fused, limit)
 
     @property
     def images_every_frame(self) -> tuple[str, ...]:
@@ -318,7 +319,7 @@ class FrontEnd:
         # Scans and tracked corners only where the frame's own depth noise allows (depth_trust).
         sigma_w = measured_noise(frame.depth, cfg.depth_trust)
         limit = range_for_noise(sigma_w, cfg.depth_trust)
-        self._depth_limit = (frame.index, limit)
+        self._depth_limit = limit
         weight = scan_weight(sigma_w, cfg.depth_trust)
         if weight < 1.0:
             self.counts["scans_weighted"] += 1
