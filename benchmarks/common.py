@@ -14,12 +14,13 @@ from longslam.core.odometry_noise import get_noise
 from longslam.sim.routes import get_route
 
 
-def sequence(work: Path, route: str, noise: str, seed: int) -> Path:
-    """The sequence (route, noise, seed) under `work`, simulated the first time it is asked for
-    (rendering is cached under LONGSLAM_CACHE, so another noise level or seed is cheap)."""
-    path = work / f"{route}-{noise}-{seed}"
+def sequence(work: Path, route: str, noise: str, seed: int, sensor: str = "ideal") -> Path:
+    """The sequence (route, noise, seed) under `work` through the sensor model `sensor`, simulated
+    the first time it is asked for (rendering is cached under LONGSLAM_CACHE, so another noise
+    level, seed or sensor is cheap)."""
+    path = work / (f"{route}-{noise}-{seed}" if sensor == "ideal" else f"{route}-{sensor}-{noise}-{seed}")
     if not path.exists():
-        simulate(get_route(route), get_noise(noise), seed, path, progress=False)
+        simulate(get_route(route), get_noise(noise), seed, path, progress=False, sensor=sensor)
     return path
 
 

@@ -3,6 +3,7 @@
     python benchmarks/frontend.py [--routes paper-300m] [--noises large xlarge] [--seeds 0 1 2]
                                   [--work /tmp/seqs] [--param key=value ...] [--no-odometry]
                                   [--methods keyframe submap] [--frontends fused wheel]
+                                  [--sensor realsense-d435]
 
 Sequences are simulated once per (route, noise, seed) into --work as ROUTE-NOISE-SEED (frames
 shared through the render cache). For each, prints dead reckoning (the odometry.txt poses),
@@ -92,6 +93,7 @@ def main() -> None:
     ap.add_argument("--noises", nargs="+", default=["large", "xlarge"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     ap.add_argument("--work", type=Path, default=Path("/tmp/seqs"))
+    ap.add_argument("--sensor", default="ideal", help="sensor model the sequences are simulated through")
     ap.add_argument("--param", action="append", default=[], help="front-end parameter key=value (nested: registration.sigma=0.05)")
     ap.add_argument("--no-odometry", action="store_true")
     ap.add_argument("--one-thread", action="store_true", help="OpenCV on one thread (with taskset -c 0: one core)")
@@ -110,7 +112,7 @@ def main() -> None:
     for route in args.routes:
         for noise in args.noises:
             for seed in args.seeds:
-                path = sequence(args.work, route, noise, seed)
+                path = sequence(args.work, route, noise, seed, args.sensor)
                 res = run(path, config, args.no_odometry)
                 base = res.get("dead reckoning")
                 for name in ("dead reckoning", "online", "final"):
