@@ -139,3 +139,13 @@ def test_children_alive_before_the_run_are_not_the_runs():
         earlier.kill()
         earlier.wait()
     assert usage.child_processes == 0 and usage.peak_rss_bytes < monitor._peak_rss + 50 * 2**20
+
+
+def test_threads_sharing_a_name_are_numbered_in_start_order_and_a_unique_name_stays_as_it_is():
+    from longslam.run.process_tree import thread_labels
+
+    # A native system's unnamed threads inherit the process's name; thread ids grow in start order.
+    names = {(10, 12): "longslam", (10, 10): "longslam", (10, 15): "longslam", (10, 11): "longslam-read",
+             (20, 21): "longslam"}
+    assert thread_labels(names) == {(10, 10): "longslam#0", (10, 12): "longslam#1", (10, 15): "longslam#2",
+                                    (10, 11): "longslam-read", (20, 21): "longslam"}

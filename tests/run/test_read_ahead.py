@@ -57,3 +57,67 @@ def test_methods_say_which_images_they_read_every_frame(tiny_sequence, tmp_path)
     assert wanted[("keyframe", "fused")] == ("rgb", "depth")
     assert wanted[("submap", "wheel")] == ("depth",)
     assert wanted[("submap", "fused")] == ("rgb", "depth")
+
+
+def _os_thread_name() -> str:
+    return open(f"/proc/self/task/{threading.get_native_id()}/comm").read().strip()
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="thread names in /proc are Linux's")
+def test_the_reading_thread_carries_its_name_in_proc_so_its_cpu_wait_is_told_apart():
+    names = []
+    frames = _frames(3)
+    for frame in frames:
+        frame._depth = (lambda: (names.append(_os_thread_name()), np.zeros((4, 4), np.float32))[1])
+    list(read_ahead(frames, ("depth",), ahead=1))
+    assert names == ["longslam-read"] * 3
+
+
+class _Watcher:
+    """A method that looks at every frame's depth and records which OS thread decoded it."""
+
+    images_every_frame = ("depth",)
+
+    def __init__(self, context, config):
+        self.stamps = []
+
+    def step(self, frame):
+        self.stamps.append(frame.timestamp)
+        frame.depth
+        return np.eye(4)
+
+    def finish(self):
+        from longslam.core.trajectory import Trajectory
+        from longslam.slam.api import Result
+
+        trajectory = Trajectory(np.array(self.stamps), np.repeat(np.eye(4)[None], len(self.stamps), axis=0))
+        return Result(trajectory, trajectory)
+
+
+@pytest.mark.parametrize("real_time", [False, True])
+def test_a_real_time_system_reads_its_own_frames_and_others_read_ahead(real_time, tiny_sequence, monkeypatch):
+    from dataclasses import dataclass
+
+    from longslam.io.sequence import SequenceReader
+    from longslam.run.engine import run_frames
+    from longslam.slam import catalog
+    from longslam.slam.api import MethodContext, MethodSpec
+
+    @dataclass(frozen=True)
+    class NoConfig:
+        pass
+
+    monkeypatch.setattr(catalog.METHODS, "_items", dict(catalog.METHODS._items))
+    catalog.METHODS.register("watcher", MethodSpec("watcher", NoConfig, _Watcher, "for tests", real_time=real_time))
+    reader = SequenceReader(tiny_sequence)
+    readers = []
+    frames = list(reader)
+    for frame in frames:
+        load = frame._depth
+        frame._depth = (lambda load=load: (readers.append(threading.current_thread().name), load())[1])
+    run_frames(catalog.choose_method("watcher", {}), frames, MethodContext(reader.intrinsics, reader.max_depth), progress=False)
+    assert len(readers) == len(frames)
+    if real_time:
+        assert set(readers) == {threading.current_thread().name}
+    else:
+        assert all(name.startswith("longslam-read") for name in readers)

@@ -105,7 +105,9 @@ def _feed(
     method_name = choice.name
     wanted = set(wanted_images(method)) | set(getattr(observer, "images_every_frame", ()))
     images = tuple(name for name in IMAGES if name in wanted)
-    if images:
+    # A real-time system is fed at the sequence's own rate: reading ahead saves it nothing, and its
+    # thread would compete with the system's own for the cores.
+    if images and not choice.spec.real_time:
         frames = read_ahead(frames, images)
     meter = RunMeter()
     try:

@@ -93,8 +93,9 @@ class TreeUsage:
     peak_rss_bytes: int  # the largest sum of resident memory over the tree in one sample
     child_processes: int  # descendant processes seen
     samples: int
-    # CPU and wait seconds by thread name (a thread's `comm`: "python", a native system's own
-    # names), largest wait first: whose threads waited, the run's own or the harness's.
+    # CPU and wait seconds by thread (`thread_labels`: a thread's `comm`, "python", "longslam-read",
+    # a native system's own names, numbered in start order where a process's threads share one),
+    # largest wait first: whose threads waited, the run's own or the harness's.
     by_thread: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
@@ -168,17 +169,33 @@ class TreeMonitor:
         with self._lock:
             cpu_ns = wait_ns = 0
             named: dict[str, list[int]] = {}
+            labels = thread_labels({key: self._names.get(key, "?") for key in self._latest})
             for key, (cpu, wait) in self._latest.items():
                 base_cpu, base_wait = self._baseline.get(key, (0, 0))
                 cpu_ns += max(0, cpu - base_cpu)
                 wait_ns += max(0, wait - base_wait)
-                totals = named.setdefault(self._names.get(key, "?"), [0, 0])
+                totals = named.setdefault(labels[key], [0, 0])
                 totals[0] += max(0, cpu - base_cpu)
                 totals[1] += max(0, wait - base_wait)
             by_thread = {name: (c * 1e-9, w * 1e-9) for name, (c, w) in sorted(named.items(), key=lambda kv: -kv[1][1])}
             return TreeUsage(
                 cpu_ns * 1e-9, wait_ns * 1e-9, self._peak_rss, len(self._children), self._samples, by_thread
             )
+
+
+def thread_labels(names: dict[tuple[int, int], str]) -> dict[tuple[int, int], str]:
+    """A label per (pid, tid): the thread's name, and where several threads of one process share a
+    name (a native system's unnamed threads inherit the process's), the name with the thread's
+    place in start order, `name#0` first: Linux hands out thread ids in increasing order, so #0
+    is the process's main thread and the others follow in the order they were started."""
+    groups: dict[tuple[int, str], list[int]] = {}
+    for (pid, tid), name in names.items():
+        groups.setdefault((pid, name), []).append(tid)
+    labels = {}
+    for (pid, name), tids in groups.items():
+        for place, tid in enumerate(sorted(tids)):
+            labels[(pid, tid)] = name if len(tids) == 1 else f"{name}#{place}"
+    return labels
 
 
 def schedstat_available() -> bool:
