@@ -56,8 +56,12 @@ def test_list_params_shows_default_allowed_values_and_doc(capsys):
     assert lines["max_features"].startswith("max_features 2000 whole number 1 to 100000 ")
     assert lines["vocabulary_index"].startswith("vocabulary_index hnsw one of bruteforce, flat, hnsw ")
     assert lines["loop_sigma_linear"].startswith("loop_sigma_linear 0.05 (0, inf) ")
-    assert lines["obstacle_min_height"].startswith("obstacle_min_height 0.2 [0, 1.5) ")  # below the max's default
-    assert lines["frontend.camera_height"].startswith("frontend.camera_height none (0, inf) or none ")
+    # A bound relative to another field is checked by hand and said in the doc.
+    assert lines["obstacle_min_height"].startswith("obstacle_min_height 0.2 [0, inf) m ")
+    assert "below obstacle_max_height" in lines["obstacle_min_height"]
+    assert lines["grid_cell"].startswith("grid_cell 0.05 [0.01, 10] m ")
+    assert lines["frontend.camera_height"].startswith("frontend.camera_height none (0, inf) m or none ")
+    assert lines["frontend.scan.cell"].startswith("frontend.scan.cell 0.05 (0, inf) m ")
     assert len(lines) == len(describe(get_spec("keyframe").config_type))
 
 

@@ -78,10 +78,10 @@ def test_a_study_all_of_whose_runs_failed_exits_with_an_error(tmp_path, capsys, 
 
 
 @pytest.mark.parametrize("method, param, needle", [
-    ("submap", "frontend.scan_information_scale=-1", "scan_information_scale must be >= 0 and finite, got -1.0"),
-    ("keyframe", "frontend.max_correction=-0.5", "max_correction must be >= 0 and finite, got -0.5"),
-    ("submap", "frontend.visual_sigma_yaw=0", "visual_sigma_yaw must be > 0 and finite, got 0.0"),
-    ("keyframe", "frontend.scan_anchor_lag=0", "scan_anchor_lag must be at least 1"),
+    ("submap", "frontend.scan_information_scale=-1", "scan_information_scale must be >= 0, got -1.0"),
+    ("keyframe", "frontend.max_correction=-0.5", "max_correction must be >= 0 m, got -0.5"),
+    ("submap", "frontend.visual_sigma_yaw=0", "visual_sigma_yaw must be positive, got 0.0"),
+    ("keyframe", "frontend.scan_anchor_lag=0", "scan_anchor_lag must be >= 1 frames, got 0"),
 ])
 def test_nonsense_front_end_parameters_are_refused_before_the_run(tmp_path, capsys, method, param, needle):
     from helpers.tiny_sequences import write_tiny_sequence

@@ -278,8 +278,9 @@ def test_parameters_are_checked_before_any_frame(tiny, tmp_path, capsys):
         spec.config({"command": "prog {sequence} {nope}"})
     assert "\n" not in str(caught.value) and "{output}" in str(caught.value)  # the valid ones are listed
     for params, needle in (({"command": "prog {fx:zz}"}, "cannot be filled"), ({"command": "prog 'a"}, "quotation"),
-                           ({"format": "g2o"}, "format='g2o'"), ({"frame": "base"}, "frame='base'"),
-                           ({"trajectory": "../x.txt"}, "relative to {output}"), ({"timeout": 0}, "timeout=0")):
+                           ({"format": "g2o"}, "format must be one of tum, euroc, kitti, got 'g2o'"),
+                           ({"frame": "base"}, "frame must be one of optical, robot, got 'base'"),
+                           ({"trajectory": "../x.txt"}, "relative to {output}"), ({"timeout": 0}, "timeout must be in (0, ")):
         with pytest.raises(InputError, match=needle.replace("(", r"\(").replace("{", r"\{")):
             spec.config(params)
     sequence = tiny[0]

@@ -4,9 +4,10 @@ Method parameters (`--param key=value`, a study file's `[params.M]`), camera opt
 a study's `[camera]`) and the follower's settings all come through `from_mapping`: strings from
 the command line and TOML/JSON values alike are converted to each field's type, unknown keys and
 bad values are refused with the key, the value and what is valid, and non-finite numbers are
-refused everywhere. A dataclass checks its own ranges in `__post_init__`, so a config that exists
-is a valid one. `to_mapping` / `to_toml` write a config back, so each run folder can keep the
-settings it ran with (`config.toml`).
+refused everywhere. A dataclass checks its own ranges in `__post_init__` (a method's config against
+each field's declaration, `core/parameter.py`), so a config that exists is a valid one.
+`to_mapping` / `to_toml` write a config back, so each run folder can keep the settings it ran with
+(`config.toml`).
 """
 
 from __future__ import annotations
@@ -222,15 +223,3 @@ def parse_key_values(pairs: list[str], option: str = "--param") -> dict[str, Any
         except json.JSONDecodeError:
             params[key] = value
     return params
-
-
-def check_limits(config: Any, limits: Mapping[str, tuple[float, float, str, str]], what: str) -> None:
-    """Each field named in `limits` within its (least, most, unit, why) range, both ends inclusive:
-    the size-like parameters a method holds to what keeps a run within a machine's memory."""
-    for name, (least, most, unit, why) in limits.items():
-        value = getattr(config, name)
-        if not least <= value <= most:
-            raise InputError(
-                f"{what}: parameter {name} must be from {least:g} to {most:g}"
-                f"{' ' + unit if unit else ''} ({why}), got {value:g}"
-            )

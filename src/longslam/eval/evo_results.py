@@ -20,7 +20,7 @@ import numpy as np
 
 from longslam.core.trajectory import Trajectory
 from longslam.eval.evaluation import Evaluation
-from longslam.eval.metrics import DELTA_UNIT_LABELS  # evo's Unit values for frames, m, deg, rad
+from longslam.eval.metrics import DELTA_UNIT_LABELS, statistics  # evo's Unit values for frames, m, deg, rad
 from longslam.eval.relations import EVO_NAMES, RELATION_UNITS
 from longslam.io.atomic import atomic_path
 from longslam.io.trajectory_files import format_tum
@@ -46,16 +46,8 @@ def _alignment_note(evaluation: Evaluation) -> str:
 
 
 def _stats(errors: np.ndarray) -> dict[str, float]:
-    # evo's StatisticsType order; sse as well, which evo_res shows.
-    return {
-        "rmse": float(np.sqrt(np.mean(errors**2))),
-        "mean": float(np.mean(errors)),
-        "median": float(np.median(errors)),
-        "std": float(np.std(errors)),
-        "min": float(np.min(errors)),
-        "max": float(np.max(errors)),
-        "sse": float(np.sum(errors**2)),
-    }
+    """evo's StatisticsType order (`metrics.statistics`), and sse as well, which evo_res shows."""
+    return {**statistics(errors), "sse": float(np.sum(np.asarray(errors, dtype=np.float64) ** 2))}
 
 
 def _write_zip(

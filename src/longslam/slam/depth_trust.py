@@ -20,21 +20,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from longslam.core.parameter import check_declared, param
+
 MAD_TO_STD = 1.4826  # a Gaussian's std over its median absolute deviation
 
 
 @dataclass(frozen=True)
 class DepthTrust:
-    use: bool = True  # False: every return is used, however noisy
-    max_sigma: float = 0.03  # m: the axial noise a return may have and be used
-    exact_below: float = 1e-4  # 1/m: inverse-depth noise below this is rounding (1.6 mm at 4 m)
-    # m: a trusted range shorter than this leaves too little of a corridor to register a scan or
-    # track corners on (a D435's 1.7 m): the front end then takes the step from the wheels alone.
-    min_range: float = 2.5  # m: trusted range under which a frame's step is the wheels' alone
-    min_pixels: int = 500  # fewer valid triples than this: too little to measure, depth used as it is
-    stride: int = 2  # every this many image rows sampled to measure the noise
+    use: bool = param(True, "measure each frame's depth noise; false: every return is used, however noisy")
+    max_sigma: float = param(0.03, "the axial noise a return may have and be used", above=0, unit="m")
+    exact_below: float = param(
+        1e-4, "inverse-depth noise below this is rounding (1.6 mm at 4 m)", at_least=0, unit="1/m"
+    )
+    # A shorter trusted range leaves too little of a corridor to register a scan or track corners on
+    # (a D435's 1.7 m).
+    min_range: float = param(2.5, "trusted range under which a frame's step is the wheels' alone", at_least=0, unit="m")
+    min_pixels: int = param(
+        500, "fewer valid pixel triples than this: too little to measure, depth used as it is", at_least=0
+    )
+    stride: int = param(2, "every this many image rows sampled to measure the noise", at_least=1)
     # A Kinect v1 measures 1.7e-3 1/m, a D435 1e-2, rendered depth below 1e-5 (exact: weight 1).
-    scan_noise_half: float = 5e-5  # 1/m: inverse-depth noise at which a scan's information is halved (0: never)
+    scan_noise_half: float = param(
+        5e-5, "inverse-depth noise at which a scan's information is halved (0: never)", at_least=0, unit="1/m"
+    )
+
+    def __post_init__(self) -> None:
+        check_declared(self, "front end", "depth_trust.")
 
 
 def inverse_depth_noise(depth: np.ndarray, stride: int = 2) -> tuple[float, int] | None:

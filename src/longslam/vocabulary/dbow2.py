@@ -299,14 +299,20 @@ def check_vocabulary_file(path: str | Path, what: str = "vocabulary", final_newl
     deep = np.flatnonzero(depth > levels)
     if deep.size:
         raise InputError(f"{what}: {path}:{int(deep[0]) + 1}: the node is deeper than L = {levels} of the header")
-    wrong = np.flatnonzero(leaf[1:] == (children[1:] > 0))
+    _check_leaf_flags(f"{what}: {path}", leaf, children > 0)
+    return nodes
+
+
+def _check_leaf_flags(where: str, leaf: np.ndarray, has_children: np.ndarray) -> None:
+    """InputError at the first node (the root aside) whose isLeaf flag says it has children when it
+    has none, or none when it has some."""
+    wrong = np.flatnonzero(leaf[1:] == has_children[1:])
     if wrong.size:
         node = int(wrong[0]) + 1
         raise InputError(
-            f"{what}: {path}:{node + 1}: isLeaf is {leaf[node]} but the node has "
-            f"{'' if children[node] else 'no '}children"
+            f"{where}:{node + 1}: isLeaf is {int(leaf[node])} but the node has "
+            f"{'' if has_children[node] else 'no '}children"
         )
-    return nodes
 
 
 def _int(field: str, where: str, name: str) -> int:
@@ -381,11 +387,5 @@ def read_vocabulary(path: str | Path, final_newline: bool = False) -> Vocabulary
         if not math.isfinite(weights[node]):
             raise InputError(f"{where}: weight {parts[-1]!r} is not finite")
     vocabulary = Vocabulary(k, levels, parents, descriptors, weights, scoring, weighting)
-    wrong = np.flatnonzero(vocabulary.is_leaf[1:] != leaf_flags[1:])
-    if wrong.size:
-        node = int(wrong[0]) + 1
-        raise InputError(
-            f"{path}:{node + 1}: isLeaf is {int(leaf_flags[node])} but the node has "
-            f"{'no ' if vocabulary.is_leaf[node] else ''}children"
-        )
+    _check_leaf_flags(str(path), leaf_flags, ~np.asarray(vocabulary.is_leaf, dtype=bool))
     return vocabulary

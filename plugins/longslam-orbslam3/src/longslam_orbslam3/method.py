@@ -22,10 +22,9 @@ import numpy as np
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.geometry import camera_poses_from_planar, poses_from_tum
+from longslam.core.trajectory import Trajectory
 from longslam.slam import stats
 from longslam.slam.api import Event, MethodContext, MethodSpec, Result
-from longslam.core.trajectory import Trajectory
-
 from longslam_orbslam3.anchoring import TRACKED, MapAnchors, final_poses
 from longslam_orbslam3.config import OrbSlam3Config
 from longslam_orbslam3.console_log import ConsoleFollower, read_counts

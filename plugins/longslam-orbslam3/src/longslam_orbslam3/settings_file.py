@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 from longslam.core.frame import Intrinsics
-
 from longslam_orbslam3.config import OrbSlam3Config, close_depth_factor
 
 DEPTH_MAP_FACTOR = 5000.0  # depth goes in as TUM's 16-bit PNG values: metres x 5000

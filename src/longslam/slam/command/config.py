@@ -9,14 +9,14 @@ argument; `{{` and `}}` are literal braces; a format spec works (`{fx:.2f}`).
 
 from __future__ import annotations
 
-import math
 import shlex
 import string
 from dataclasses import dataclass
 from pathlib import PurePath
-from typing import Any, ClassVar
+from typing import Any
 
 from longslam.core.errors import InputError
+from longslam.core.parameter import check_declared, param
 
 METHOD = "command"
 PATHS = ("sequence", "output", "associations", "settings")
@@ -73,46 +73,50 @@ def split_template(command: str) -> list[str]:
 
 @dataclass(frozen=True)
 class CommandConfig:
-    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"format": FORMATS, "frame": FRAMES}
-
-    # The program and its arguments, with placeholders such as {sequence} and {output} (see the README).
-    command: str = ""
-    # The trajectory file the program writes, relative to {output}, which is also its working directory.
-    trajectory: str = "CameraTrajectory.txt"
-    # The trajectory file's format, tum, euroc (stamps in ns, as ORB-SLAM3 writes) or kitti (a pose a frame).
-    format: str = "tum"
-    # Whose poses the file holds, the camera's optical frame (as ORB-SLAM and TUM) or the robot base (x ahead, z up).
-    frame: str = "optical"
-    # Seconds the program may run before it (and every process it started) is killed and the run fails.
-    timeout: float = 3600.0
-    # Camera height above the floor in m, for robot-frame poses and a start without odometry (none takes the
-    # odometry's).
-    camera_height: float | None = None
-    # Keep the TUM folder written for the program in the run folder (it is removed once the program ends).
-    keep_sequence: bool = False
+    command: str = param(
+        "", "the program and its arguments, with placeholders such as {sequence} and {output} (see the README)"
+    )
+    trajectory: str = param(
+        "CameraTrajectory.txt",
+        "the trajectory file the program writes, relative to {output}, which is also its working directory",
+    )
+    format: str = param(
+        "tum",
+        "the trajectory file's format: tum, euroc (stamps in ns, as ORB-SLAM3 writes) or kitti (a pose a frame)",
+        choices=FORMATS,
+    )
+    frame: str = param(
+        "optical",
+        "whose poses the file holds: the camera's optical frame (OpenCV axes) or the robot base (x ahead, z up)",
+        choices=FRAMES,
+    )
+    timeout: float = param(
+        3600.0,
+        "time the program may run before it (and every process it started) is killed and the run fails",
+        above=0,
+        at_most=MAX_TIMEOUT_S,
+        unit="s",
+    )
+    camera_height: float | None = param(
+        None,
+        "camera height above the floor, for robot-frame poses and a start without odometry (none: the odometry's)",
+        above=0,
+        below=10,
+        unit="m",
+    )
+    keep_sequence: bool = param(
+        False, "keep the TUM folder written for the program in the run folder (it is removed once the program ends)"
+    )
 
     def __post_init__(self) -> None:
+        check_declared(self, f"method {METHOD!r}")
         if self.command:
             split_template(self.command)
-        _check(self.format in FORMATS, f"parameter format={self.format!r}: expected one of {', '.join(FORMATS)}")
-        _check(
-            self.frame in FRAMES,
-            f"parameter frame={self.frame!r}: expected one of {', '.join(FRAMES)} "
-            "(optical: camera poses, OpenCV axes; robot: base poses, x ahead, z up)",
-        )
         path = PurePath(self.trajectory)
         _check(
             bool(self.trajectory.strip()) and not path.is_absolute() and ".." not in path.parts,
             f"parameter trajectory={self.trajectory!r}: expected a file name relative to {{output}} "
             "(the program's working directory), inside it",
-        )
-        _check(
-            math.isfinite(self.timeout) and 0.0 < self.timeout <= MAX_TIMEOUT_S,
-            f"parameter timeout={self.timeout}: expected (0, {MAX_TIMEOUT_S:g}] seconds",
-        )
-        _check(
-            self.camera_height is None or (math.isfinite(self.camera_height) and 0.0 < self.camera_height < 10.0),
-            f"parameter camera_height={self.camera_height}: expected (0, 10) m, or none",
         )
 
     def words(self) -> list[str]:

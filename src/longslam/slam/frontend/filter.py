@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.core.geometry import compose_xyyaw, wrap_angle
+from longslam.core.parameter import check_declared, param
 from longslam.slam.graph.factors import WheelStep
 
 
@@ -20,22 +21,33 @@ from longslam.slam.graph.factors import WheelStep
 class MotionNoise:
     """Per-frame noise of the wheel step and of its biases (stds)."""
 
-    forward_min: float = 0.003  # m: floor of a wheel step's forward std
-    forward_rel: float = 0.01  # fraction of the forward step
-    lateral: float = 0.001  # m: wheels do not slip sideways
-    yaw_min: float = 0.0005  # rad: floor of a wheel step's heading std
-    yaw_rel: float = 0.01  # fraction of the heading change
-    # Bias random walks per frame: the biases hold for seconds, so they move little per frame,
-    # yet fast enough to follow a new value within a few seconds.
-    bias_forward_walk: float = 0.0008  # m/frame per frame
-    bias_yaw_walk: float = 0.00003  # rad/frame per frame
-    bias_forward_init: float = 0.01  # m/frame: std of the forward bias at the start
-    bias_forward_reset: float = 0.03  # m/frame, added when the RGB-D steps say the bias jumped
-    bias_yaw_init: float = 0.0005  # rad/frame: std of the heading bias at the start
+    forward_min: float = param(0.003, "floor of a wheel step's forward std", above=0, unit="m")
+    forward_rel: float = param(0.01, "forward std as a fraction of the forward step", at_least=0)
+    lateral: float = param(0.001, "lateral std of a wheel step (wheels do not slip sideways)", above=0, unit="m")
+    yaw_min: float = param(0.0005, "floor of a wheel step's heading std", above=0, unit="rad")
+    yaw_rel: float = param(0.01, "heading std as a fraction of the heading change", at_least=0)
+    # The biases hold for seconds, so they move little per frame, yet fast enough to follow a new
+    # value within a few seconds.
+    bias_forward_walk: float = param(
+        0.0008, "random walk of the forward bias per frame", above=0, unit="m/frame per frame"
+    )
+    bias_yaw_walk: float = param(3e-5, "random walk of the heading bias per frame", above=0, unit="rad/frame per frame")
+    bias_forward_init: float = param(0.01, "std of the forward bias at the start", above=0, unit="m/frame")
+    bias_forward_reset: float = param(
+        0.03, "std added to the forward bias when the RGB-D steps say it jumped", at_least=0, unit="m/frame"
+    )
+    bias_yaw_init: float = param(0.0005, "std of the heading bias at the start", above=0, unit="rad/frame")
     # Without wheels: a constant-velocity prediction, loose in every direction.
-    cv_forward: float = 0.05  # m: forward std of a step predicted at constant velocity (no wheels)
-    cv_lateral: float = 0.02  # m: lateral std of a step predicted at constant velocity (no wheels)
-    cv_yaw: float = 0.03  # rad: heading std of a step predicted at constant velocity (no wheels)
+    cv_forward: float = param(
+        0.05, "forward std of a step predicted at constant velocity (no wheels)", above=0, unit="m"
+    )
+    cv_lateral: float = param(
+        0.02, "lateral std of a step predicted at constant velocity (no wheels)", above=0, unit="m"
+    )
+    cv_yaw: float = param(0.03, "heading std of a step predicted at constant velocity (no wheels)", above=0, unit="rad")
+
+    def __post_init__(self) -> None:
+        check_declared(self, "front end", "noise.")
 
 
 class BiasFilter:

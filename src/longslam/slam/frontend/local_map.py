@@ -15,17 +15,23 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from longslam.core.geometry.cells import average_2d
+from longslam.core.parameter import check_declared, param
 
 
 @dataclass(frozen=True)
 class LocalMapConfig:
-    max_scans: int = 300  # scans kept (about 30 s of driving at 10 Hz)
-    radius: float = 15.0  # m: scans whose robot position is farther than this are left out
-    cell: float = 0.05  # m, averaging of the merged points
-    rebuild_every: int = 5  # inserted scans between rebuilds of the KD-tree
-    normal_neighbours: int = 6  # points a line is fitted to
-    max_line_spread: float = 0.25  # m: neighbours farther than this do not make a line
-    max_line_ratio: float = 0.15  # smallest / largest eigenvalue above this: a corner or clutter
+    max_scans: int = param(300, "scans kept (about 30 s of driving at 10 Hz)", at_least=1)
+    radius: float = param(15.0, "scans whose robot position is farther than this are left out", above=0, unit="m")
+    cell: float = param(0.05, "size of the cells the merged points are averaged in", above=0, unit="m")
+    rebuild_every: int = param(5, "inserted scans between rebuilds of the KD-tree", at_least=1)
+    normal_neighbours: int = param(6, "points a line is fitted to", at_least=2, why="a line needs two points")
+    max_line_spread: float = param(0.25, "neighbours farther than this do not make a line", above=0, unit="m")
+    max_line_ratio: float = param(
+        0.15, "smallest / largest eigenvalue above this: a corner or clutter, not a line", at_least=0, at_most=1
+    )
+
+    def __post_init__(self) -> None:
+        check_declared(self, "front end", "local_map.")
 
 
 class LocalMap:

@@ -18,12 +18,11 @@ Modes:
 
 from __future__ import annotations
 
-import math
 import time
 from array import array
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -31,6 +30,7 @@ from longslam.core.errors import InputError
 from longslam.core.frame import Frame, Intrinsics
 from longslam.core.geometry import CameraMount, JumpFilteredOdometry, relative_xyyaw, wrap_angle
 from longslam.core.memory_release import release_free_memory
+from longslam.core.parameter import check_declared, nested, param
 from longslam.slam.api import Table
 from longslam.slam.depth_trust import (
     DepthTrust,
@@ -79,77 +79,81 @@ TRANSLATING_STEP = 1e-4
 
 @dataclass(frozen=True)
 class FrontEndConfig:
-    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"mode": MODES}  # what `longslam list --params` shows
-
-    mode: str = "fused"  # fused: wheels, scans and RGB-D steps; wheel: the wheel odometry alone (the paper's)
-    # m above the floor; None: the first odometry pose's z (the floor is z = 0), or
-    # `default_camera_height` without odometry.
-    camera_height: float | None = None
-    default_camera_height: float = 1.25  # m above the floor when neither camera_height nor odometry gives it
-    jump_distance: float = 1.0  # m in one frame: a bigger odometry step is a jump, not motion
-    jump_angle: float = 0.8  # rad in one frame
-    use_bias: bool = True  # estimate the wheels' forward and heading biases
-    scan_anchor_lag: int = 20  # frames: a scan factor links a frame to the one this many before
-    scan_information_scale: float = 1.0  # of the registration's Hessian, in the full smoother
-    max_correction: float = 0.5  # m: a registration moving the prediction further is refused
-    max_correction_angle: float = 0.1  # rad: a registration turning the prediction further is refused
-    insert_distance: float = 0.05  # m moved (or insert_angle turned) before a scan joins the map
-    insert_angle: float = 0.03  # rad turned (or insert_distance moved) before a scan joins the map
-    # Gated RGB-D steps (tracked corners with depth): they give forward distance in corridors,
-    # where the scan has nothing along the way. Accepted only within these bounds of the
-    # bias-corrected wheel step (or, without wheels, of the constant-velocity prediction).
-    visual: bool = True
-    visual_gate_distance: float = 0.04  # m: an RGB-D step is accepted within this of the wheel step
-    visual_gate_angle: float = 0.01  # rad: an RGB-D step is accepted within this of the wheel step's heading change
-    visual_gate_sigmas: float = 4.0  # forward gate in stds of the forward-bias innovation
-    visual_max_bias: float = 0.1  # m per step: an RGB-D step further than this from the raw wheel step is wrong
-    visual_bias_reset_after: int = 5  # consecutive forward refusals that widen the bias's variance
-    visual_gate_distance_no_wheels: float = 0.3  # m: the gate around the constant-velocity prediction without wheels
-    # The heading gate (rad) around the constant-velocity prediction without wheels.
-    visual_gate_angle_no_wheels: float = 0.2
-    visual_sigma_forward: float = 0.004  # m per step
-    visual_sigma_lateral: float = 0.05  # m per step: the wheels hold the lateral step
+    mode: str = param(
+        "fused", "fused: wheels, scans and RGB-D steps; wheel: the wheel odometry alone (the paper's)", choices=MODES
+    )
+    camera_height: float | None = param(
+        None,
+        "camera height above the floor; none: the first odometry pose's z, or default_camera_height without odometry",
+        above=0,
+        unit="m",
+    )
+    default_camera_height: float = param(
+        1.25, "camera height above the floor when neither camera_height nor odometry gives it", above=0, unit="m"
+    )
+    jump_distance: float = param(1.0, "a bigger odometry step in one frame is a jump, not motion", above=0, unit="m")
+    jump_angle: float = param(0.8, "a bigger odometry turn in one frame is a jump, not motion", above=0, unit="rad")
+    use_bias: bool = param(True, "estimate the wheels' forward and heading biases")
+    scan_anchor_lag: int = param(
+        20, "a scan factor links a frame to the one this many before", at_least=1, unit="frames"
+    )
+    # A negative scale turns scan factors into repulsion.
+    scan_information_scale: float = param(1.0, "scale of the registration's Hessian, in the full smoother", at_least=0)
+    max_correction: float = param(0.5, "a registration moving the prediction further is refused", at_least=0, unit="m")
+    max_correction_angle: float = param(
+        0.1, "a registration turning the prediction further is refused", at_least=0, unit="rad"
+    )
+    insert_distance: float = param(
+        0.05, "distance moved (or insert_angle turned) before a scan joins the map", at_least=0, unit="m"
+    )
+    insert_angle: float = param(
+        0.03, "angle turned (or insert_distance moved) before a scan joins the map", at_least=0, unit="rad"
+    )
+    # They give forward distance in corridors, where the scan has nothing along the way.
+    visual: bool = param(
+        True, "gated RGB-D steps (tracked corners with depth), accepted within the gates of the predicted step"
+    )
+    visual_gate_distance: float = param(
+        0.04, "an RGB-D step is accepted within this of the wheel step", at_least=0, unit="m"
+    )
+    visual_gate_angle: float = param(
+        0.01, "an RGB-D step is accepted within this of the wheel step's heading change", at_least=0, unit="rad"
+    )
+    visual_gate_sigmas: float = param(4.0, "forward gate in stds of the forward-bias innovation", above=0)
+    visual_max_bias: float = param(
+        0.1, "an RGB-D step further than this from the raw wheel step is wrong", at_least=0, unit="m per step"
+    )
+    visual_bias_reset_after: int = param(5, "consecutive forward refusals that widen the bias's variance", at_least=0)
+    visual_gate_distance_no_wheels: float = param(
+        0.3, "the gate around the constant-velocity prediction without wheels", at_least=0, unit="m"
+    )
+    visual_gate_angle_no_wheels: float = param(
+        0.2, "the heading gate around the constant-velocity prediction without wheels", at_least=0, unit="rad"
+    )
+    visual_sigma_forward: float = param(0.004, "std of an RGB-D step's forward component", above=0, unit="m per step")
+    visual_sigma_lateral: float = param(
+        0.05, "std of an RGB-D step's lateral component (the wheels hold it)", above=0, unit="m per step"
+    )
     # Looser than the step's white scatter on purpose: the tracked heading also has a small bias
     # per step, which at its scatter's weight would outvote wheels with a small bias, while a much
     # looser sigma leaves a large wheel bias unseen where no scan registers.
-    visual_sigma_yaw: float = 0.004  # rad per step
-    # Without wheels the visual step is the motion itself: its measured per-step scatter.
-    visual_sigmas_no_wheels: tuple[float, float, float] = (0.004, 0.005, 0.002)  # m, m, rad
-    scan: ScanConfig = field(default_factory=ScanConfig)
-    visual_tracking: VisualConfig = field(default_factory=VisualConfig)
-    local_map: LocalMapConfig = field(default_factory=LocalMapConfig)
-    registration: RegistrationConfig = field(default_factory=RegistrationConfig)
-    noise: MotionNoise = field(default_factory=MotionNoise)
-    smoother: SmootherConfig = field(default_factory=SmootherConfig)
-    depth_trust: DepthTrust = field(default_factory=DepthTrust)
-    wall_axes: WallAxesConfig = field(default_factory=WallAxesConfig)
+    visual_sigma_yaw: float = param(0.004, "std of an RGB-D step's heading change", above=0, unit="rad per step")
+    visual_sigmas_no_wheels: tuple[float, float, float] = param(
+        (0.004, 0.005, 0.002),
+        "stds of an RGB-D step without wheels (forward m, lateral m, yaw rad): its measured scatter",
+        above=0,
+    )
+    scan: ScanConfig = nested(ScanConfig, "the 2D scan cut from each depth image")
+    visual_tracking: VisualConfig = nested(VisualConfig, "the corners tracked for RGB-D steps")
+    local_map: LocalMapConfig = nested(LocalMapConfig, "the recent scans a scan is registered to")
+    registration: RegistrationConfig = nested(RegistrationConfig, "scan-to-map registration")
+    noise: MotionNoise = nested(MotionNoise, "per-frame noise of the wheel step and of its biases")
+    smoother: SmootherConfig = nested(SmootherConfig, "the batch smoother over every frame, run at the end")
+    depth_trust: DepthTrust = nested(DepthTrust, "how far a frame's depth is trusted, measured from the frame")
+    wall_axes: WallAxesConfig = nested(WallAxesConfig, "the building's wall directions as a heading reference")
 
     def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise InputError(f"front end: mode must be one of {', '.join(MODES)}, got {self.mode!r}")
-        if not (self.jump_distance > 0 and self.jump_angle > 0):
-            raise InputError("front end: jump_distance and jump_angle must be positive")
-        if self.scan_anchor_lag < 1:
-            raise InputError("front end: scan_anchor_lag must be at least 1")
-        if self.camera_height is not None and not self.camera_height > 0:
-            raise InputError(f"front end: camera_height must be positive (or none: inferred), got {self.camera_height}")
-        if not self.default_camera_height > 0:
-            raise InputError(f"front end: default_camera_height must be positive, got {self.default_camera_height}")
-        # The other numbers are lengths, angles, counts, scales and sigmas: none is negative, NaN or
-        # infinite (scan_information_scale = -1 ran, turning scan factors into repulsion), and a
-        # sigma of 0 would be infinite information.
-        for f in fields(self):
-            value = getattr(self, f.name)
-            values = value if isinstance(value, tuple) else (value,)
-            if f.name == "camera_height" or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values
-            ):
-                continue
-            positive = "sigma" in f.name
-            if not all(math.isfinite(v) and (v > 0 if positive else v >= 0) for v in values):
-                raise InputError(
-                    f"front end: {f.name} must be {'> 0' if positive else '>= 0'} and finite, got {value!r}"
-                )
+        check_declared(self, "front end")
 
 
 @dataclass(frozen=True)

@@ -16,20 +16,28 @@ from dataclasses import dataclass
 import numpy as np
 
 from longslam.core.geometry import wrap_angle
+from longslam.core.parameter import check_declared, param
 from longslam.slam.frontend.local_map import LocalMap
 
 
 @dataclass(frozen=True)
 class RegistrationConfig:
-    iterations: int = 10  # Gauss-Newton iterations of scan-to-map registration
-    max_match_distance: float = 0.3  # m between a scan point and its nearest map point
-    huber: float = 0.05  # m: Huber threshold of a point-to-line residual
-    sigma: float = 0.03  # m, point-to-line noise of one scan point
-    # Neighbouring 5 cm cells of one wall are not independent views: the Hessian is divided by
-    # this so the smoother does not take a 200-point scan as 200 independent measurements.
-    correlation: float = 10.0
-    min_matches: int = 15  # matched scan points a registration needs
-    tolerance: float = 1e-4  # step norm that ends the iterations
+    iterations: int = param(10, "Gauss-Newton iterations of scan-to-map registration", at_least=1)
+    max_match_distance: float = param(
+        0.3, "distance between a scan point and its nearest map point for a match", above=0, unit="m"
+    )
+    huber: float = param(0.05, "Huber threshold of a point-to-line residual", above=0, unit="m")
+    sigma: float = param(0.03, "point-to-line noise of one scan point", above=0, unit="m")
+    # Neighbouring 5 cm cells of one wall are not independent views: a 200-point scan is not 200
+    # independent measurements.
+    correlation: float = param(10.0, "the registration's Hessian is divided by this in the smoother", above=0)
+    min_matches: int = param(
+        15, "matched scan points a registration needs", at_least=3, why="a planar pose has three unknowns"
+    )
+    tolerance: float = param(1e-4, "step norm that ends the iterations", above=0)
+
+    def __post_init__(self) -> None:
+        check_declared(self, "front end", "registration.")
 
 
 @dataclass

@@ -12,20 +12,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
 from longslam.core.geometry.cells import average_2d
+from longslam.core.parameter import check_declared, param
 
 
 @dataclass(frozen=True)
 class ScanConfig:
-    min_height: float = 0.2  # m above the floor
-    max_height: float = 1.5  # m above the floor: higher depth points are not part of the scan
-    min_range: float = 0.3  # m, horizontal; closer returns are the robot's own blind zone
-    max_range: float = 8.0  # m, horizontal: farther returns are left out of the scan
-    cell: float = 0.05  # m, averaging cell
-    # Pixel stride; 0 = about 160 columns whatever the image width (2 at 320 x 240): plenty for
-    # 5 cm cells, and a small image keeps every pixel.
-    stride: int = 0  # pixel stride of the scan; 0: about 160 columns whatever the image width
+    min_height: float = param(0.2, "depth points lower above the floor are not part of the scan", at_least=0, unit="m")
+    max_height: float = param(1.5, "depth points higher above the floor are not part of the scan", above=0, unit="m")
+    min_range: float = param(
+        0.3, "closer returns (horizontal) are the robot's own blind zone, left out", at_least=0, unit="m"
+    )
+    max_range: float = param(8.0, "farther returns (horizontal) are left out of the scan", above=0, unit="m")
+    cell: float = param(0.05, "size of the cells the scan's points are averaged in", above=0, unit="m")
+    # 0 gives 2 at 320 x 240: plenty for 5 cm cells, and a small image keeps every pixel.
+    stride: int = param(0, "pixel stride of the scan; 0: about 160 columns whatever the image width", at_least=0)
+
+    def __post_init__(self) -> None:
+        check_declared(self, "front end", "scan.")
+        if self.max_height <= self.min_height or self.max_range <= self.min_range:
+            raise InputError("front end: scan.max_height and scan.max_range must exceed their min_height and min_range")
 
 
 class ScanExtractor:

@@ -14,13 +14,13 @@ from __future__ import annotations
 import bisect
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import ClassVar
 
 import gtsam
 import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.geometry import compose_xyyaw, relative_xyyaw
+from longslam.core.parameter import check_declared, param
 from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.frame_store import FrameRecord, FrameStore
 from longslam.slam.graph.factors import FactorGraph, WheelStep, X, pose_array
@@ -37,53 +37,51 @@ HELD_AXES_SIGMA = 1e-5  # rad: the building's axes, held in a solve between held
 
 @dataclass
 class SmootherConfig:
-    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"optimizer": ("lm", "gn")}  # what `longslam list --params` shows
-
-    bias_block: int = 10  # frames sharing one bias state
-    # The wheels' lateral step, held far tighter than online: E_rot scores the direction of each
-    # 10 Hz step in the previous pose's frame, and dead reckoning gets that almost exactly right
-    # (0.13 deg/m at large noise = 0.05 mm sideways per 15 cm step). A correction must come as
+    bias_block: int = param(10, "frames sharing one bias state", at_least=1)
+    # Held far tighter than online: E_rot scores the direction of each 10 Hz step in the previous
+    # pose's frame, and dead reckoning gets that almost exactly right. A correction must come as
     # heading and forward distance, never as a sideways shift of a step.
-    lateral_sigma: float = 1e-5  # m: std of a wheel step's sideways component in the smoother
-    # Without wheel odometry, each step's sideways motion (the y of its twist, which is zero on
-    # any arc a wheeled base drives) held to this std in metres; 0: off, as for a hand-held camera.
-    nonholonomic_sigma: float = 0.0
-    iterations: int = 50  # most optimiser iterations of the full smoother
-    # Bias states in the smoother (a Python factor per frame), or each wheel step corrected by
-    # the online filter's bias estimate (GTSAM's own between factors).
-    bias_states: bool = True
-    # "lm": Levenberg-Marquardt (Gauss-Newton steps, damped when one fails); "gn": stop there instead.
-    optimizer: str = "lm"
-    # Stop once a step lowers the error by less than this share: the last iterations of a tighter
-    # tolerance move the trajectory by millimetres at several times the cost.
-    relative_tolerance: float = 3e-4
-    # Most frames in one window of the solve (0: no limit). A longer route is solved window by
-    # window (`slam.graph.parts`): the same Levenberg-Marquardt steps as one solve over every
-    # frame, but no more than one window's linear system is held at a time, so the solve's peak
-    # does not grow with the route; shorter windows hold less and, with many loops, take less time.
-    window: int = 500
-    # A route of up to this many frames is solved whole (0: by `window` from the start): faster
-    # (each window is built and linearised twice a step), and up to this length the whole solve's
-    # peak stays under the one the maps reach after it (paper-300m and paper-1km are solved whole;
-    # the result is the windows' but for rounding).
-    whole_frames: int = 8000
-    # Routes longer than this many frames are finished with the graph's nodes held (0: every route).
+    lateral_sigma: float = param(1e-5, "std of a wheel step's sideways component in the smoother", above=0, unit="m")
+    # The y of its twist is zero on any arc a wheeled base drives.
+    nonholonomic_sigma: float = param(
+        0.0,
+        "without wheel odometry, std of each step's sideways motion; 0: off, as for a hand-held camera",
+        at_least=0,
+        unit="m",
+    )
+    iterations: int = param(50, "most optimiser iterations of the full smoother", at_least=1)
+    bias_states: bool = param(
+        True, "bias states in the smoother, or each wheel step corrected by the online filter's bias estimate"
+    )
+    optimizer: str = param(
+        "lm",
+        "lm: Levenberg-Marquardt (Gauss-Newton steps, damped when one fails); gn: stop there instead",
+        choices=("lm", "gn"),
+    )
+    # The last iterations of a tighter tolerance move the trajectory by millimetres at several times the cost.
+    relative_tolerance: float = param(3e-4, "stop once a step lowers the error by less than this share", at_least=0)
+    # A longer route is solved window by window (`slam.graph.parts`): the same Levenberg-Marquardt
+    # steps as one solve, but no more than one window's linear system is held at a time, so the
+    # solve's peak does not grow with the route.
+    window: int = param(
+        500, "most frames in one window of the solve, at least twice bias_block (0: no limit)", at_least=0
+    )
+    # Faster (each window is built and linearised twice a step), and up to this length the whole
+    # solve's peak stays under the one the maps reach after it.
+    whole_frames: int = param(
+        8000, "a route of up to this many frames is solved whole (0: by window from the start)", at_least=0
+    )
     # A method that hands over its graph's optimised nodes (keyframe, submap) then has only the
     # frames between them smoothed, chunk by chunk (`solve_held`): the finish holds one chunk's
     # graph, where the solve over every frame grows with the loops that tie the laps together.
-    hold_nodes_beyond: int = 10000
+    hold_nodes_beyond: int = param(
+        10000,
+        "routes longer than this many frames are finished with the graph's nodes held (0: every route)",
+        at_least=0,
+    )
 
     def __post_init__(self) -> None:
-        if self.optimizer not in self.CHOICES["optimizer"]:
-            raise InputError(f"front end: smoother.optimizer must be lm or gn, got {self.optimizer!r}")
-        if not self.nonholonomic_sigma >= 0:
-            raise InputError(
-                f"front end: smoother.nonholonomic_sigma must be >= 0 m (0: off), got {self.nonholonomic_sigma}"
-            )
-        if self.hold_nodes_beyond < 0:
-            raise InputError(f"front end: smoother.hold_nodes_beyond must be >= 0 frames, got {self.hold_nodes_beyond}")
-        if self.whole_frames < 0:
-            raise InputError(f"front end: smoother.whole_frames must be >= 0, got {self.whole_frames}")
+        check_declared(self, "front end", "smoother.")
         if self.window != 0 and self.window < 2 * self.bias_block:
             raise InputError(
                 f"front end: smoother.window must be 0 (no limit) or at least twice bias_block "

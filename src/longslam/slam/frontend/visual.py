@@ -16,21 +16,28 @@ import numpy as np
 
 from longslam.core.frame import Intrinsics
 from longslam.core.geometry.fit import rigid_transform_2d
+from longslam.core.parameter import check_declared, param
 
 
 @dataclass(frozen=True)
 class VisualConfig:
-    max_corners: int = 150  # corners tracked per frame (Shi-Tomasi)
-    quality: float = 0.01  # corner quality level, a fraction of the best corner's (OpenCV goodFeaturesToTrack)
-    # Corner spacing and LK window in pixels at 320 px wide; scaled with the image width.
-    min_distance: int = 7
-    window: int = 11  # Lucas-Kanade window in pixels at 320 px wide
-    levels: int = 2  # Lucas-Kanade pyramid levels
-    max_range: float = 4.0  # m: farther points move by under a pixel per step
-    max_fb_error: float = 0.5  # px, forward-backward tracking disagreement
-    inlier: float = 0.03  # m, a pair agreeing with the fitted step
-    first_inlier: float = 0.08  # m, around the predicted step
-    min_inliers: int = 20  # tracked pairs that must agree for an RGB-D step
+    max_corners: int = param(150, "corners tracked per frame (Shi-Tomasi)", at_least=1)
+    quality: float = param(
+        0.01, "corner quality level, a fraction of the best corner's (OpenCV goodFeaturesToTrack)", above=0, at_most=1
+    )
+    min_distance: int = param(7, "corner spacing at 320 px wide, scaled with the image width", at_least=0, unit="px")
+    window: int = param(11, "Lucas-Kanade window at 320 px wide, scaled with the image width", at_least=1, unit="px")
+    levels: int = param(2, "Lucas-Kanade pyramid levels above the image itself", at_least=0)
+    max_range: float = param(4.0, "farther points move by under a pixel per step, left out", above=0, unit="m")
+    max_fb_error: float = param(0.5, "forward-backward tracking disagreement a corner may have", above=0, unit="px")
+    inlier: float = param(0.03, "distance within which a pair agrees with the fitted step", above=0, unit="m")
+    first_inlier: float = param(0.08, "distance within which a pair agrees with the predicted step", above=0, unit="m")
+    min_inliers: int = param(
+        20, "tracked pairs that must agree for an RGB-D step", at_least=2, why="a planar step needs two points"
+    )
+
+    def __post_init__(self) -> None:
+        check_declared(self, "front end", "visual_tracking.")
 
 
 @dataclass

@@ -27,36 +27,49 @@ from scipy.spatial import cKDTree
 
 from longslam.core.errors import InputError
 from longslam.core.geometry import fold_quarter as fold
+from longslam.core.parameter import check_declared, param
 
 
 @dataclass(frozen=True)
 class WallAxesConfig:
-    use: bool = False  # heading factors from the walls' directions in the final smoother
-    every: int = 10  # frames between two measurements (one wall seen by many frames is one view)
-    neighbours: int = 6  # scan points whose spread gives a point's local direction
-    radius: float = 0.25  # m: the neighbours' farthest distance
-    straightness: float = 0.05  # a neighbourhood's smaller over larger spread (eigenvalue) at most: a line
-    peak_width_deg: float = 2.0  # a point's direction within this of the peak is along it
-    min_points: int = 40  # points along the peak direction a measurement needs
-    min_share: float = 0.5  # of the scan's straight points along the peak direction
-    settle: int = 10  # measurements whose mean direction fixes the axes (one scan's can be a degree off)
-    gate_deg: float = 3.0  # a wall direction further than this from the axes is not one of them
-    gate_sigmas: float = 3.0  # the gate widened by this many of the online heading's stds
-    max_gate_deg: float = 15.0  # the widened gate's limit: a wing at 30 degrees stays out
-    sigma_deg: float = 1.0  # heading std of one measurement in the final smoother
+    use: bool = param(False, "heading factors from the walls' directions in the final smoother")
+    every: int = param(10, "frames between two measurements (one wall seen by many frames is one view)", at_least=1)
+    neighbours: int = param(
+        6, "scan points whose spread gives a point's local direction", at_least=2, why="a direction needs two points"
+    )
+    radius: float = param(0.25, "the neighbours' farthest distance", above=0, unit="m")
+    straightness: float = param(
+        0.05, "a neighbourhood's smaller over larger spread (eigenvalue) at most: a line", at_least=0, at_most=1
+    )
+    peak_width_deg: float = param(
+        2.0, "a point's direction within this of the peak is along it", above=0, below=45, unit="deg"
+    )
+    min_points: int = param(40, "points along the peak direction a measurement needs", at_least=1)
+    min_share: float = param(
+        0.5, "share of the scan's straight points along the peak direction a measurement needs", at_least=0, at_most=1
+    )
+    settle: int = param(
+        10, "measurements whose mean direction fixes the axes (one scan's can be a degree off)", at_least=1
+    )
+    gate_deg: float = param(
+        3.0,
+        "a wall direction further than this from the axes is not one of them (at most max_gate_deg)",
+        above=0,
+        below=45,
+        unit="deg",
+    )
+    gate_sigmas: float = param(3.0, "the gate widened by this many of the online heading's stds", at_least=0)
+    max_gate_deg: float = param(
+        15.0, "the widened gate's limit: a wing at 30 degrees stays out", above=0, below=45, unit="deg"
+    )
+    sigma_deg: float = param(1.0, "heading std of one measurement in the final smoother", above=0, unit="deg")
 
     def __post_init__(self) -> None:
-        if self.every < 1:
-            raise InputError(f"front end: wall_axes.every must be at least 1 frame, got {self.every}")
-        if not 0 < self.sigma_deg:
-            raise InputError(f"front end: wall_axes.sigma_deg must be > 0, got {self.sigma_deg}")
-        if not 0 < self.gate_deg <= self.max_gate_deg < 45:
+        check_declared(self, "front end", "wall_axes.")
+        if self.gate_deg > self.max_gate_deg:
             raise InputError(
-                f"front end: wall_axes.gate_deg and max_gate_deg must be 0 < gate_deg <= max_gate_deg < 45 "
-                f"degrees, got {self.gate_deg} and {self.max_gate_deg}"
+                f"front end: wall_axes.gate_deg must be at most max_gate_deg ({self.max_gate_deg}), got {self.gate_deg}"
             )
-        if self.settle < 1:
-            raise InputError(f"front end: wall_axes.settle must be at least 1 measurement, got {self.settle}")
 
 
 def wall_direction(scan_xy: np.ndarray, config: WallAxesConfig = WallAxesConfig()) -> tuple[float, int] | None:
