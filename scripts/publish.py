@@ -451,6 +451,7 @@ def real_systems_step(pub: Publication) -> Path:
         sys.path.insert(0, scripts)
     import publish_real_systems
 
+    start = time.perf_counter()
     studies, commands = [], []
     for name in ("real-systems", "real-systems-1km"):
         page = StudyPage(name, ROOT / "studies" / f"{name}.toml", "", "")
@@ -458,7 +459,7 @@ def real_systems_step(pub: Publication) -> Path:
         commands.append(study_command(pub, page.study_file, studies[-1]))
     out = pub.docs / "real-systems.md"
     commands.append(pub.command)
-    publish_real_systems.publish(studies, out, commands)
+    publish_real_systems.publish(studies, out, commands, time.perf_counter() - start)
     return out
 
 

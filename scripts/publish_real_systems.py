@@ -216,7 +216,8 @@ def _study_time(runs: list[dict]) -> str:
     return f"{(max(ends) - min(starts)).total_seconds() / 60:.0f} min"
 
 
-def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
+def publish(studies: list[Path], out: Path, commands: list[str], wall_s: float | None = None) -> None:
+    """Write `out` from the studies' databases; `wall_s`: the wall time of what made them (scripts/publish.py)."""
     images = out.parent / "images" / "real-systems"
     if images.exists():
         shutil.rmtree(images)
@@ -246,6 +247,8 @@ def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
         f"Every run was made at commit `{commit}`; the page was written on {dt.date.today().isoformat()} at "
         f"`{_git('rev-parse', '--short=7', 'HEAD')}`, on {machine()}, by:", "",
         "```bash", *commands, "```", "",
+        *([f"The studies and this page took {wall_s / 60:.0f} min of wall time this time (runs recorded "
+           "before are reused).", ""] if wall_s is not None else []),
         f"Every run's CPU wait share (how long its threads were ready to run but waited for a core, over that wait "
         f"plus their CPU time) is at most {_num(max(waits) if waits else None, 2)}; "
         + (f"{len(starved)} of {len(waits)} runs waited for more than {UNSTARVED_SHARE:g} of their time ("
