@@ -13,6 +13,10 @@ every 1,000 frames, the mean ms per frame over the first and the last tenth of t
 constraints further than 0.5 m (in the directions each holds) or 5 degrees from the truth (loops.csv). With --plot-dir: RSS
 against distance and ATE against route length, one line per method.
 
+It resumes: a sequence already in --work is not simulated again, and a run already measured there
+(its row beside its folder, runs/SEQ-METHOD.json) is read back; delete --work to measure afresh.
+A sequence counts as simulated once SEQ.done stands beside it.
+
 Targets printed beside the figures: keyframe and submap peak <= 450 MB on a 10 km route, and on a
 3 km route <= 1.15x their 1 km peak; last tenth's ms per frame <= 1.2x the first's; finish <= 60 s
 at 10 km; keyframe ATE <= 0.1x dead reckoning's at 10 km with no wrong loop constraint.
@@ -43,19 +47,28 @@ ATE_RATIO_10KM = 0.1
 
 
 def simulate(route: str, noise: str, seed: int, work: Path) -> tuple[Path, float]:
+    """The sequence in `work`, simulated unless a finished one is there (SEQ.done beside it; a
+    folder without it was interrupted and is simulated again)."""
     out = work / f"{route}-{noise}-{seed}"
-    if out.exists():
+    done = out.with_name(out.name + ".done")
+    if out.exists() and done.exists():
         return out, 0.0
     command = [sys.executable, "-m", "longslam", "--no-progress", "simulate", "--route", route, "--noise", noise,
-               "--seed", str(seed), "--out", str(out)]
+               "--seed", str(seed), "--out", str(out), "--overwrite"]
     wall, _, status = run_process(command, work / f"simulate-{route}.log")
     if status:
         raise SystemExit(f"simulate {route} failed (exit {status}); see {work / f'simulate-{route}.log'}")
+    done.write_text(f"{wall:.1f}\n")
     return out, wall
 
 
 def measure(method: str, seq: Path, work: Path, dead_reckoning_ate: float, truth_xyyaw: np.ndarray) -> dict:
+    """One method's run on `seq`, measured; a run measured before in `work` (its row beside its
+    folder, RUN.json) is read back, not run again, so an interrupted benchmark resumes."""
     run = work / "runs" / f"{seq.name}-{method}"
+    done = run.with_name(run.name + ".json")
+    if done.is_file() and (run / "stats.json").is_file():
+        return {**json.loads(done.read_text()), "reused": True}
     command = [sys.executable, "-m", "longslam", "--no-progress", "run", str(seq), "--method", method,
                "--out", str(run), "--overwrite"]
     wall, peak_mib, status = run_process(command, work / f"{seq.name}-{method}.log")
@@ -69,12 +82,14 @@ def measure(method: str, seq: Path, work: Path, dead_reckoning_ate: float, truth
     wrong = None
     if (run / "loops.csv").is_file():
         wrong = sum(lp.wrong for lp in loop_errors(truth_xyyaw, read_table(run / "loops.csv").rows))
-    return {
+    row = {
         "method": method, "wall_s": wall, "peak_mb": peak_mib * 2**20 / 1e6, "rss_every_1000_frames_mb": every_1000,
         "ms_per_frame_first_tenth": 1000 * tenths[0], "ms_per_frame_last_tenth": 1000 * tenths[-1],
         "finish_s": stats["finish_time_s"], "ate_m": ate, "ate_ratio_to_dead_reckoning": ate / dead_reckoning_ate,
-        "wrong_loops": wrong, "frames": stats["frames"],
+        "wrong_loops": wrong, "frames": stats["frames"], "longslam_commit": stats.get("longslam_commit"),
     }
+    done.write_text(json.dumps(row) + "\n")
+    return row
 
 
 def targets(route_m: float, row: dict, one_km_peak: dict[str, float]) -> list[str]:
@@ -128,6 +143,48 @@ def plot(results: list[dict], out_dir: Path) -> None:
     print(f"wrote {out_dir / 'scale.png'}")
 
 
+def run_scale(routes: list[str], noise: str, seed: int, methods: list[str], work: Path) -> list[dict]:
+    """Simulate each route (once: a sequence already in `work` is kept) and run each installed
+    method on it (once: a run already measured in `work` is read back); prints a table per route
+    and writes work/scale.json. Returns its entries, one per route."""
+    work.mkdir(parents=True, exist_ok=True)
+    installed = set(method_names())
+    methods = [m for m in methods if m in installed]
+    results: list[dict] = []
+    one_km_peak: dict[str, float] = {}
+    for route in routes:
+        seq, simulate_s = simulate(route, noise, seed, work)
+        reader = SequenceReader(seq)
+        route_m = float(reader.ground_truth.distances()[-1])
+        height = json.loads((seq / "meta.json").read_text())["camera"]["camera_height"]
+        truth = planar_from_camera_poses(reader.ground_truth.poses, height)
+        dead_reckoning = score_files(seq / "odometry.txt", seq)["ate"]
+        render = f"simulate {simulate_s:.0f} s ({len(reader) / simulate_s:.1f} frames/s)" if simulate_s else "simulated before"
+        print(f"\n{seq.name}: {len(reader)} frames, {route_m:.0f} m; {render}; dead reckoning ATE {dead_reckoning:.3f} m",
+              flush=True)
+        print(f"  {'method':10s} {'peak MB':>8s} {'ms/frame first':>14s} {'last':>6s} {'finish s':>8s} {'ATE m':>7s} "
+              f"{'x DR':>6s} {'wrong loops':>11s}  targets", flush=True)
+        rows = []
+        for method in methods:
+            row = measure(method, seq, work, dead_reckoning, truth)
+            rows.append(row)
+            if "failed" in row:
+                print(f"  {method:10s} failed (exit {row['failed']})", flush=True)
+                continue
+            if abs(route_m - 1000) < 100:
+                one_km_peak[method] = row["peak_mb"]
+            wrong = "-" if row["wrong_loops"] is None else str(row["wrong_loops"])
+            print(f"  {method:10s} {row['peak_mb']:8.0f} {row['ms_per_frame_first_tenth']:14.1f} "
+                  f"{row['ms_per_frame_last_tenth']:6.1f} {row['finish_s']:8.1f} {row['ate_m']:7.3f} "
+                  f"{row['ate_ratio_to_dead_reckoning']:6.3f} {wrong:>11s}  " + "; ".join(targets(route_m, row, one_km_peak))
+                  + ("  (measured before)" if row.get("reused") else ""), flush=True)
+        results.append({"route": route, "route_m": route_m, "frames": len(reader), "simulate_s": simulate_s,
+                        "noise": noise, "seed": seed, "dead_reckoning_ate_m": dead_reckoning, "runs": rows})
+    (work / "scale.json").write_text(json.dumps(results, indent=1) + "\n")
+    print(f"\nwrote {work / 'scale.json'}", flush=True)
+    return results
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--routes", nargs="+", default=["paper-1km", "paper-1km-x3", "tour-10km"])
@@ -137,39 +194,7 @@ def main() -> None:
     parser.add_argument("--work", default="out/bench-scale")
     parser.add_argument("--plot-dir")
     args = parser.parse_args()
-    work = Path(args.work)
-    work.mkdir(parents=True, exist_ok=True)
-    installed = set(method_names())
-    methods = [m for m in args.methods if m in installed]
-    results, one_km_peak = [], {}
-    for route in args.routes:
-        seq, simulate_s = simulate(route, args.noise, args.seed, work)
-        reader = SequenceReader(seq)
-        route_m = float(reader.ground_truth.distances()[-1])
-        height = json.loads((seq / "meta.json").read_text())["camera"]["camera_height"]
-        truth = planar_from_camera_poses(reader.ground_truth.poses, height)
-        dead_reckoning = score_files(seq / "odometry.txt", seq)["ate"]
-        render = f"simulate {simulate_s:.0f} s ({len(reader) / simulate_s:.1f} frames/s)" if simulate_s else "simulated before"
-        print(f"\n{seq.name}: {len(reader)} frames, {route_m:.0f} m; {render}; dead reckoning ATE {dead_reckoning:.3f} m")
-        print(f"  {'method':10s} {'peak MB':>8s} {'ms/frame first':>14s} {'last':>6s} {'finish s':>8s} {'ATE m':>7s} "
-              f"{'x DR':>6s} {'wrong loops':>11s}  targets")
-        rows = []
-        for method in methods:
-            row = measure(method, seq, work, dead_reckoning, truth)
-            rows.append(row)
-            if "failed" in row:
-                print(f"  {method:10s} failed (exit {row['failed']})")
-                continue
-            if abs(route_m - 1000) < 100:
-                one_km_peak[method] = row["peak_mb"]
-            wrong = "-" if row["wrong_loops"] is None else str(row["wrong_loops"])
-            print(f"  {method:10s} {row['peak_mb']:8.0f} {row['ms_per_frame_first_tenth']:14.1f} "
-                  f"{row['ms_per_frame_last_tenth']:6.1f} {row['finish_s']:8.1f} {row['ate_m']:7.3f} "
-                  f"{row['ate_ratio_to_dead_reckoning']:6.3f} {wrong:>11s}  " + "; ".join(targets(route_m, row, one_km_peak)))
-        results.append({"route": route, "route_m": route_m, "frames": len(reader), "simulate_s": simulate_s,
-                        "dead_reckoning_ate_m": dead_reckoning, "runs": rows})
-    (work / "scale.json").write_text(json.dumps(results, indent=1) + "\n")
-    print(f"\nwrote {work / 'scale.json'}")
+    results = run_scale(args.routes, args.noise, args.seed, args.methods, Path(args.work))
     if args.plot_dir:
         plot(results, Path(args.plot_dir))
 

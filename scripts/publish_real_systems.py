@@ -16,7 +16,6 @@ import argparse
 import datetime as dt
 import json
 import os
-import platform
 import shutil
 import subprocess
 from collections import Counter, defaultdict
@@ -27,6 +26,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.run.diagnose import diagnose_run
+from longslam.run.provenance import machine, single_commit
 from longslam.study.database import DB_NAME, ResultsDB
 from longslam.study.report.distribution import FAILURE_RULE, LONGEST_LOSS_S, dead_reckoning_ates, failures_text
 from longslam.study.report.render import E_ROT_NOTE
@@ -41,14 +41,6 @@ UNSTARVED_SHARE = 0.05
 
 def _git(*args: str) -> str:
     return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
-
-
-def _machine() -> str:
-    memory_kb = next(int(line.split()[1]) for line in Path("/proc/meminfo").read_text().splitlines()
-                     if line.startswith("MemTotal:"))
-    model = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
-                  if line.startswith("model name")), platform.processor() or "unknown CPU")
-    return f"{os.cpu_count()} cores ({model}), {memory_kb / 2**20:.0f} GiB, Linux {platform.release()}"
 
 
 def _num(value: Any, digits: int = 3) -> str:
@@ -83,9 +75,9 @@ def _cell_key(run: dict) -> tuple[str, str]:
     return run["route"], run["camera_name"]
 
 
-def _commits(runs: list[dict]) -> set[str]:
-    """The commits the finished runs name (a run whose process died records none)."""
-    return {(_measured(r, "longslam_commit") or "") for r in runs if r["status"] == "ok"}
+def _commits(runs: list[dict]) -> list[str | None]:
+    """The commit each finished run names (a run whose process died records none)."""
+    return [_measured(r, "longslam_commit") for r in runs if r["status"] == "ok"]
 
 
 def summary_table(runs: list[dict], dead: dict) -> list[str]:
@@ -224,7 +216,8 @@ def _study_time(runs: list[dict]) -> str:
     return f"{(max(ends) - min(starts)).total_seconds() / 60:.0f} min"
 
 
-def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
+def publish(studies: list[Path], out: Path, commands: list[str], wall_s: float | None = None) -> None:
+    """Write `out` from the studies' databases; `wall_s`: the wall time of what made them (scripts/publish.py)."""
     images = out.parent / "images" / "real-systems"
     if images.exists():
         shutil.rmtree(images)
@@ -244,17 +237,18 @@ def publish(studies: list[Path], out: Path, commands: list[str]) -> None:
                   *pictures]
     waits = [r["cpu_wait_share"] for r in all_runs if r.get("cpu_wait_share") is not None]
     starved = [r["key"] for r in all_runs if (r.get("cpu_wait_share") or 0.0) > UNSTARVED_SHARE]
-    made_by = _commits(all_runs)
-    if len(made_by) != 1 or "" in made_by or any(c.endswith("+dirty") for c in made_by):
-        raise SystemExit(f"error: the studies' runs come from commits {sorted(made_by)}; a page is published "
-                         "from runs of one clean commit: run the studies again at one commit")
-    commit = made_by.pop()
+    try:
+        commit = single_commit(_commits(all_runs), "the real-systems studies")
+    except ValueError as err:
+        raise SystemExit(f"error: {err}") from None
     header = [
         "# A real system in the harness: ORB-SLAM3 beside keyframe and submap", "",
         "<!-- written by scripts/publish_real_systems.py from the studies' databases; do not edit by hand -->", "",
         f"Every run was made at commit `{commit}`; the page was written on {dt.date.today().isoformat()} at "
-        f"`{_git('rev-parse', '--short=7', 'HEAD')}`, on {_machine()}, by:", "",
+        f"`{_git('rev-parse', '--short=7', 'HEAD')}`, on {machine()}, by:", "",
         "```bash", *commands, "```", "",
+        *([f"The studies and this page took {wall_s / 60:.0f} min of wall time this time (runs recorded "
+           "before are reused).", ""] if wall_s is not None else []),
         f"Every run's CPU wait share (how long its threads were ready to run but waited for a core, over that wait "
         f"plus their CPU time) is at most {_num(max(waits) if waits else None, 2)}; "
         + (f"{len(starved)} of {len(waits)} runs waited for more than {UNSTARVED_SHARE:g} of their time ("

@@ -3,8 +3,7 @@
 A big solve (GTSAM's factor graphs and Python's objects for every frame of a kilometre) frees
 tens of megabytes in small blocks that glibc keeps for reuse: the process's resident memory
 stays at the solve's peak while the next step touches fresh pages of its own. Trimming the heap
-once such a phase is over lets the next one start from what is really in use (measured on
-paper-1km: 262 -> 209 MiB after the front end's smoother).
+once such a phase is over lets the next one start from what is really in use.
 """
 
 from __future__ import annotations
@@ -45,8 +44,7 @@ def map_large_blocks(threshold: int = LARGE_BLOCK, trim: int = TRIM_THRESHOLD) -
     By default glibc raises that threshold each time such a block is freed (up to 32 MiB), and
     from then on serves blocks of that size from the heap, which keeps their pages after they
     are freed: a long run's resident memory then creeps up with every large array it ever held.
-    Fixing the threshold stops that (paper-1km, keyframe: RSS at frame 6,000 209 MiB against
-    230)."""
+    Fixing the threshold stops that."""
     mallopt = getattr(_libc(), "mallopt", None)
     if mallopt is None:
         return False

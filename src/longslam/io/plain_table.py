@@ -1,8 +1,8 @@
 """Whitespace tables (TUM trajectories, image lists) read in one C pass when they are plain.
 
 Parsed line by line in Python, a 21,000-line file makes some 200,000 small objects at once; the
-few long-lived ones made beside them (the reader's arrays) then pin the heap's arenas, and a 3 km
-route's reader held 26 MB for 7 MB of numbers and names. `np.loadtxt` makes no object per line.
+few long-lived ones made beside them (the reader's arrays) then pin the heap's arenas, so the
+reader holds several times its numbers and names. `np.loadtxt` makes no object per line.
 It is taken only for text whose lines and fields it splits exactly as Python's `splitlines` and
 `split` do; anything else (a comma, a comment after the data, a stray field, a word where a number
 goes, a Unicode space) returns None, and the caller's own line-by-line parser reads the file and

@@ -1,8 +1,8 @@
 """Binary PLY files of points and triangle meshes, written in chunks.
 
-Why not trimesh or Open3D here: importing trimesh costs 35 MB of resident memory and Open3D
-about 220 MB, and building a whole 1 km mesh in memory another 85 MB: each would be the run's
-peak (issue 11 bounds it). A PLY is a text header and packed little-endian rows, so the rows are
+Why not trimesh or Open3D here: importing either costs tens to hundreds of MB of resident
+memory, and building a whole mesh in memory more: each would be the run's peak (issue 11 bounds
+it). A PLY is a text header and packed little-endian rows, so the rows are
 streamed to scratch files as they come and joined under the header once their counts are known.
 The files open in MeshLab, Open3D, trimesh and CloudCompare (tests/test_ply.py reads them back
 with trimesh and Open3D).

@@ -58,8 +58,8 @@ CLOUD_CHUNK = 1 << 18  # points packed into PLY rows at a time (3 MB)
 
 def write_point_cloud(path: Path, points: np.ndarray) -> None:
     """A binary PLY of (N, 3) points (float32), see io/ply.py. Packed a chunk at a time: a
-    float64 copy, the rows and their bytes of a whole cloud at once came to 48 bytes a point,
-    84 MB for keyframe's 1.7 million at 3 km."""
+    float64 copy, the rows and their bytes of a whole cloud at once come to 48 bytes a point,
+    held beside the cloud itself."""
     points = np.asarray(points).reshape(-1, 3)
     chunks = ((vertex_rows(points[start : start + CLOUD_CHUNK]), None) for start in range(0, len(points), CLOUD_CHUNK))
     write_ply(path, chunks, comment="made by longslam")

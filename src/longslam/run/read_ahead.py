@@ -1,7 +1,7 @@
 """Decode the next frames' images on a second thread while the method works on this one.
 
-A method that looks at every frame (the fused front end, a TSDF) would otherwise wait ~3 ms a
-frame for PNG decoding (4226 images on paper-300m: 6 s of a 47 s run). OpenCV releases the GIL
+A method that looks at every frame (the fused front end, a TSDF) would otherwise wait for two
+PNG decodes (colour and depth) a frame. OpenCV releases the GIL
 while it decodes, so the reading overlaps the method's own work on a two-core machine. Methods
 that look at one frame in ten (keyframe on wheel odometry) keep the lazy reads instead: decoding
 every frame ahead would cost them ten times the reading they need, and so do real-time systems

@@ -108,7 +108,7 @@ class RGBDCamera:
         self.settings = settings
         self.intrinsics = settings.intrinsics
         self.nthreads = int(nthreads)
-        # Imported here: Open3D costs about 220 MB of resident memory, which a run that only reads
+        # Imported here: Open3D costs hundreds of MB of resident memory, which a run that only reads
         # camera settings (every `longslam` command) should not pay.
         import open3d as o3d
 

@@ -93,12 +93,10 @@ def scan_weight(sigma_w: float | None, trust: DepthTrust = DepthTrust()) -> floa
 
     Far smaller than the scan's own noise would ask for, on purpose: the local map is made of the
     same noisy scans, so consecutive registrations share its errors, and the front end's bias
-    states take that slowly varying error for a wheel bias. Measured with the front end alone on
-    paper-300m at large wheel noise under the Kinect v1 model (seeds 0-2; dead reckoning 1.07,
-    1.47, 1.74 m): scans weighted to be consistent with the ground truth one by one (x 0.1, their
-    chi^2 from 32 to about 3) left it at 1.76 m on seed 0; x 0.013 gave 0.34, 0.84 and 2.60 m;
-    x 0.001 (this default's) 0.55, 0.88 and 0.32 m; no scans at all 0.95 m on seed 0 (the weak
-    scans still hold the heading to the local map, which the visual steps' heading does not)."""
+    states take that slowly varying error for a wheel bias; so a weight that only makes each scan
+    consistent with the truth on its own is not enough. Scans are weighted down rather than
+    dropped: a weak scan still holds the heading to the local map, which the visual steps' heading
+    does not (docs/sensors.md)."""
     if sigma_w is None or not trust.use or trust.scan_noise_half <= 0:
         return 1.0
     return 1.0 / (1.0 + (sigma_w / trust.scan_noise_half) ** 2)

@@ -273,8 +273,8 @@ class GridVotes:
 
     def reserve(self, lo_xy: np.ndarray, hi_xy: np.ndarray) -> None:
         """Allocate the array for world x, y in lo_xy..hi_xy (metres) at once, before any grid is
-        added: growing it as grids come holds the old array beside the new one (42 MB at
-        paper-1km). Grids reaching beyond still grow it; the fused grid is the same either way."""
+        added: growing it as grids come holds the old array beside the new one. Grids reaching
+        beyond still grow it; the fused grid is the same either way."""
         if self._lo is not None:
             raise RuntimeError("GridVotes.reserve must come before the first add")
         lo = np.floor(np.asarray(lo_xy, dtype=np.float64) / self.cell).astype(np.int64) - 1

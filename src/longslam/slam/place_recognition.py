@@ -24,7 +24,7 @@ _MATCH_CHUNK = 1 << 17
 
 # How the dictionary finds a descriptor's nearest word:
 # - "bruteforce": OpenCV's BFMatcher over every word (exact; the cost grows with the dictionary);
-# - "flat": faiss's exact binary index (the same answers up to ties, about 3x faster at 44k words);
+# - "flat": faiss's exact binary index (the same answers up to ties, faster on a large dictionary);
 # - "hnsw": faiss's HNSW graph over the words (approximate: the nearest word is missed now and
 #   then, which founds a near-duplicate word; the cost grows with the log of the dictionary).
 WORD_INDEXES = ("bruteforce", "flat", "hnsw")

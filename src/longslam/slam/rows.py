@@ -1,8 +1,8 @@
 """Per-frame values of a fixed shape, appended one at a time into chunks of a flat array.
 
 A list of one small numpy array per frame costs the array's header and allocation besides its
-data: a 4 x 4 pose held that way took about 320 bytes a frame (tracemalloc, paper-1km), 128 of
-them the pose; a Python float in a list, 32 bytes for 8.
+data, more than the 128 bytes of a 4 x 4 pose; a Python float in a list costs 32 bytes for 8.
+Chunks of one flat array hold the data alone.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """A voxel filter fed a batch of points at a time, that never holds every point at once.
 
 `average_3d` over a whole route's points needs them concatenated, in float64, with their voxel
-indices: at 3 km (2.5 million keyframe points) that was the run's peak, about 275 MB above what
-mapping held. Here each batch is cut into slabs of `slab_voxels` voxels along x, and each slab's
-points go to a scratch file of its own (buffered in RAM up to `buffer_points` points). At the
-end the slabs are filtered one at a time, in ascending x, with `average_3d` itself.
+indices, which on a long route is the run's peak, far above what mapping holds. Here each batch
+is cut into slabs of `slab_voxels` voxels along x, and each slab's points go to a scratch file of
+its own (buffered in RAM up to `buffer_points` points). At the end the slabs are filtered one at
+a time, in ascending x, with `average_3d` itself.
 
 The result is `average_3d(concatenated points).astype(float32)` to the bit: a voxel lies in one
 slab; each slab's file keeps its points in the order they came, so each voxel's sum adds the

@@ -1,8 +1,8 @@
 """What the front end keeps of every frame for its final smoother, in flat arrays.
 
 A frame's factors (its online pose, wheel step and sigmas, constant-velocity step, scan factor,
-visual step, the filter's biases) were a Python object holding seven small numpy arrays: about
-1.3 kB a frame, 90 MB at 10 km. Here they are one row of 40 doubles (320 bytes) in chunks of
+visual step, the filter's biases) as a Python object holding seven small numpy arrays would cost
+several times their data in headers. Here they are one row of 40 doubles (320 bytes) in chunks of
 4,096 rows (`slam/rows.py`), read back as the same `FrameRecord` values, so the smoother's graph
 is the same to the bit.
 """

@@ -59,8 +59,8 @@ class VisualGates:
         bias's own uncertainty (a Mahalanobis gate), so the gate widens when the bias is unsure.
 
         The wheels' bias jumps to a new value every few seconds; a fixed gate around the old
-        value would refuse all the evidence of the new one (measured: a 6 cm/frame jump at
-        xlarge left the estimate 3 m off). So after `reset_after` consecutive forward refusals
+        value would refuse all the evidence of the new one and leave the estimate metres off. So
+        after `reset_after` consecutive forward refusals
         the filter's forward-bias variance is widened and the gate opens.
         """
         g = self.bounds

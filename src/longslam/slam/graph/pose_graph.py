@@ -9,8 +9,8 @@ on every `optimize`: that makes removing a rejected loop closure trivial and the
 function of the nodes and edges (deterministic). Each edge's GTSAM factor is made once for the
 whole solves and kept with it (a local solve makes its own, see `_factor`), and whether the graph
 is connected is kept up to date as edges come (a union-find, built again only after an edge is
-removed): made afresh at every solve, the noise models and the search took about as long as the
-solve itself on a 10 km submap graph (340 nodes, 3,400 edges).
+removed): made afresh at every solve, the noise models and the search cost about as much as
+the solve itself on a long route's graph.
 
 Loop closures can be wrong (look-alike corridors). `try_loop` adds one, optimises, and rolls it
 back when the optimised graph disagrees with it, in one of two ways:

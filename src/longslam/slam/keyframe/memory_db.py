@@ -74,9 +74,9 @@ class MemoryDatabase:
         try:
             self._db = sqlite3.connect(self.path)
             self._db.execute("PRAGMA journal_mode=WAL")
-            # Without an fsync per commit (3 ms a node here). In WAL mode the file still survives
-            # the process dying at any point; only a power cut can lose the newest nodes, and a
-            # run cut short is run again. RTAB-Map's own default is synchronous OFF.
+            # Without an fsync per commit (one a node would cost more than the node's own writes).
+            # In WAL mode the file still survives the process dying at any point; only a power cut
+            # can lose the newest nodes, and a run cut short is run again. RTAB-Map's own default is synchronous OFF.
             self._db.execute("PRAGMA synchronous=NORMAL")
             self._db.executescript(_SCHEMA)
             version = self._db.execute("SELECT value FROM Admin WHERE key='schema_version'").fetchone()

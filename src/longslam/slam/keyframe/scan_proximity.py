@@ -148,8 +148,8 @@ def facing_cells(
 
     Point-to-line registration along a corridor has an along-track Hessian that is not zero: the
     normals, fitted to a few neighbouring cells, tilt by tens of degrees at wall ends, door frames
-    and clutter, and a few hundred such cells add up to a covariance of centimetres along it
-    (3-9 cm for links that were 1 m wrong along the corridor, docs/diagnose.md). No cell faces
+    and clutter, and a few hundred such cells add up to a covariance of centimetres along it, even
+    for a link metres wrong along the corridor (docs/diagnose.md). No cell faces
     along the corridor, though, and the registration has not moved the node along it (after Tuna
     et al.'s localizability in X-ICP, 2023)."""
     c, s = np.cos(pose[2]), np.sin(pose[2])

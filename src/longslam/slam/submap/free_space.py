@@ -3,9 +3,9 @@ clear the cells of the 2D map the camera saw through.
 
 Why: the TSDF's truncation band (0.8 m) is four times as thick as the building's walls (0.2 m).
 A wall seen from the room behind it leaves the back of that room's band, negative distances,
-up to 0.6 m into the corridor in front; averaged with the corridor's own view of the wall (often
-at a grazing angle, so few samples that far out), it moves the zero crossing 0.2-0.7 m into the
-corridor, and the 2D slice draws a wall there. The TSDF does not carve free space beyond its
+reaching into the corridor in front; averaged with the corridor's own view of the wall (often at
+a grazing angle, so few samples that far out), it can move the zero crossing into the corridor,
+and the 2D slice draws a wall there. The TSDF does not carve free space beyond its
 band, so nothing in it says that the corridor's camera saw through those cells. These rays do
 (Voxblox carves such voxels inside its TSDF; longslam's TSDF feeds registration, which this
 leaves as it is).

@@ -22,10 +22,10 @@ def fuse_submaps(load: Callable[[int], TSDF], poses: Sequence[np.ndarray], voxel
 
     Each submap is loaded twice (its blocks counted, then merged) and held only while it is used,
     so `load` may read it from disk (SubmapStore): the submaps are never all held beside the
-    fused map (at 1 km: 43 MB of submaps beside 68 MB of fused map)."""
+    fused map."""
     fused = TSDF(voxel, truncation)
     # The blocks the fused map will have, counted first, so that its arrays are allocated once:
-    # growing them by doubling would copy 32 MB at 1 km, with the old copy still held.
+    # growing them by doubling would copy the arrays, with the old copy still held.
     blocks = np.zeros(0, np.int64)
     for i, pose in enumerate(poses):
         blocks = np.unique(
@@ -44,8 +44,8 @@ def fuse_submaps(load: Callable[[int], TSDF], poses: Sequence[np.ndarray], voxel
 
 def _moved_voxels(tsdf: TSDF, pose: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(voxel centres moved by `pose`, distances, weights) of a submap, a few blocks at a time: a
-    whole submap's voxels as float64 index, centre and moved-centre arrays raised the 1 km run's
-    peak by 40 MB."""
+    whole submap's voxels as float64 index, centre and moved-centre arrays at once would raise the
+    run's peak."""
     for ijk, sdf, weight in tsdf.observed_chunks():
         if len(ijk):
             centres = (ijk + 0.5) * tsdf.voxel
@@ -214,7 +214,7 @@ def mesh_arrays(tsdf: TSDF) -> tuple[np.ndarray, np.ndarray]:
 def write_mesh(tsdf: TSDF, path: Path) -> Path | None:
     """Write the TSDF's mesh as binary PLY (float32 vertices with their normals, triangles);
     None when there is no surface. Block by block (io/ply.py): building the whole mesh in memory
-    first (and trimesh's vertex merging) raised the 1 km run's peak by 85 MB. A vertex on a
+    first (and trimesh's vertex merging) would raise the run's peak. A vertex on a
     block's face is written once per block that meshes it (viewers show no seam)."""
     _, n_faces = write_ply(
         path,

@@ -2,8 +2,8 @@
 
 A finished submap's compacted TSDF (about 1.2 MB with the paper's voxels) is needed again only
 when a newer submap overlaps it (registration) and once more at the end (the global map's
-fusion). Held in memory they were the submap method's growth with the route: 105 of them, 125
-MB, on a 3 km route. Here they go into one SQLite file as they finish (raw bytes: they are read
+fusion). Held in memory they would be the submap method's growth with the route. Here they go
+into one SQLite file as they finish (raw bytes: they are read
 back far more often than written, and int8 distances hardly pay for deflating) and come back on
 demand through a small least-recently-used cache.
 

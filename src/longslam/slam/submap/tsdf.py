@@ -441,7 +441,7 @@ def depth_points(
     if not ok.any():
         empty = np.zeros((0, 3))
         return (empty, empty) if with_normals else empty
-    # Per coordinate rather than as (H, W, 3) stacks and np.cross: 2.8x faster, same numbers.
+    # Per coordinate rather than as (H, W, 3) stacks and np.cross: faster, the same numbers.
     ray_u = (np.arange(0, depth.shape[1], stride) - intrinsics.cx) / intrinsics.fx
     ray_v = (np.arange(0, depth.shape[0], stride) - intrinsics.cy) / intrinsics.fy
     z = np.where(ok, sub, np.nan)

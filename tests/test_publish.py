@@ -1,0 +1,119 @@
+"""scripts/publish.py: a tiny study published through the steps' own code (run, then the page from
+its database), the page's stamp, and the refusals: runs of two commits, a dirty git tree."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from helpers.studies import tiny_study_file
+
+from longslam.run.provenance import machine, single_commit
+
+ROOT = Path(__file__).resolve().parent.parent
+spec = importlib.util.spec_from_file_location("publish", ROOT / "scripts" / "publish.py")
+assert spec is not None and spec.loader is not None
+publish = importlib.util.module_from_spec(spec)
+sys.modules["publish"] = publish
+spec.loader.exec_module(publish)
+
+
+def _set_commits(study: Path, commits: list[str]) -> None:
+    """Give the study's runs these commits (in key order). The checkout may have uncommitted changes
+    while the tests run, so the runs' own commit may be 'abc1234+dirty', which is never published."""
+    with sqlite3.connect(study / "results.sqlite") as db:
+        keys = [k for (k,) in db.execute("SELECT key FROM runs ORDER BY key")]
+        assert len(keys) == len(commits)
+        for key, commit in zip(keys, commits):
+            (text,) = db.execute("SELECT measurements FROM runs WHERE key = ?", (key,)).fetchone()
+            measured = json.loads(text)
+            measured["longslam_commit"] = commit
+            db.execute("UPDATE runs SET measurements = ? WHERE key = ?", (json.dumps(measured), key))
+
+
+def test_a_tiny_study_is_published_with_its_stamp_and_runs_of_two_commits_are_refused(
+    tmp_path, render_cache, monkeypatch
+):
+    monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
+    study_file = tiny_study_file(tmp_path, "[0, 1]")
+    said: list[str] = []
+    pub = publish.Publication(ROOT, tmp_path / "work", tmp_path / "docs" / "results",
+                              "python scripts/publish.py --only tiny", jobs=1, say=said.append)
+    page = publish.StudyPage("tiny", study_file, "tiny.md", "A tiny study", ("What the tiny study is.",))
+    out = publish.run_study_step(pub, page)
+    assert any("tiny: 2 runs, 0 recorded before, 2 run now" in line for line in said)
+    # A step resumes from its database: nothing runs again.
+    publish.run_study_step(pub, page)
+    assert any("tiny: 2 runs, 2 recorded before, 0 run now" in line for line in said)
+
+    _set_commits(out, ["abc1234", "abc1234"])
+    path = publish.publish_study(pub, page, out, 75.0)
+    text = path.read_text()
+    lines = text.splitlines()
+    assert lines[0] == "# A tiny study"
+    assert "- **Commit**: every run was made at `abc1234`" in text
+    assert f"- **Machine**: {machine()}" in lines
+    assert f"{os.cpu_count()} cores (" in machine() and "GiB memory" in machine()
+    assert "- **Command**: `python scripts/publish.py --only tiny`" in lines
+    assert f"`longslam study {study_file} --out {out} --jobs 1`" in text
+    assert "- **Wall time of the step**: 75 s" in text
+    assert "What the tiny study is." in text and "### Table 1: accuracy" in text
+    figures = tmp_path / "docs" / "results" / "tiny-abc1234"
+    pngs = sorted(p.name for p in figures.glob("*.png"))
+    assert pngs and all(f"(tiny-abc1234/{name})" in text for name in pngs)
+
+    _set_commits(out, ["abc1234", "def5678"])
+    with pytest.raises(publish.PublishError, match="commits abc1234, def5678"):
+        publish.publish_study(pub, page, out, 1.0)
+    _set_commits(out, ["abc1234+dirty", "abc1234+dirty"])
+    with pytest.raises(publish.PublishError, match=r"abc1234\+dirty"):
+        publish.publish_study(pub, page, out, 1.0)
+    assert path.read_text() == text  # a refused page leaves the published one as it was
+
+
+def test_one_clean_commit_is_asked_of_the_runs():
+    assert single_commit(["abc1234", "abc1234"], "x") == "abc1234"
+    for commits in (["abc1234", "def5678"], ["abc1234", None], ["abc1234+dirty"], []):
+        with pytest.raises(ValueError):
+            single_commit(commits, "x")
+
+
+def _git(repo: Path, *args: str) -> None:
+    subprocess.run(["git", "-C", str(repo), "-c", "user.name=t", "-c", "user.email=t@t", *args], check=True,
+                   capture_output=True)
+
+
+def test_a_tree_with_changes_to_tracked_files_is_refused_before_any_step(tmp_path):
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    _git(repo, "init", "-q")
+    (repo / "tracked.txt").write_text("one\n")
+    _git(repo, "add", "tracked.txt")
+    _git(repo, "commit", "-q", "-m", "one")
+    ran: list[str] = []
+    pub = publish.Publication(repo, tmp_path / "work", repo / "docs" / "results", "publish", say=ran.append)
+    publish.RUNNERS["noted"] = lambda p: ran.append("noted") or repo
+    try:
+        (repo / "untracked.txt").write_text("new\n")  # untracked files do not count
+        publish.publish(pub, ["noted"])
+        assert ran.count("noted") == 1
+        (repo / "tracked.txt").write_text("two\n")
+        with pytest.raises(publish.PublishError, match=r"uncommitted changes \(tracked.txt\)"):
+            publish.publish(pub, ["noted"])
+        assert ran.count("noted") == 1  # refused before the step ran
+    finally:
+        del publish.RUNNERS["noted"]
+
+
+def test_steps_are_named_and_run_in_the_publication_order():
+    assert publish.parse_steps(None) == ["paper", "sensors", "scale", "maps"]
+    assert publish.parse_steps("maps,paper") == ["paper", "maps"]
+    assert publish.parse_steps("real-systems") == ["real-systems"]
+    with pytest.raises(publish.PublishError, match="unknown step"):
+        publish.parse_steps("paper,nope")
