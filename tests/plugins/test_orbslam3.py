@@ -106,7 +106,7 @@ def test_settings_file_from_the_camera():
 
 
 def test_bad_parameters_are_refused_with_the_range():
-    with pytest.raises(Exception, match="features=10: expected 100 to 20000"):
+    with pytest.raises(Exception, match="features must be from 100 to 20000, got 10"):
         catalog.check_params("orbslam3", {"features": 10})
     with pytest.raises(Exception, match="min_th_fast"):
         catalog.check_params("orbslam3", {"ini_th_fast": 5, "min_th_fast": 9})
