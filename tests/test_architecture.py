@@ -5,16 +5,12 @@ sibling method. `scripts/architecture.py` prints the floors these are measured o
 from __future__ import annotations
 
 import ast
-import importlib.util
-import sys
 from pathlib import Path
 
+from helpers.scripts import load_script
+
 ROOT = Path(__file__).resolve().parent.parent
-spec = importlib.util.spec_from_file_location("architecture", ROOT / "scripts" / "architecture.py")
-assert spec is not None and spec.loader is not None
-architecture = importlib.util.module_from_spec(spec)
-sys.modules["architecture"] = architecture
-spec.loader.exec_module(architecture)
+architecture = load_script(Path("scripts/architecture.py"), "architecture")
 
 METHODS = ("keyframe", "submap", "command")
 

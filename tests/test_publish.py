@@ -3,25 +3,20 @@ its database), the page's stamp, and the refusals: runs of two commits, a dirty 
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import sqlite3
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from helpers.scripts import load_script
 from helpers.studies import tiny_study_file
 
 from longslam.run.provenance import machine, single_commit
 
 ROOT = Path(__file__).resolve().parent.parent
-spec = importlib.util.spec_from_file_location("publish", ROOT / "scripts" / "publish.py")
-assert spec is not None and spec.loader is not None
-publish = importlib.util.module_from_spec(spec)
-sys.modules["publish"] = publish
-spec.loader.exec_module(publish)
+publish = load_script(Path("scripts/publish.py"), "publish")
 
 
 def _set_commits(study: Path, commits: list[str]) -> None:

@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
 import pytest
+from helpers.scripts import load_script
 
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 sys.path.insert(0, str(BENCHMARKS))  # compare.py imports its neighbour common.py
-_spec = importlib.util.spec_from_file_location("benchmarks_compare", BENCHMARKS / "compare.py")
-compare = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(compare)
+compare = load_script(BENCHMARKS / "compare.py", "benchmarks_compare")
 
 
 def test_the_defaults_and_repeated_params():

@@ -3,18 +3,14 @@ writing the record), on a tiny fake record: nothing is simulated or run."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
+from helpers.scripts import load_script
 
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-_spec = importlib.util.spec_from_file_location("benchmarks_held_out", BENCHMARKS / "held_out.py")
-held_out = importlib.util.module_from_spec(_spec)
-sys.modules[_spec.name] = held_out  # its dataclass looks its module up while it is made
-_spec.loader.exec_module(held_out)
+held_out = load_script(BENCHMARKS / "held_out.py", "benchmarks_held_out")
 
 # Two seeds of one cell: keyframe 0.100 -> 0.125 (+25 %, flagged) and 0.200 -> 0.215 (+7.5 %).
 FAKE = {

@@ -3,17 +3,13 @@ so a rename in the methods fails here instead of in the middle of a profile."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import pytest
+from helpers.scripts import load_script
 
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-_spec = importlib.util.spec_from_file_location("benchmarks_step_phases", BENCHMARKS / "step_phases.py")
-step_phases = importlib.util.module_from_spec(_spec)
-sys.modules[_spec.name] = step_phases
-_spec.loader.exec_module(step_phases)
+step_phases = load_script(BENCHMARKS / "step_phases.py", "benchmarks_step_phases")
 
 PARTS = [(method, part) for method, parts in step_phases.PHASES.items() for part in parts]
 

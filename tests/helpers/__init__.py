@@ -7,7 +7,8 @@
 - `tiny_vocabulary`: the smallest sound ORB vocabulary file;
 - `cli_checks`: the CLI's failure was one line; what shell completion answers;
 - `sequence_checks`: two sequences the same, as a round trip must give them;
-- `recordings`: reading a rerun recording back.
+- `recordings`: reading a rerun recording back;
+- `scripts`: a script, benchmark or example of the checkout loaded as a module (`load_script`).
 
 `tests/` is on the path (pyproject's `pythonpath`), so a test imports `from helpers.x import y`.
 """
