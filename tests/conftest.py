@@ -1,5 +1,6 @@
 """The fixtures several folders share: a tiny sequence, the session's render cache and its rendered
-sequences, a guard against touching /dev, and a vocabulary cache of its own. Helper functions
+sequences, a guard against touching /dev, a vocabulary cache of its own, and the methods' catalogue
+for a test to register its own methods on. Helper functions
 (tiny sequences, a generated building, flat walls, CLI checks, ...) are in the `helpers` package."""
 
 from __future__ import annotations
@@ -96,3 +97,13 @@ def vocabulary_cache(tmp_path, monkeypatch):
     monkeypatch.setattr(build, "rendered_route", lambda *a, **k: tmp_path)
     monkeypatch.setattr(build, "build_vocabulary_file", fake_build)
     return built
+
+
+@pytest.fixture()
+def method_catalogue(monkeypatch):
+    """The methods' catalogue (`longslam.slam.catalog.METHODS`), put back as it was after the test:
+    the methods a test registers on it are its own."""
+    from longslam.slam import catalog
+
+    monkeypatch.setattr(catalog.METHODS, "_items", dict(catalog.METHODS._items))
+    return catalog.METHODS

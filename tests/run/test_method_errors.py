@@ -14,7 +14,6 @@ from longslam.core.errors import InputError, MethodError
 from longslam.core.trajectory import Trajectory
 from longslam.io.sequence import SequenceReader
 from longslam.run.engine import run_frames
-from longslam.slam import catalog
 from longslam.slam.catalog import choose_method
 from longslam.slam.api import MethodContext, MethodSpec, Result
 
@@ -51,9 +50,8 @@ class Broken:
 
 
 @pytest.fixture
-def broken_method(monkeypatch):
-    monkeypatch.setattr(catalog.METHODS, "_items", dict(catalog.METHODS._items))
-    catalog.METHODS.register("broken", MethodSpec("broken", BrokenConfig, Broken, "a method with bugs, for tests"))
+def broken_method(method_catalogue):
+    method_catalogue.register("broken", MethodSpec("broken", BrokenConfig, Broken, "a method with bugs, for tests"))
     return "broken"
 
 

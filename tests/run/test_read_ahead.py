@@ -95,27 +95,26 @@ class _Watcher:
 
 
 @pytest.mark.parametrize("real_time", [False, True])
-def test_a_real_time_system_reads_its_own_frames_and_others_read_ahead(real_time, tiny_sequence, monkeypatch):
+def test_a_real_time_system_reads_its_own_frames_and_others_read_ahead(real_time, tiny_sequence, method_catalogue):
     from dataclasses import dataclass
 
     from longslam.io.sequence import SequenceReader
     from longslam.run.engine import run_frames
-    from longslam.slam import catalog
     from longslam.slam.api import MethodContext, MethodSpec
+    from longslam.slam.catalog import choose_method
 
     @dataclass(frozen=True)
     class NoConfig:
         pass
 
-    monkeypatch.setattr(catalog.METHODS, "_items", dict(catalog.METHODS._items))
-    catalog.METHODS.register("watcher", MethodSpec("watcher", NoConfig, _Watcher, "for tests", real_time=real_time))
+    method_catalogue.register("watcher", MethodSpec("watcher", NoConfig, _Watcher, "for tests", real_time=real_time))
     reader = SequenceReader(tiny_sequence)
     readers = []
     frames = list(reader)
     for frame in frames:
         load = frame._depth
         frame._depth = (lambda load=load: (readers.append(threading.current_thread().name), load())[1])
-    run_frames(catalog.choose_method("watcher", {}), frames, MethodContext(reader.intrinsics, reader.max_depth), progress=False)
+    run_frames(choose_method("watcher", {}), frames, MethodContext(reader.intrinsics, reader.max_depth), progress=False)
     assert len(readers) == len(frames)
     if real_time:
         assert set(readers) == {threading.current_thread().name}

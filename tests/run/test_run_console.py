@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from longslam.core.errors import MethodError
-from longslam.run import engine, scored_run
+from longslam.run import scored_run
 from longslam.slam import catalog
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.slam.api import MethodSpec, Result
@@ -82,8 +82,9 @@ SPECS = {cls.name: MethodSpec(cls.name, None, cls) for cls in (Native, Fails, Th
 
 
 @pytest.fixture(autouse=True)
-def test_methods(monkeypatch):
-    monkeypatch.setattr(catalog.METHODS, "_items", {**catalog.METHODS._items, **SPECS})
+def test_methods(method_catalogue):
+    for name, spec in SPECS.items():
+        method_catalogue.register(name, spec)
     Native.closed.clear()
 
 
@@ -143,7 +144,6 @@ def test_process_cpu_time_counts_the_method_threads(tiny_sequence, tmp_path):
 def test_the_demo_and_a_study_prepare_each_method_before_its_runs(tmp_path, monkeypatch):
     """MethodSpec.prepare: once-per-machine work outside every run's process and figures."""
     from longslam.cli import demo
-    from longslam.slam import catalog
 
     prepared = []
     spec = MethodSpec("native", None, Native, prepare=lambda config: prepared.append(dict(config)))
