@@ -33,8 +33,12 @@ def box_groups(linear: np.ndarray, cells: int) -> tuple[np.ndarray, np.ndarray]:
     ascending; each point's group), as `np.unique(linear, return_inverse=True)` gives them."""
     present = np.zeros(cells, bool)
     present[linear] = True
-    rank = np.cumsum(present, dtype=np.int64) - 1
-    return np.flatnonzero(present), rank[linear]
+    occupied = np.flatnonzero(present)
+    # Each occupied cell's rank written at its index: the box is read once as bytes, where a
+    # cumulative sum wrote eight bytes per cell of the box. Only occupied cells are read back.
+    rank = np.empty(cells, np.int64)
+    rank[occupied] = np.arange(len(occupied), dtype=np.int64)
+    return occupied, rank[linear]
 
 
 def group_cells_2d(i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
