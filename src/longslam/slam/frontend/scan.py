@@ -48,8 +48,10 @@ class ScanExtractor:
             [(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones(u.shape)], axis=-1
         ).reshape(-1, 3)
         pose = np.asarray(camera_in_base, dtype=np.float64)
-        # A base-frame point is depth * (R @ ray) + t: precompute R @ ray for every pixel.
-        self._dirs = (rays @ pose[:3, :3].T).astype(np.float32)
+        # A base-frame point is depth * (R @ ray) + t: precompute R @ ray for every pixel, one
+        # contiguous array per axis (picking pixels out of an (N, 3) array costs several times more).
+        dirs = (rays @ pose[:3, :3].T).astype(np.float32)
+        self._dir_x, self._dir_y, self._dir_z = (np.ascontiguousarray(dirs[:, axis]) for axis in range(3))
         self._origin = pose[:3, 3].astype(np.float32)
         self._stride = s
 
@@ -57,14 +59,15 @@ class ScanExtractor:
         """(N, 2) float64 cell-averaged scan points in the base frame."""
         cfg = self.config
         z = np.asarray(depth, dtype=np.float32)[:: self._stride, :: self._stride].reshape(-1)
-        ok = np.isfinite(z) & (z > 0)
-        # Height first (one column), then only the band's points get their x, y.
-        dirs = self._dirs[ok]
-        z = z[ok]
-        h = z * dirs[:, 2] + self._origin[2]
+        pixels = np.flatnonzero(np.isfinite(z) & (z > 0))
+        # Height first, then only the band's points get their x, y.
+        z = z[pixels]
+        h = z * self._dir_z[pixels] + self._origin[2]
         band = (h >= cfg.min_height) & (h <= cfg.max_height)
-        z, dirs = z[band], dirs[band]
-        xy = z[:, None] * dirs[:, :2] + self._origin[:2]
+        z, pixels = z[band], pixels[band]
+        xy = np.empty((len(z), 2), np.float32)
+        xy[:, 0] = z * self._dir_x[pixels] + self._origin[0]
+        xy[:, 1] = z * self._dir_y[pixels] + self._origin[1]
         r2 = np.einsum("ij,ij->i", xy, xy)
         keep = (r2 >= cfg.min_range**2) & (r2 <= cfg.max_range**2)
         return average_2d(xy[keep].astype(np.float64), cfg.cell)
