@@ -94,6 +94,11 @@ class Vocabulary:
         self._index_kind = index
         self._index = None if index == "bruteforce" else _faiss_index(index)
         self._index_words = np.zeros(0, np.int64)  # word id of each row of the faiss index
+        # Bumped whenever the words or their search index change: a search's answer holds until then.
+        self._dictionary_version = 0
+        # (version, descriptors, nearest word, distance) of the latest search: a method that queries
+        # an image and then adds it searches the dictionary once.
+        self._last_search: tuple[int, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.index_rebuilds = 0
         # node id -> (unique word ids, counts): the node's bag of words.
         self._bags: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -133,6 +138,14 @@ class Vocabulary:
 
     def _nearest(self, descriptors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nearest word and its distance for each descriptor (-1, 257 with an empty dictionary)."""
+        last = self._last_search
+        if last is not None and last[0] == self._dictionary_version and np.array_equal(last[1], descriptors):
+            return last[2].copy(), last[3].copy()
+        word, dist = self._search(descriptors)
+        self._last_search = (self._dictionary_version, descriptors.copy(), word.copy(), dist.copy())
+        return word, dist
+
+    def _search(self, descriptors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = len(descriptors)
         # Words may exist with none left in the index (`forget_unused`).
         if self._n_words == 0 or n == 0 or (self._index is not None and self._index.ntotal == 0):
@@ -166,6 +179,7 @@ class Vocabulary:
             df[: len(self._df)] = self._df
             self._df = df
         ids = np.arange(self._n_words, need, dtype=np.int64)
+        self._dictionary_version += 1
         self._words[self._n_words : need] = descriptors
         self._n_words = need
         if self._index is not None:
@@ -189,6 +203,7 @@ class Vocabulary:
         if len(keep):
             index.add(np.ascontiguousarray(self._words[keep]))
         self._index, self._index_words = index, keep
+        self._dictionary_version += 1
         self.index_rebuilds += 1
         return True
 
