@@ -39,6 +39,17 @@ def _dot(ax, ay, az, bx, by, bz):
     return (ax * bx + az * bz) + ay * by
 
 
+def _band_cells(start: np.ndarray, direction: np.ndarray, offsets: np.ndarray, voxel: float) -> np.ndarray:
+    """floor((start + direction * offset) / voxel) along one axis for every (ray, offset), ray
+    by ray: (R * len(offsets),) int64. Computed in one buffer: the temporaries of the plain
+    expression cost as much as the arithmetic."""
+    cells = np.multiply(direction[:, None], offsets[None, :])
+    np.add(start[:, None], cells, out=cells)
+    np.divide(cells, voxel, out=cells)
+    np.floor(cells, out=cells)
+    return cells.astype(np.int64).reshape(-1)
+
+
 _LOCAL = np.stack(np.meshgrid(np.arange(BLOCK), np.arange(BLOCK), np.arange(BLOCK), indexing="ij"), axis=-1)
 _LOCAL = _LOCAL.transpose(2, 1, 0, 3).reshape(-1, 3)  # row k = voxel with local index k (x fastest)
 
@@ -79,20 +90,19 @@ class TSDF:
         """Slots of unique block keys, allocating missing blocks."""
         if self.compacted:
             raise InputError("a compacted TSDF is read-only")
-        slots = np.empty(len(block_keys), np.int64)
-        new = []
-        for i, key in enumerate(block_keys.tolist()):
-            slot = self._slot.get(key)
-            if slot is None:
-                slot = len(self._slot)
-                self._slot[key] = slot
-                new.append(key)
-            slots[i] = slot
-        if new:
-            need = len(self._slot)
+        # Existing blocks by binary search over the sorted keys (a dict lookup per block in
+        # Python cost more); new ones take the next slots in the order they come.
+        slots = self._find(block_keys)
+        missing = np.flatnonzero(slots < 0)
+        if len(missing):
+            first = len(self._slot)
+            need = first + len(missing)
+            slots[missing] = np.arange(first, need)
+            new = block_keys[missing]
+            self._slot.update(zip(new.tolist(), range(first, need)))
             if need > len(self._sdf):
                 self._grow(max(need, 2 * len(self._sdf), 16))
-            self._keys[need - len(new) : need] = new
+            self._keys[first:need] = new
             self._sorted = None
         return slots
 
@@ -262,10 +272,7 @@ class TSDF:
             mx, my, mz, dx, dy, dz, w_sum, nx, ny, nz = (a[ok] for a in (mx, my, mz, dx, dy, dz, w_sum, nx, ny, nz))
         # Samples every half voxel through the band; each sample names the voxel it falls in.
         offsets = np.arange(-tau, tau + 1e-9, 0.5 * v)
-        i, j, k = (
-            np.floor((m[:, None] + d[:, None] * offsets[None, :]) / v).astype(np.int64).reshape(-1)
-            for m, d in ((mx, dx), (my, dy), (mz, dz))
-        )
+        i, j, k = (_band_cells(m, d, offsets, v) for m, d in ((mx, dx), (my, dy), (mz, dz)))
         # One update per (ray, voxel): a ray's samples are in order along it, so the samples it
         # takes in one voxel are adjacent and a comparison with the previous sample finds them.
         first = np.ones(len(i), bool)
