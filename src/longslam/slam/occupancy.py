@@ -20,7 +20,7 @@ import numpy as np
 
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
-from longslam.core.geometry.cells import group_cells_2d
+from longslam.core.geometry.cells import box_is_dense, group_cells_2d
 from longslam.core.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
 
 
@@ -60,11 +60,21 @@ def _unique_cells(cells: np.ndarray) -> np.ndarray:
 
 
 def _remove_cells(cells: np.ndarray, drop: np.ndarray) -> np.ndarray:
-    """Rows of `cells` not in `drop` (both small int arrays), via 1D keys."""
+    """Rows of `cells` not in `drop` (both small int arrays): by a presence array over the box
+    both lie in, or by sorted 1D keys when that box is mostly empty."""
     if not len(cells) or not len(drop):
         return cells
-    key = lambda c: (c[:, 0].astype(np.int64) << 32) + (c[:, 1].astype(np.int64) & 0xFFFFFFFF)  # noqa: E731
-    return cells[~np.isin(key(cells), key(drop))]
+    i, j = cells[:, 0].astype(np.int64), cells[:, 1].astype(np.int64)
+    di, dj = drop[:, 0].astype(np.int64), drop[:, 1].astype(np.int64)
+    i_low, j_low = min(int(i.min()), int(di.min())), min(int(j.min()), int(dj.min()))
+    rows = max(int(i.max()), int(di.max())) - i_low + 1
+    cols = max(int(j.max()), int(dj.max())) - j_low + 1
+    if not box_is_dense(rows * cols, len(cells) + len(drop)):
+        key = lambda a, b: (a << 32) + (b & 0xFFFFFFFF)  # noqa: E731
+        return cells[~np.isin(key(i, j), key(di, dj))]
+    dropped = np.zeros(rows * cols, bool)
+    dropped[(di - i_low) * cols + (dj - j_low)] = True
+    return cells[~dropped[(i - i_low) * cols + (j - j_low)]]
 
 
 @functools.lru_cache(maxsize=8)
