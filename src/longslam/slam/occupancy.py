@@ -298,17 +298,19 @@ class GridVotes:
         both = np.vstack([hit_cells, miss_cells])
         if not len(both):
             return
-        self._cover(both.min(axis=0), both.max(axis=0))
+        lo, hi = both.min(axis=0), both.max(axis=0)
+        self._cover(lo, hi)
+        assert self._lo is not None  # `_cover` placed the array
         cols = self._odds.shape[1]
-
-        def flat(cells: np.ndarray) -> np.ndarray:
-            local = cells - self._lo
-            return np.unique(local[:, 1] * cols + local[:, 0])
-
         # One update per cell and node (two local cells can land in one world cell once
         # rotated); a cell that is both a hit and a miss of this node is a hit.
-        hits = flat(hit_cells)
-        misses = np.setdiff1d(flat(miss_cells), hits, assume_unique=True)
+        row0, col0 = int(self._lo[1]), int(self._lo[0])
+        hits, misses = _hits_and_misses(
+            (hit_cells[:, 1] - row0) * cols + (hit_cells[:, 0] - col0),
+            (miss_cells[:, 1] - row0) * cols + (miss_cells[:, 0] - col0),
+            int((lo[1] - row0) * cols),
+            int((hi[1] - row0 + 1) * cols),
+        )
         odds = self._odds.reshape(-1)
         for index, delta in ((hits, self.hit), (misses, self.miss)):
             value = np.nan_to_num(odds[index], nan=0.0) + delta
@@ -329,6 +331,21 @@ class GridVotes:
         assert self._lo is not None  # cells seen: `_cover` or `reserve` placed the array
         origin = (float((self._lo[0] + c0) * self.cell), float((self._lo[1] + r0) * self.cell))
         return GridMap(data, self.cell, origin)
+
+
+def _hits_and_misses(hit: np.ndarray, miss: np.ndarray, first: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unique hit indices, and unique miss indices that are no hit, both ascending, of flat
+    indices in [first, stop): by presence arrays over that range (the rows the cells span), or
+    by sorting when the range is mostly empty."""
+    if not box_is_dense(stop - first, len(hit) + len(miss)):
+        hits = np.unique(hit)
+        return hits, np.setdiff1d(np.unique(miss), hits, assume_unique=True)
+    is_hit = np.zeros(stop - first, bool)
+    is_hit[hit - first] = True
+    is_miss = np.zeros(stop - first, bool)
+    is_miss[miss - first] = True
+    is_miss &= ~is_hit
+    return np.flatnonzero(is_hit) + first, np.flatnonzero(is_miss) + first
 
 
 def assemble(local_grids: list[LocalGrid], poses_xyyaw: np.ndarray, cell: float = 0.05) -> GridMap:
