@@ -158,3 +158,21 @@ def test_a_reserved_vote_array_gives_the_same_grid_and_grows_if_it_must():
         assert np.array_equal(a.data, b.data) and a.origin == b.origin
     with pytest.raises(RuntimeError, match="before the first add"):
         reserved.reserve(np.zeros(2), np.ones(2))
+
+
+@pytest.mark.parametrize("spread", [5, 100_000])  # a dense box (presence arrays) and a sparse one (sorting)
+def test_cells_are_removed_and_votes_made_unique_as_sorting_does(spread):
+    from longslam.slam.occupancy import _hits_and_misses, _remove_cells
+
+    rng = np.random.default_rng(2)
+    cells = rng.integers(-spread, spread, (400, 2))
+    drop = np.vstack([cells[::3], rng.integers(-spread, spread, (50, 2))])
+    key = lambda c: (c[:, 0].astype(np.int64) << 32) + (c[:, 1].astype(np.int64) & 0xFFFFFFFF)  # noqa: E731
+    np.testing.assert_array_equal(_remove_cells(cells, drop), cells[~np.isin(key(cells), key(drop))])
+
+    first = 7
+    hit = rng.integers(first, first + 40 * spread, 300)
+    miss = np.concatenate([hit[::2], rng.integers(first, first + 40 * spread, 300)])
+    hits, misses = _hits_and_misses(hit, miss, first, first + 40 * spread)
+    np.testing.assert_array_equal(hits, np.unique(hit))
+    np.testing.assert_array_equal(misses, np.setdiff1d(np.unique(miss), np.unique(hit)))

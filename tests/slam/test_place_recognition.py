@@ -255,3 +255,21 @@ def test_vocabulary_scores_follow_the_nodes_indexed(scenes):
     assert vocab.query(revisit, top_k=6) == after
     assert before[0][0] == 2 and all(node != 2 for node, _ in after)
     assert dict(before)[0] != dict(after)[0]  # one node fewer and one more: the idf moved
+
+
+def test_a_repeated_search_is_answered_again_only_until_the_dictionary_changes():
+    rng = np.random.default_rng(5)
+    vocab = Vocabulary(max_distance=20, index="bruteforce")
+    image = rng.integers(0, 256, (50, 32), dtype=np.uint8)
+    assert np.all(vocab.quantise(image) == -1)  # an empty dictionary
+    assert np.all(vocab.quantise(image) == -1)  # the same search, the same answer
+    words = vocab.add(0, image)  # grows the dictionary by this image's words
+    assert np.all(words >= 0)
+    # A search made before the words existed must not answer now.
+    assert np.array_equal(vocab.quantise(image), words)
+    # Query then add (the submap method's order) gives the words a plain add gives.
+    other = rng.integers(0, 256, (50, 32), dtype=np.uint8)
+    fresh = Vocabulary(max_distance=20, index="bruteforce")
+    fresh.add(0, image)
+    vocab.query(other)
+    assert np.array_equal(vocab.add(1, other), fresh.add(1, other))
