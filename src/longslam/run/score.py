@@ -24,6 +24,16 @@ BAG = "bag"  # the format read_source names for a bag topic
 MAX_DIFF = 0.01  # seconds between matched stamps (the CLI's --max-diff default)
 
 
+def _matched(
+    truth: Trajectory, estimate: Trajectory, max_diff: float, by_index: bool, offset: float
+) -> tuple[Trajectory, Trajectory]:
+    """The pairs of poses that are scored, (truth's, estimate's): by index, or by timestamp.
+    The scores and `coverage` pair the poses here, so the coverage speaks of the poses scored."""
+    if by_index:
+        return associate_by_index(truth, estimate)
+    return associate(truth, estimate, max_diff=max_diff, offset=offset)
+
+
 def score_full(
     truth: Trajectory,
     estimate: Trajectory,
@@ -37,11 +47,7 @@ def score_full(
 ) -> Evaluation:
     """The evaluation behind `score`: its scores and the arrays (per-pose errors, the aligned
     estimate) that plots and result files need. `options` are `evaluate`'s keyword options."""
-    ref, est = (
-        associate_by_index(truth, estimate)
-        if by_index
-        else associate(truth, estimate, max_diff=max_diff, offset=offset)
-    )
+    ref, est = _matched(truth, estimate, max_diff, by_index, offset)
     with np.errstate(all="ignore"):  # overflow is reported below, as one error
         evaluation = evaluate_full(ref, est, align=align, min_step=min_step, **options)
     bad = [key for key, value in evaluation.scores.items() if isinstance(value, float) and not math.isfinite(value)]
@@ -96,11 +102,7 @@ def coverage(
 ) -> dict[str, Any]:
     """How much of each trajectory the scores rest on: poses matched, their share of the
     estimate's poses, and the share of the ground truth's time span they cover."""
-    ref, est = (
-        associate_by_index(truth, estimate)
-        if by_index
-        else associate(truth, estimate, max_diff=max_diff, offset=offset)
-    )
+    ref, est = _matched(truth, estimate, max_diff, by_index, offset)
     truth_span = _span(truth.timestamps)
     return {
         "matched_poses": len(est),
