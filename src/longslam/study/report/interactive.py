@@ -4,6 +4,8 @@ plotly.js once, inline, so the page works offline; report.md keeps the static PN
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import plotly.graph_objects as go
 import plotly.io as pio
@@ -36,6 +38,11 @@ def _thin(xy: np.ndarray, most: int = MAX_POINTS) -> np.ndarray:
     if len(xy) <= most:
         return xy
     return xy[np.unique(np.linspace(0, len(xy) - 1, most).round().astype(int))]
+
+
+def _line(xy: np.ndarray, **style: Any) -> go.Scatter:
+    """An (N, 2) array of points drawn as one line; `style` is the rest of the trace's properties."""
+    return go.Scatter(x=xy[:, 0], y=xy[:, 1], mode="lines", **style)
 
 
 def _plan_trace(grid: GridMap, view: tuple[float, float, float, float]) -> go.Heatmap:
@@ -77,15 +84,7 @@ def trajectories_figure(
     fig = go.Figure()
     fig.add_trace(_plan_trace(grid, view))
     truth = _thin(truth_xy)
-    fig.add_trace(
-        go.Scatter(
-            x=truth[:, 0],
-            y=truth[:, 1],
-            mode="lines",
-            name=GROUND_TRUTH,
-            line={"color": "black", "dash": "dash", "width": 2},
-        )
-    )
+    fig.add_trace(_line(truth, name=GROUND_TRUTH, line={"color": "black", "dash": "dash", "width": 2}))
     seeds = sorted({seed for runs in estimates.values() for seed in runs})
     trace_seeds: list[int] = []
     for k, (method, runs) in enumerate(estimates.items()):
@@ -98,10 +97,8 @@ def trajectories_figure(
             ate = ates.get((method, seed))
             name = f"{method}, seed {seed}" + (f" (ATE {ate:.3f} m)" if ate is not None else "")
             fig.add_trace(
-                go.Scatter(
-                    x=xy[:, 0],
-                    y=xy[:, 1],
-                    mode="lines",
+                _line(
+                    xy,
                     name=name,
                     legendgroup=method,
                     legendgrouptitle={"text": method} if i == 0 else None,
@@ -193,10 +190,8 @@ def curves_figure(
             for seed in sorted(runs):
                 curve = _thin(runs[seed])
                 fig.add_trace(
-                    go.Scatter(
-                        x=curve[:, 0],
-                        y=curve[:, 1],
-                        mode="lines",
+                    _line(
+                        curve,
                         name=method,
                         legendgroup=method,
                         showlegend=c == 1 and seed == min(runs),
