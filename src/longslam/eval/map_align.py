@@ -23,7 +23,8 @@ from scipy.spatial import cKDTree
 
 from longslam.core.errors import InputError
 from longslam.core.geometry.fit import rigid_transform_2d
-from longslam.core.gridmap import OCCUPIED, GridMap
+from longslam.core.gridmap import GridMap
+from longslam.eval.map_quality import occupied_points
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,7 @@ def align_map(
             f"got {tolerance}, {coarse}, {yaw_step_deg}, {max_yaw_deg}"
         )
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    walls = truth.cell_to_world(np.argwhere(truth.data == OCCUPIED))
+    walls = occupied_points(truth)
     if not len(points) or not len(walls):
         return IDENTITY
     centre = points.mean(axis=0)
