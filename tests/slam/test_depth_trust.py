@@ -68,13 +68,13 @@ def test_the_front_end_limits_noisy_frames_and_not_clean_ones(wall_2m):
         for i in range(6):
             front.step(Frame(i, 0.1 * i, rgb, d, poses[i], K))
         stats = front.stats
-        counts[name] = (stats["depth_limited"], stats["depth_too_noisy"], stats["scans_weighted"], stats["scan_points"] > 0)
+        counts[name] = (stats["depth_limited"], stats["depth_too_noisy"], stats["column_scans"], stats["scan_points"] > 0)
         if name == "d435":
             assert stats["trusted_range_mean_m"] == pytest.approx(math.sqrt(3.0), rel=0.1)
-    # Clean depth is used as it is. The Kinect's is limited to about 4 m and its scans weighted
-    # down; the D435's 1.7 m is too short to register on (min_range 2.5 m), so its frames give
-    # the front end no scan at all.
-    assert counts == {"clean": (0, 0, 0, True), "kinect": (6, 0, 6, True), "d435": (6, 6, 6, False)}
+    # Clean depth is used as it is. The Kinect's is limited to about 4 m for its corners and its
+    # scan is one averaged point per column; the D435's 1.7 m is too short to track on (min_range
+    # 2.5 m), so its frames give the front end no scan at all.
+    assert counts == {"clean": (0, 0, 0, True), "kinect": (6, 0, 6, True), "d435": (6, 6, 0, False)}
 
 
 def test_scan_weight_is_one_for_exact_depth_and_falls_with_the_noise():

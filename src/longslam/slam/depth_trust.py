@@ -44,6 +44,20 @@ class DepthTrust:
         5e-5, "inverse-depth noise at which a scan's information is halved (0: never)", at_least=0, unit="1/m"
     )
 
+    # A column's returns in the height band measure one range on a wall: averaged, their noise
+    # falls with their number, so the scan reaches past the trusted range (ScanExtractor.columns).
+    scan_columns: bool = param(
+        True, "noisy depth: the scan is one averaged point per image column, weighed by its own noise"
+    )
+    column_returns: int = param(4, "returns a column's point needs", at_least=1)
+    column_max_sigma: float = param(0.05, "a column point with more range noise is left out", above=0, unit="m")
+    column_correlation: float = param(
+        1.0, "pixels over which a column's depth noise is correlated (1: independent)", at_least=1, unit="px"
+    )
+    column_information: float = param(
+        1.0, "factor on a column scan's registration information (instead of scan_noise_half's)", at_least=0
+    )
+
     def __post_init__(self) -> None:
         check_declared(self, "front end", "depth_trust.")
 
@@ -87,9 +101,10 @@ def trusted_range(depth: np.ndarray, trust: DepthTrust = DepthTrust()) -> float 
 
 
 def scan_weight(sigma_w: float | None, trust: DepthTrust = DepthTrust()) -> float:
-    """The factor on a scan registration's information (in the online filter and the final
+    """The factor on a cell scan's registration information (in the online filter and the final
     smoother) for depth of inverse-depth noise sigma_w: 1 / (1 + (sigma_w / scan_noise_half)^2),
-    exactly 1 for exact depth.
+    exactly 1 for exact depth. Noisy frames take a column scan instead, each point weighed by its
+    own noise (`scan_columns`); this factor serves with `scan_columns` off.
 
     Far smaller than the scan's own noise would ask for, on purpose: the local map is made of the
     same noisy scans, so consecutive registrations share its errors, and the front end's bias

@@ -217,6 +217,7 @@ class FrontEnd:
             "depth_limited": 0,
             "depth_too_noisy": 0,
             "scans_weighted": 0,
+            "column_scans": 0,
             "wall_headings": 0,
         }
         self._axes = WallAxes(self.config.wall_axes) if self.config.wall_axes.use else None
@@ -324,9 +325,16 @@ class FrontEnd:
         sigma_w = measured_noise(frame.depth, cfg.depth_trust)
         limit = range_for_noise(sigma_w, cfg.depth_trust)
         self._depth_limit = limit
-        weight = scan_weight(sigma_w, cfg.depth_trust)
+        trust = cfg.depth_trust
+        # A frame trusted to less than min_range keeps the wheels alone (a D435's): its column
+        # scan alone, without RGB-D steps, moved the heading by as much as the wheels' drift.
+        columns = limit is not None and limit >= trust.min_range and trust.scan_columns
+        weight = trust.column_information if columns else scan_weight(sigma_w, trust)
         if weight < 1.0:
             self.counts["scans_weighted"] += 1
+        if columns:
+            self.counts["column_scans"] += 1
+        full_depth = frame.depth
         self._depth = trusted_depth(frame.depth, limit)
         if limit is not None:
             self.counts["depth_limited"] += 1
@@ -374,11 +382,18 @@ class FrontEnd:
         else:
             self._gates.first(frame)
         predicted = flt.pose
-        scan = self._extract(self._depth)
+        scan_sigma = None
+        if columns:
+            assert sigma_w is not None  # `columns` needs measured noise
+            scan, scan_sigma = self._extract.columns(
+                full_depth, sigma_w, trust.column_returns, trust.column_max_sigma, trust.column_correlation
+            )
+        else:
+            scan = self._extract(self._depth)
         self.counts["scan_points"] += len(scan)
         scan_factor = None
         if self._map.tree is not None:
-            reg = register(scan, predicted, self._map, flt.pose_information(), cfg.registration, weight)
+            reg = register(scan, predicted, self._map, flt.pose_information(), cfg.registration, weight, scan_sigma)
             if not reg.ok:
                 self.counts["scans_unmatched"] += 1
             else:

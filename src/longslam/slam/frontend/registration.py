@@ -56,10 +56,13 @@ def register(
     prior_information: np.ndarray | None = None,
     config: RegistrationConfig | None = None,
     weight: float = 1.0,
+    point_sigma: np.ndarray | None = None,
 ) -> RegistrationResult:
     """Align base-frame `scan_xy` (N, 2) to `local_map`, starting at (and pulled towards,
     with `prior_information`) the planar pose `guess`. `weight` scales the scan term's
-    information (noisy depth: `depth_trust.scan_weight`)."""
+    information (noisy depth: `depth_trust.scan_weight`). `point_sigma` (N,), each point's own
+    range noise (m), weighs each point by sigma^2 / (sigma^2 + its noise^2) and widens its Huber
+    threshold by its noise."""
     cfg = config or RegistrationConfig()
     guess = np.asarray(guess, dtype=np.float64)
     pose = guess.copy()
@@ -68,6 +71,11 @@ def register(
         return empty
     prior = np.zeros((3, 3)) if prior_information is None else np.asarray(prior_information, dtype=np.float64)
     hessian = np.zeros((3, 3))
+    point_weight = huber = None
+    if point_sigma is not None:
+        noise2 = np.asarray(point_sigma, dtype=np.float64) ** 2
+        point_weight = cfg.sigma**2 / (cfg.sigma**2 + noise2)
+        huber = np.sqrt(cfg.huber**2 + noise2)
     matches, rmse = 0, float("nan")
     for _ in range(cfg.iterations):
         c, s = np.cos(pose[2]), np.sin(pose[2])
@@ -85,7 +93,11 @@ def register(
         # d(world)/d(yaw) = perpendicular of the rotated point.
         j = np.column_stack([n[:, 0], n[:, 1], n[:, 0] * -rot[:, 1] + n[:, 1] * rot[:, 0]])
         a = np.abs(r)
-        w = np.where(a <= cfg.huber, 1.0, cfg.huber / np.maximum(a, 1e-12))
+        if point_weight is None:
+            w = np.where(a <= cfg.huber, 1.0, cfg.huber / np.maximum(a, 1e-12))
+        else:
+            limit = huber[hit]
+            w = np.where(a <= limit, 1.0, limit / np.maximum(a, 1e-12)) * point_weight[hit]
         scale = weight / (cfg.sigma**2 * cfg.correlation)
         hessian = (j * w[:, None]).T @ j * scale
         gradient = (j * (w * r)[:, None]).sum(axis=0) * scale

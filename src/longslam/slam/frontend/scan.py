@@ -71,3 +71,46 @@ class ScanExtractor:
         r2 = np.einsum("ij,ij->i", xy, xy)
         keep = (r2 >= cfg.min_range**2) & (r2 <= cfg.max_range**2)
         return average_2d(xy[keep].astype(np.float64), cfg.cell)
+
+    def columns(
+        self, depth: np.ndarray, sigma_w: float, min_returns: int, max_sigma: float, correlated: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Noisy depth as a scan of one point per sampled image column: ((N, 2) base-frame points,
+        (N,) each point's range noise, m).
+
+        A column's returns in the band lie on one vertical ray fan, so on a wall they measure one
+        horizontal range: their mean, over the returns within 3 sigma of the column's median, has
+        the noise sigma_w z^2 / sqrt(n / correlated) of n returns whose noise is correlated over
+        `correlated` pixels. A cell average instead would spread one wall's noisy returns over
+        several cells along each ray. Columns with fewer than `min_returns` such returns, or whose
+        point's noise exceeds `max_sigma`, give no point."""
+        cfg = self.config
+        s = self._stride
+        z = np.asarray(depth, dtype=np.float32)[::s, ::s]
+        rows, cols = z.shape
+        shape = (rows, cols)
+        dir_x, dir_y, dir_z = (d.reshape(shape) for d in (self._dir_x, self._dir_y, self._dir_z))
+        valid = np.isfinite(z) & (z > 0)
+        h = z * dir_z + self._origin[2]
+        band = valid & (h >= cfg.min_height) & (h <= cfg.max_height)
+        banded = np.where(band, z, np.float32(np.nan))
+        have = band.any(axis=0)
+        median = np.full(cols, np.nan, np.float32)
+        median[have] = np.nanmedian(banded[:, have], axis=0)
+        window = 3.0 * sigma_w * median * median
+        inlier = band & (np.abs(z - median) <= window)
+        count = inlier.sum(axis=0)
+        n = np.maximum(count, 1)
+        mean_z = np.where(inlier, z, 0).sum(axis=0) / n
+        mean_x = np.where(inlier, dir_x, 0).sum(axis=0) / n
+        mean_y = np.where(inlier, dir_y, 0).sum(axis=0) / n
+        noise = sigma_w * mean_z * mean_z / np.sqrt(np.maximum(count / max(correlated, 1.0), 1.0))
+        xy = np.column_stack([mean_z * mean_x + self._origin[0], mean_z * mean_y + self._origin[1]])
+        r2 = np.einsum("ij,ij->i", xy, xy)
+        keep = (
+            (count >= min_returns)
+            & (noise <= max_sigma)
+            & (r2 >= cfg.min_range**2)
+            & (r2 <= cfg.max_range**2)
+        )
+        return xy[keep].astype(np.float64), noise[keep].astype(np.float64)
