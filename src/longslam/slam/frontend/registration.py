@@ -71,11 +71,10 @@ def register(
         return empty
     prior = np.zeros((3, 3)) if prior_information is None else np.asarray(prior_information, dtype=np.float64)
     hessian = np.zeros((3, 3))
-    point_weight = huber = None
+    weighed: tuple[np.ndarray, np.ndarray] | None = None  # each point's (weight, Huber threshold)
     if point_sigma is not None:
         noise2 = np.asarray(point_sigma, dtype=np.float64) ** 2
-        point_weight = cfg.sigma**2 / (cfg.sigma**2 + noise2)
-        huber = np.sqrt(cfg.huber**2 + noise2)
+        weighed = (cfg.sigma**2 / (cfg.sigma**2 + noise2), np.sqrt(cfg.huber**2 + noise2))
     matches, rmse = 0, float("nan")
     for _ in range(cfg.iterations):
         c, s = np.cos(pose[2]), np.sin(pose[2])
@@ -93,11 +92,11 @@ def register(
         # d(world)/d(yaw) = perpendicular of the rotated point.
         j = np.column_stack([n[:, 0], n[:, 1], n[:, 0] * -rot[:, 1] + n[:, 1] * rot[:, 0]])
         a = np.abs(r)
-        if point_weight is None:
+        if weighed is None:
             w = np.where(a <= cfg.huber, 1.0, cfg.huber / np.maximum(a, 1e-12))
         else:
-            limit = huber[hit]
-            w = np.where(a <= limit, 1.0, limit / np.maximum(a, 1e-12)) * point_weight[hit]
+            limit = weighed[1][hit]
+            w = np.where(a <= limit, 1.0, limit / np.maximum(a, 1e-12)) * weighed[0][hit]
         scale = weight / (cfg.sigma**2 * cfg.correlation)
         hessian = (j * w[:, None]).T @ j * scale
         gradient = (j * (w * r)[:, None]).sum(axis=0) * scale

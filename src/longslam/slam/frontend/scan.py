@@ -107,10 +107,5 @@ class ScanExtractor:
         noise = sigma_w * mean_z * mean_z / np.sqrt(np.maximum(count / max(correlated, 1.0), 1.0))
         xy = np.column_stack([mean_z * mean_x + self._origin[0], mean_z * mean_y + self._origin[1]])
         r2 = np.einsum("ij,ij->i", xy, xy)
-        keep = (
-            (count >= min_returns)
-            & (noise <= max_sigma)
-            & (r2 >= cfg.min_range**2)
-            & (r2 <= cfg.max_range**2)
-        )
+        keep = (count >= min_returns) & (noise <= max_sigma) & (r2 >= cfg.min_range**2) & (r2 <= cfg.max_range**2)
         return xy[keep].astype(np.float64), noise[keep].astype(np.float64)
