@@ -2,9 +2,10 @@
 
     python scripts/publish.py [--only STEP[,STEP...]] [--work DIR] [--jobs N]
 
-The steps, in order (without --only: paper, sensors, scale, maps; real-systems only when --only
-names it, as ORB-SLAM3's condition, a run alone with the CPU it asks for, cannot be met on 2
-cores). Estimated wall time on this project's 2-core machine, from the last recorded runs:
+The steps, in order (without --only: paper, sensors, scale, maps; real-systems and degradation
+only when --only names them, as ORB-SLAM3's condition, a run alone with the CPU it asks for,
+cannot be met on 2 cores). Estimated wall time on this project's 2-core machine, from the last
+recorded runs (degradation's from its runs' count):
 
   paper         studies/paper.toml (200 runs, 5 variants at today's defaults)
                 -> docs/results/paper-reproduction.md                              about 1 h 50 min
@@ -17,6 +18,8 @@ cores). Estimated wall time on this project's 2-core machine, from the last reco
                 level), scored and drawn -> docs/results/maps.md                   about 10 min
   real-systems  studies/real-systems.toml and real-systems-1km.toml
                 -> docs/real-systems.md (scripts/publish_real_systems.py)          about 1 h 55 min
+  degradation   studies/degradation.toml and, with the plugin, degradation-orbslam3.toml
+                -> docs/results/degradation.md              about 30 min, ORB-SLAM3's 2 h 30 min
 
 All four default steps: about 4 h 30 min with the render cache cold. Every step resumes: a study
 from its database in WORK/STEP, the scale benchmark from the runs it measured in WORK/scale; a
@@ -47,7 +50,7 @@ from typing import Any
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-STEPS = ("paper", "sensors", "scale", "maps", "real-systems")
+STEPS = ("paper", "sensors", "scale", "maps", "real-systems", "degradation")
 DEFAULT_STEPS = ("paper", "sensors", "scale", "maps")
 SCALE_ROUTES = ("paper-1km", "paper-1km-x3", "tour-10km")
 SCALE_METHODS = ("odometry", "keyframe", "submap")
@@ -463,6 +466,171 @@ def real_systems_step(pub: Publication) -> Path:
     return out
 
 
+# ------------------------------------------------------------------------------------ degradation
+
+DEGRADATION = StudyPage(
+    "degradation", ROOT / "studies" / "degradation.toml", "degradation.md", "How each method degrades",
+    ("keyframe, submap and dead reckoning (`studies/degradation.toml`: 3 seeds) and ORB-SLAM3 "
+     "(`studies/degradation-orbslam3.toml`: seed 0 run 3 times, as its threads race) on paper-300m at large "
+     "wheel noise, under each perturbation at two levels after the ideal sensor; `none` is the same sequences "
+     "unperturbed. A cell gives the median ATE of its runs in m, their range, and how many of them failed by "
+     "the rule below the table; a figure per perturbation draws the median against the level (0: none), the "
+     "bar spanning the runs. The sensor models are on [their own page](sensors.md).",),
+)
+DEGRADATION_ORBSLAM3 = StudyPage("degradation-orbslam3", ROOT / "studies" / "degradation-orbslam3.toml", "", "")
+
+
+@dataclass(frozen=True)
+class DegradationCell:
+    """One method under one perturbation: the ATE of each run that gave one, and the failures."""
+
+    ates: tuple[float, ...]
+    failed: int
+    runs: int
+    starved: int  # runs whose threads waited for a core (a real-time system's result is then unsure)
+
+
+def perturbation_level(text: str) -> tuple[str, float] | None:
+    """(name, level) of one perturbation's canonical text (`drop=0.1`); None for `none` or a combination."""
+    if text in ("", "none") or "+" in text or "=" not in text:
+        return None
+    name, level = text.split("=", 1)
+    return name, float(level)
+
+
+def degradation_cells(runs: list[dict]) -> dict[str, dict[str, DegradationCell]]:
+    """{perturbation: {method: cell}} over the runs of the degradation studies, failures by the
+    distribution report's rule (dead reckoning's ATE on the same sequence where it ran)."""
+    from longslam.run.process_tree import starved
+    from longslam.study.report.distribution import dead_reckoning_ates, failure_reason
+
+    reference = dead_reckoning_ates(runs)
+    grouped: dict[str, dict[str, list[dict]]] = defaultdict(lambda: defaultdict(list))
+    for run in runs:
+        grouped[run.get("perturbation") or "none"][run["method"]].append(run)
+    cells: dict[str, dict[str, DegradationCell]] = {}
+    for perturbation, by_method in grouped.items():
+        cells[perturbation] = {}
+        for method, group in by_method.items():
+            ates = tuple(float(r["ate"]) for r in group if r["status"] == "ok" and r.get("ate") is not None)
+            failed = sum(
+                failure_reason(r, reference.get((r["route"], r.get("camera_name"), r.get("sensor"),
+                                                 r.get("perturbation"), r["noise"], r["seed"])))
+                is not None
+                for r in group
+                if r.get("method_name") != "odometry"
+            )
+            hungry = sum(starved(r.get("cpu_wait_share")) for r in group)
+            cells[perturbation][method] = DegradationCell(ates, failed, len(group), hungry)
+    return cells
+
+
+def _perturbation_order(perturbations: list[str]) -> list[str]:
+    """`none` first, then by name and level, combinations last."""
+    def key(text: str) -> tuple:
+        level = perturbation_level(text)
+        return (0, "", 0.0) if text == "none" else (1, *level) if level else (2, text, 0.0)
+    return sorted(perturbations, key=key)
+
+
+def degradation_table(cells: dict[str, dict[str, DegradationCell]], methods: list[str]) -> list[str]:
+    def text(cell: DegradationCell | None) -> str:
+        if cell is None:
+            return "not run"
+        if not cell.ates:
+            return f"no ATE, {cell.failed}/{cell.runs} failed"
+        out = f"{np.median(cell.ates):.3f}"
+        if len(cell.ates) > 1:
+            out += f" [{min(cell.ates):.3f}-{max(cell.ates):.3f}]"
+        out += f", {cell.failed}/{cell.runs} failed" if cell.failed else ""
+        return out + (f", {cell.starved} starved" if cell.starved else "")
+
+    lines = ["| perturbation | " + " | ".join(methods) + " |", "|---|" + "---|" * len(methods)]
+    for perturbation in _perturbation_order(list(cells)):
+        lines.append(f"| {perturbation} | " + " | ".join(text(cells[perturbation].get(m)) for m in methods) + " |")
+    return lines
+
+
+def degradation_figures(cells: dict[str, dict[str, DegradationCell]], methods: list[str],
+                        folder: Path) -> list[Path]:
+    """One PNG per perturbation: each method's median ATE against the level (0: `none`), a bar
+    over its runs' range."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    levels: dict[str, list[tuple[float, str]]] = defaultdict(list)
+    for perturbation in cells:
+        if (parsed := perturbation_level(perturbation)) is not None:
+            levels[parsed[0]].append((parsed[1], perturbation))
+    paths = []
+    for name in sorted(levels):
+        points = [(0.0, "none")] * ("none" in cells) + sorted(levels[name])
+        fig, ax = plt.subplots(figsize=(5.5, 3.6))
+        for method in methods:
+            xs, medians, lows, highs = [], [], [], []
+            for level, perturbation in points:
+                cell = cells[perturbation].get(method)
+                if cell is None or not cell.ates:
+                    continue
+                median = float(np.median(cell.ates))
+                xs.append(level)
+                medians.append(median)
+                lows.append(median - min(cell.ates))
+                highs.append(max(cell.ates) - median)
+            if xs:
+                ax.errorbar(xs, medians, yerr=[lows, highs], marker="o", capsize=3, label=method)
+        ax.set_xlabel(f"{name} level (0: none)")
+        ax.set_ylabel("ATE [m]")
+        ax.set_title(f"ATE under {name}")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        path = folder / f"degradation-{name}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def publish_degradation(pub: Publication, studies: list[Path], wall_s: float, commands: list[str],
+                        notes: tuple[str, ...] = ()) -> Path:
+    """The degradation page from the studies' databases: the stamp, the table, the figures."""
+    from longslam.study.report.distribution import FAILURE_RULE
+
+    runs = [run for study in studies for run in _runs(study)]
+    commit = commit_of(runs, "step degradation (" + ", ".join(_rel(pub, s) for s in studies) + ")")
+    cells = degradation_cells(runs)
+    methods = list(dict.fromkeys(run["method"] for run in runs))
+    folder = figure_folder(pub, DEGRADATION.page, commit)
+    figures = degradation_figures(cells, methods, folder)
+    lines = [f"# {DEGRADATION.title}", "",
+             *stamp(pub, commit, wall_s, commands,
+                    "the databases " + ", ".join(f"`{_rel(pub, s)}/results.sqlite`" for s in studies),
+                    f"the studies' runs span {_span(runs)} from the first start to the last end"),
+             *[p + "\n" for p in DEGRADATION.about], *[n + "\n" for n in notes],
+             "## ATE under each perturbation", "", *degradation_table(cells, methods), "",
+             FAILURE_RULE + " A run of a real-time system is starved when its threads waited for a core.", ""]
+    for path in figures:
+        lines += [f"![{path.stem}]({folder.name}/{path.name})", ""]
+    return write_page(pub, DEGRADATION.page, lines)
+
+
+def degradation_step(pub: Publication) -> Path:
+    """studies/degradation.toml, then, with the orbslam3 plugin installed, studies/degradation-orbslam3.toml."""
+    from longslam.slam.catalog import method_names
+
+    start = time.perf_counter()
+    steps = [DEGRADATION] + ([DEGRADATION_ORBSLAM3] if "orbslam3" in method_names() else [])
+    studies = [run_study_step(pub, page) for page in steps]
+    commands = [study_command(pub, page.study_file, out) for page, out in zip(steps, studies)]
+    notes = () if len(steps) == 2 else (
+        "**ORB-SLAM3 is not on this page**: its plugin (`plugins/longslam-orbslam3`) was not installed where "
+        "the page was made, so `studies/degradation-orbslam3.toml` did not run.",)
+    return publish_degradation(pub, studies, time.perf_counter() - start, commands, notes)
+
+
 # ------------------------------------------------------------------------------------------- main
 
 RUNNERS: dict[str, Callable[[Publication], Path]] = {
@@ -471,6 +639,7 @@ RUNNERS: dict[str, Callable[[Publication], Path]] = {
     "scale": scale_step,
     "maps": maps_step,
     "real-systems": real_systems_step,
+    "degradation": degradation_step,
 }
 
 

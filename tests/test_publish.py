@@ -112,3 +112,57 @@ def test_steps_are_named_and_run_in_the_publication_order():
     assert publish.parse_steps("real-systems") == ["real-systems"]
     with pytest.raises(publish.PublishError, match="unknown step"):
         publish.parse_steps("paper,nope")
+
+
+def _run(method, perturbation, seed, ate, *, repeat=0, status="ok", wait=0.0, stats=None):
+    """A study database row as the degradation page reads it."""
+    return {"route": "paper-300m", "camera_name": "camera", "sensor": "ideal", "noise": "large",
+            "method": method, "method_name": method, "perturbation": perturbation, "seed": seed,
+            "repeat": repeat, "status": status, "ate": ate if status == "ok" else None,
+            "cpu_wait_share": wait, "measurements": {"method_stats": stats or {}}}
+
+
+def test_the_degradation_page_gives_each_perturbations_median_range_and_failures(tmp_path):
+    runs = [
+        _run("odometry", "none", 0, 1.0), _run("odometry", "none", 1, 2.0),
+        _run("odometry", "drop=0.3", 0, 1.0), _run("odometry", "drop=0.3", 1, 2.0),
+        _run("keyframe", "none", 0, 0.10), _run("keyframe", "none", 1, 0.30),
+        _run("keyframe", "drop=0.3", 0, 1.5), _run("keyframe", "drop=0.3", 1, 0.0, status="failed"),
+        _run("orbslam3", "none", 0, 0.05), _run("orbslam3", "none", 0, 0.07, repeat=1, wait=0.5),
+        _run("orbslam3", "drop=0.3", 0, 0.2, stats={"maps_started": 2}),
+    ]
+    cells = publish.degradation_cells(runs)
+    none, dropped = cells["none"], cells["drop=0.3"]
+    assert none["keyframe"].ates == (0.10, 0.30) and none["keyframe"].failed == 0
+    # Worse than dead reckoning on its sequence (1.5 > 1.0) and an error: both failed.
+    assert dropped["keyframe"].ates == (1.5,) and dropped["keyframe"].failed == 2
+    assert dropped["orbslam3"].failed == 1  # a second map
+    assert none["orbslam3"].starved == 1 and none["orbslam3"].failed == 0
+    table = "\n".join(publish.degradation_table(cells, ["odometry", "keyframe", "orbslam3"]))
+    assert "| none | 1.500 [1.000-2.000] | 0.200 [0.100-0.300] | 0.060 [0.050-0.070], 1 starved |" in table
+    assert "| drop=0.3 | 1.500 [1.000-2.000] | 1.500, 2/2 failed | 0.200, 1/1 failed |" in table
+    assert table.index("| none |") < table.index("| drop=0.3 |")
+    figures = publish.degradation_figures(cells, ["odometry", "keyframe", "orbslam3"], tmp_path)
+    assert [p.name for p in figures] == ["degradation-drop.png"] and figures[0].stat().st_size > 0
+    assert publish.perturbation_level("drop-burst=3") == ("drop-burst", 3.0)
+    assert publish.perturbation_level("none") is None and publish.perturbation_level("blur=0.02+exposure=2") is None
+    assert publish.parse_steps("degradation,paper") == ["paper", "degradation"]
+
+
+def test_a_tiny_perturbation_study_is_published_as_a_degradation_page(tmp_path, render_cache, monkeypatch):
+    monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
+    (tmp_path / "r.txt").write_text("20 31.25\n21 31.25\n")
+    study_file = tmp_path / "d.toml"
+    study_file.write_text('routes = ["r.txt"]\nnoise = ["none"]\nmethods = ["odometry"]\nseeds = [0]\n'
+                          'perturbations = ["none", "drop=0.3"]\n[camera]\nwidth = 16\nheight = 12\n')
+    pub = publish.Publication(ROOT, tmp_path / "work", tmp_path / "docs" / "results",
+                              "python scripts/publish.py --only degradation", jobs=1, say=lambda text: None)
+    out = publish.run_study_step(pub, publish.StudyPage("degradation", study_file, "", ""))
+    _set_commits(out, ["abc1234", "abc1234"])
+    path = publish.publish_degradation(pub, [out], 12.0, ["longslam study d.toml"])
+    text = path.read_text()
+    assert text.startswith("# How each method degrades\n")
+    assert "- **Commit**: every run was made at `abc1234`" in text
+    assert "| perturbation | odometry |" in text and "| none | " in text and "| drop=0.3 | " in text
+    assert "(degradation-abc1234/degradation-drop.png)" in text
+    assert (tmp_path / "docs" / "results" / "degradation-abc1234" / "degradation-drop.png").is_file()
