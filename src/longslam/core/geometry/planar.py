@@ -154,7 +154,10 @@ class JumpFilteredOdometry:
     """Wheel odometry as planar poses, with jumps (a step no robot makes in one frame) replaced by
     no motion, so that one corrupt odometry line cannot throw the whole trajectory away.
 
-    Feed it each frame's odometry camera pose in order; `jumps` counts the steps replaced.
+    Feed it each frame's odometry camera pose in order; `jumps` counts the steps replaced. With
+    each frame's timestamp, the limits are per frame period (the first interval seen): a frame
+    that comes after frames were lost (a dropped burst, a bag's gap) may show the motion of all
+    of them, which is not a jump.
     """
 
     def __init__(self, mount: CameraMount, jump_distance: float = 1.0, jump_angle: float = 0.8):
@@ -164,16 +167,32 @@ class JumpFilteredOdometry:
         self.jumps = 0
         self._raw_previous: np.ndarray | None = None
         self._pose: np.ndarray | None = None
+        self._previous_time: float | None = None
+        self._period: float | None = None  # the first interval between frames: one frame's time
 
-    def update(self, camera_pose: np.ndarray) -> np.ndarray:
-        """The filtered planar pose (x, y, yaw) for the next frame's odometry camera pose."""
+    def _frames_elapsed(self, timestamp: float | None) -> float:
+        """How many frame periods passed since the previous frame (at least 1)."""
+        if timestamp is None:
+            return 1.0
+        previous, self._previous_time = self._previous_time, float(timestamp)
+        if previous is None:
+            return 1.0
+        interval = float(timestamp) - previous
+        if self._period is None and interval > 0:
+            self._period = interval
+        return max(1.0, interval / self._period) if self._period else 1.0
+
+    def update(self, camera_pose: np.ndarray, timestamp: float | None = None) -> np.ndarray:
+        """The filtered planar pose (x, y, yaw) for the next frame's odometry camera pose, taken
+        at `timestamp` (seconds; None: one frame period after the previous)."""
         raw = self.mount.to_planar(np.asarray(camera_pose)[None])[0]
+        elapsed = self._frames_elapsed(timestamp)
         if self._pose is None:
             self._raw_previous, self._pose = raw, raw
             return raw
         delta = relative_xyyaw(self._raw_previous, raw)
         self._raw_previous = raw
-        if np.hypot(delta[0], delta[1]) > self.jump_distance or abs(delta[2]) > self.jump_angle:
+        if np.hypot(delta[0], delta[1]) > self.jump_distance * elapsed or abs(delta[2]) > self.jump_angle * elapsed:
             self.jumps += 1
             delta = np.zeros(3)
         self._pose = compose_xyyaw(self._pose, delta)

@@ -303,7 +303,7 @@ class FrontEnd:
     def _wheel_step(self, frame: Frame) -> WheelStep | None:
         previous = self._odom
         assert self._wheels is not None and self._filter is not None  # `_start` made them: the frames have odometry
-        self._odom = self._wheels.update(np.asarray(frame.odometry, dtype=np.float64))
+        self._odom = self._wheels.update(np.asarray(frame.odometry, dtype=np.float64), frame.timestamp)
         self.counts["odometry_jumps"] = self._wheels.jumps
         if previous is None:
             self._filter.place(self._odom)
