@@ -502,7 +502,7 @@ def degradation_cells(runs: list[dict]) -> dict[str, dict[str, DegradationCell]]
     """{perturbation: {method: cell}} over the runs of the degradation studies, failures by the
     distribution report's rule (dead reckoning's ATE on the same sequence where it ran)."""
     from longslam.run.process_tree import starved
-    from longslam.study.report.distribution import dead_reckoning_ates, failure_reason
+    from longslam.study.report.distribution import dead_reckoning_ates, failure_reasons
 
     reference = dead_reckoning_ates(runs)
     grouped: dict[str, dict[str, list[dict]]] = defaultdict(lambda: defaultdict(list))
@@ -513,13 +513,7 @@ def degradation_cells(runs: list[dict]) -> dict[str, dict[str, DegradationCell]]
         cells[perturbation] = {}
         for method, group in by_method.items():
             ates = tuple(float(r["ate"]) for r in group if r["status"] == "ok" and r.get("ate") is not None)
-            failed = sum(
-                failure_reason(r, reference.get((r["route"], r.get("camera_name"), r.get("sensor"),
-                                                 r.get("perturbation"), r["noise"], r["seed"])))
-                is not None
-                for r in group
-                if r.get("method_name") != "odometry"
-            )
+            failed = len(failure_reasons([r for r in group if r.get("method_name") != "odometry"], reference))
             hungry = sum(starved(r.get("cpu_wait_share")) for r in group)
             cells[perturbation][method] = DegradationCell(ates, failed, len(group), hungry)
     return cells

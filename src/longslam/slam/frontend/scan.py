@@ -87,15 +87,14 @@ class ScanExtractor:
         cfg = self.config
         s = self._stride
         z = np.asarray(depth, dtype=np.float32)[::s, ::s]
-        rows, cols = z.shape
-        shape = (rows, cols)
+        shape = z.shape
         dir_x, dir_y, dir_z = (d.reshape(shape) for d in (self._dir_x, self._dir_y, self._dir_z))
         valid = np.isfinite(z) & (z > 0)
         h = z * dir_z + self._origin[2]
         band = valid & (h >= cfg.min_height) & (h <= cfg.max_height)
         banded = np.where(band, z, np.float32(np.nan))
         have = band.any(axis=0)
-        median = np.full(cols, np.nan, np.float32)
+        median = np.full(shape[1], np.nan, np.float32)
         median[have] = np.nanmedian(banded[:, have], axis=0)
         window = 3.0 * sigma_w * median * median
         inlier = band & (np.abs(z - median) <= window)

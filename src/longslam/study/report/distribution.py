@@ -58,9 +58,15 @@ def dead_reckoning_ates(runs: list[dict[str, Any]]) -> dict[tuple, float]:
     }
 
 
+def failure_reasons(runs: list[dict[str, Any]], dead: dict[tuple, float]) -> list[str]:
+    """Why each failed run of `runs` failed under FAILURE_RULE, against dead reckoning's ATE on its
+    sequence (`dead_reckoning_ates`); the runs that did not fail give nothing."""
+    return [reason for reason in (failure_reason(r, dead.get(_sequence(r))) for r in runs) if reason]
+
+
 def failures_text(runs: list[dict[str, Any]], dead: dict[tuple, float]) -> str:
     """'k / n (reasons)': how many of a cell's runs failed under FAILURE_RULE, and why."""
-    failed = [reason for reason in (failure_reason(r, dead.get(_sequence(r))) for r in runs) if reason]
+    failed = failure_reasons(runs, dead)
     why = f" ({', '.join(sorted(set(failed)))})" if failed else ""
     return f"{len(failed)} / {len(runs)}{why}"
 
