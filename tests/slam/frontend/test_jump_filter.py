@@ -33,3 +33,13 @@ def test_the_same_turn_after_lost_frames_is_motion():
     for camera in (_camera(0, 0, 0), _camera(0.1, 0, 0), _camera(1.8, 0, 1.2)):
         untimed.update(camera)
     assert untimed.jumps == 1
+
+
+def test_the_period_is_the_shortest_interval_so_a_lost_second_frame_does_not_count_gaps_short():
+    wheels = JumpFilteredOdometry(MOUNT, jump_distance=1.0, jump_angle=0.8)
+    wheels.update(_camera(0, 0, 0), 0.0)
+    wheels.update(_camera(0.2, 0, 0), 0.2)  # the frame at 0.1 s was lost
+    wheels.update(_camera(0.3, 0, 0), 0.3)
+    pose = wheels.update(_camera(2.8, 0, 0), 0.6)  # two frames lost: three periods, 2.5 m
+    assert wheels.jumps == 0
+    np.testing.assert_allclose(pose, [2.8, 0.0, 0.0], atol=1e-9)

@@ -155,9 +155,10 @@ class JumpFilteredOdometry:
     no motion, so that one corrupt odometry line cannot throw the whole trajectory away.
 
     Feed it each frame's odometry camera pose in order; `jumps` counts the steps replaced. With
-    each frame's timestamp, the limits are per frame period (the first interval seen): a frame
-    that comes after frames were lost (a dropped burst, a bag's gap) may show the motion of all
-    of them, which is not a jump.
+    each frame's timestamp, the limits are per frame period (the shortest interval seen so far,
+    so a lost second frame does not make later gaps count too few periods): a frame that comes after
+    frames were lost (a dropped burst, a bag's gap) may show the motion of all of them, which is
+    not a jump.
     """
 
     def __init__(self, mount: CameraMount, jump_distance: float = 1.0, jump_angle: float = 0.8):
@@ -168,7 +169,7 @@ class JumpFilteredOdometry:
         self._raw_previous: np.ndarray | None = None
         self._pose: np.ndarray | None = None
         self._previous_time: float | None = None
-        self._period: float | None = None  # the first interval between frames: one frame's time
+        self._period: float | None = None  # the shortest interval between frames: one frame's time
 
     def _frames_elapsed(self, timestamp: float | None) -> float:
         """How many frame periods passed since the previous frame (at least 1)."""
@@ -178,7 +179,7 @@ class JumpFilteredOdometry:
         if previous is None:
             return 1.0
         interval = float(timestamp) - previous
-        if self._period is None and interval > 0:
+        if interval > 0 and (self._period is None or interval < self._period):
             self._period = interval
         return max(1.0, interval / self._period) if self._period else 1.0
 
