@@ -44,6 +44,12 @@ class DepthTrust:
         5e-5, "inverse-depth noise at which a scan's information is halved (0: never)", at_least=0, unit="1/m"
     )
 
+    # A loop is verified from a similar viewpoint, where a return's range noise mostly runs along
+    # the ray it is seen on again; PnP and the 3D-3D check weigh it by its noise (place_recognition).
+    loop_max_sigma: float = param(
+        0.1, "the axial noise a return may have and give a loop or proximity feature its 3D point", above=0, unit="m"
+    )
+
     # A column's returns in the height band measure one range on a wall: averaged, their noise
     # falls with their number, so the scan reaches past the trusted range (ScanExtractor.columns).
     scan_columns: bool = param(

@@ -468,8 +468,10 @@ def refine_3d_checked(
     ratio: float = 0.8,
     max_residual: float = 0.05,
     min_inliers: int = 10,
+    sigma_w: float | None = None,
 ) -> Refinement:
-    """`refine_3d`, with how many 3D-3D matches support the result (`focal`: pixels)."""
+    """`refine_3d`, with how many 3D-3D matches support the result (`focal`: pixels). Depth of
+    inverse-depth noise `sigma_w` (1/m) widens each match's gates by its two points' range noise."""
     pairs = match_descriptors(query.descriptors, candidate.descriptors, ratio)
     given = np.asarray(transform, dtype=np.float64)
     q, c = query.points[pairs[:, 0]].astype(np.float64), candidate.points[pairs[:, 1]].astype(np.float64)
@@ -479,16 +481,19 @@ def refine_3d_checked(
     def residual(t: np.ndarray) -> np.ndarray:
         return np.linalg.norm(c - (q @ t[:3, :3].T + t[:3, 3]), axis=1)
 
+    # 3 stds of the difference of two points' range noise sigma_w z^2 (0 for exact depth).
+    noise = 0.0 if sigma_w is None else 3.0 * sigma_w * np.hypot(q[:, 2] ** 2, c[:, 2] ** 2)
+
     current, polished = given, len(pairs) >= min_inliers
     for gate in (3.0 * max_residual, max_residual, max_residual) if polished else ():
-        inliers = residual(current) < gate
+        inliers = residual(current) < np.maximum(gate, noise)
         if inliers.sum() < min_inliers:
             current, polished = given, False
             break
         current = rigid_transform(q[inliers], c[inliers])
     support = 0
     if focal is not None and len(q):
-        gate = np.maximum(max_residual, SUPPORT_PIXELS * np.linalg.norm(c, axis=1) / focal)
+        gate = np.maximum(np.maximum(max_residual, SUPPORT_PIXELS * np.linalg.norm(c, axis=1) / focal), noise)
         support = int((residual(current) < gate).sum())
     return Refinement(current, polished, support)
 
@@ -500,15 +505,32 @@ def depth_held_transform(
     focal: float,
     polish: bool,
     min_support: int,
+    sigma_w: float | None = None,
 ) -> np.ndarray | None:
     """The PnP-verified `transform` a loop keeps: polished on the 3D-3D matches if `polish`, or
-    None when fewer than `min_support` of them hold it (0: not checked)."""
+    None when fewer than `min_support` of them hold it (0: not checked); `sigma_w`: the depth's noise."""
     if not (polish or min_support):
         return transform
-    refined = refine_3d_checked(query, candidate, transform, focal)
+    refined = refine_3d_checked(query, candidate, transform, focal, sigma_w=sigma_w)
     if refined.support < min_support:
         return None
-    return refined.transform if polish else transform
+    # Noisy depth on both sides would move PnP's transform, which holds the query's bearings exact.
+    return refined.transform if polish and sigma_w is None else transform
+
+
+def noisy_link_sigmas(points: np.ndarray, sigma_w: float | None, linear: float, angular: float) -> tuple[float, float]:
+    """A loop link's stds (m, rad) widened by its depth's range noise at the median depth of the
+    3D `points` that place it (camera frame): sigma_w z^2, and that over z for the heading. The
+    given stds for exact depth (`sigma_w` None)."""
+    if sigma_w is None:
+        return linear, angular
+    z = np.asarray(points, dtype=np.float64)[:, 2]
+    z = z[np.isfinite(z) & (z > 0)]
+    if not len(z):
+        return linear, angular
+    median = float(np.median(z))
+    noise = sigma_w * median * median
+    return float(np.hypot(linear, noise)), float(np.hypot(angular, noise / median))
 
 
 # A verified loop transform must be planar: the camera neither rises nor tilts on this robot.

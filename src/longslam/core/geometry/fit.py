@@ -74,3 +74,37 @@ def rigid_transform_2d(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarr
     c, s = np.cos(angle), np.sin(angle)
     rotation = np.array([[c, -s], [s, c]])
     return rotation, mean_target - rotation @ mean_source
+
+
+def weighted_planar_fit(
+    source: np.ndarray,
+    target: np.ndarray,
+    covariances: np.ndarray,
+    start: np.ndarray,
+    gate: float,
+    iterations: int = 5,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The planar step (x, y, yaw) with target = R source + t, fitted by Gauss-Newton from `start`
+    where each pair's residual has its own (N, 2, 2) covariance (given in the target's frame):
+    (the step, its 3 x 3 covariance, the inlier mask). Pairs beyond `gate` Mahalanobis stds are
+    left out at each iteration; with fewer than two inliers the covariance is infinite."""
+    step = np.asarray(start, dtype=np.float64).copy()
+    information = np.linalg.inv(covariances)
+    inliers = np.zeros(len(source), dtype=bool)
+    hessian = np.zeros((3, 3))
+    for _ in range(iterations):
+        c, s = np.cos(step[2]), np.sin(step[2])
+        rotated = np.column_stack([c * source[:, 0] - s * source[:, 1], s * source[:, 0] + c * source[:, 1]])
+        residual = rotated + step[:2] - target
+        mahalanobis = np.einsum("ni,nij,nj->n", residual, information, residual)
+        inliers = mahalanobis < gate * gate
+        if inliers.sum() < 2:
+            return step, np.full((3, 3), np.inf), inliers
+        jacobian = np.zeros((len(source), 2, 3))
+        jacobian[:, 0, 0] = jacobian[:, 1, 1] = 1.0
+        jacobian[:, :, 2] = np.column_stack([-rotated[:, 1], rotated[:, 0]])
+        j, w, r = jacobian[inliers], information[inliers], residual[inliers]
+        hessian = np.einsum("nki,nkl,nlj->ij", j, w, j)
+        gradient = np.einsum("nki,nkl,nl->i", j, w, r)
+        step -= np.linalg.solve(hessian, gradient)
+    return step, np.linalg.inv(hessian), inliers

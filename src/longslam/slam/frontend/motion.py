@@ -18,6 +18,7 @@ Modes:
 
 from __future__ import annotations
 
+import math
 import time
 from array import array
 from collections.abc import Iterable, Mapping, Sequence
@@ -138,6 +139,14 @@ class FrontEndConfig:
     # per step, which at its scatter's weight would outvote wheels with a small bias, while a much
     # looser sigma leaves a large wheel bias unseen where no scan registers.
     visual_sigma_yaw: float = param(0.004, "std of an RGB-D step's heading change", above=0, unit="rad per step")
+    # A D435's depth, trusted to 1.7 m, gives no scan; its corners still fix each step's heading.
+    visual_noisy: bool = param(
+        True,
+        "depth trusted to less than depth_trust.min_range: RGB-D steps on all of it, each corner weighed by its noise",
+    )
+    visual_noisy_sigma_scale: float = param(
+        2.0, "noisy depth: factor on an RGB-D step's fitted stds (floored at visual_sigma_*)", above=0
+    )
     visual_sigmas_no_wheels: tuple[float, float, float] = param(
         (0.004, 0.005, 0.002),
         "stds of an RGB-D step without wheels (forward m, lateral m, yaw rad): its measured scatter",
@@ -173,6 +182,16 @@ class FrameStep:
         the frame's own noise lets be trusted (depth_trust)."""
         limit = self.depth_limit if self.depth_measured else trusted_range(depth, self.depth_trust)
         return trusted_depth(depth, limit)
+
+    def loop_depth(self, depth: np.ndarray) -> tuple[np.ndarray, float | None]:
+        """`depth` for loop and proximity features: the returns within `depth_trust.loop_max_sigma`
+        of noise, and the depth's inverse-depth noise sigma_w (1/m; None: exact)."""
+        trust = self.depth_trust
+        limit = self.depth_limit if self.depth_measured else trusted_range(depth, trust)
+        if limit is None:
+            return depth, None
+        sigma_w = trust.max_sigma / (limit * limit)
+        return trusted_depth(depth, limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma)), sigma_w
 
 
 class FrontEnd:
@@ -276,7 +295,12 @@ class FrontEnd:
         self._extract = ScanExtractor(self.intrinsics, self.mount.camera_in_base, cfg.scan)
         tracker = None
         if cfg.visual and cfg.mode == "fused":
-            tracker = VisualOdometry(self.intrinsics, self.mount.camera_in_base, cfg.visual_tracking)
+            tracker = VisualOdometry(
+                self.intrinsics,
+                self.mount.camera_in_base,
+                cfg.visual_tracking,
+                correlated=cfg.depth_trust.column_correlation,
+            )
         self._gates = VisualGates(
             tracker,
             GateBounds(
@@ -335,6 +359,11 @@ class FrontEnd:
         if columns:
             self.counts["column_scans"] += 1
         full_depth = frame.depth
+        # Depth too noisy for a scan reaches the corner tracker whole, with its noise; depth that
+        # gives a scan (a Kinect's) is tracked within its trusted range, where the scan holds the
+        # heading (tracked on all of it, the corners' heading pulled against the scan's).
+        noisy_tracking = sigma_w is not None and cfg.visual_noisy and limit is not None and limit < trust.min_range
+        whole = frame
         self._depth = trusted_depth(frame.depth, limit)
         if limit is not None:
             self.counts["depth_limited"] += 1
@@ -346,6 +375,7 @@ class FrontEnd:
             frame = Frame(
                 clean.index, clean.timestamp, lambda: clean.rgb, self._depth, clean.odometry, clean.intrinsics
             )
+        tracked, tracked_noise = (whole, sigma_w) if noisy_tracking else (frame, None)
         flt = self._filter
         assert flt is not None and self._gates is not None and self._extract is not None  # `_start` made them
         cv_step = None
@@ -358,9 +388,20 @@ class FrontEnd:
             )
             bias_var = flt.forward_bias_variance if cfg.use_bias else 0.0
             flt.predict_wheel(wheel)
-            visual = self._gates.against_wheels(
-                frame, wheel, expected, bias_var, self._wheel_variances(wheel)[0], vis_sigmas[0], flt
+            accepted = self._gates.against_wheels(
+                tracked,
+                wheel,
+                expected,
+                bias_var,
+                self._wheel_variances(wheel)[0],
+                vis_sigmas[0],
+                flt,
+                tracked_noise,
             )
+            visual = None if accepted is None else accepted.step
+            if accepted is not None and accepted.covariance is not None:
+                fitted = cfg.visual_noisy_sigma_scale * np.sqrt(np.diag(accepted.covariance))
+                vis_sigmas = np.maximum(vis_sigmas, fitted)
             if visual is not None and cfg.use_bias:
                 raw = np.array([wheel.forward, wheel.yaw])
                 flt.update_bias(
@@ -370,9 +411,10 @@ class FrontEnd:
             # No wheels: the visual step where it tracks, else the last step again (constant
             # velocity), loosely.
             cv = relative(self._online.row(-2), self._online.row(-1)) if k > 1 else np.zeros(3)
-            visual = self._gates.against_prediction(
+            accepted = self._gates.against_prediction(
                 frame, cv, cfg.visual_gate_distance_no_wheels, cfg.visual_gate_angle_no_wheels
             )
+            visual = None if accepted is None else accepted.step
             vis_sigmas = np.asarray(cfg.visual_sigmas_no_wheels, dtype=np.float64)
             if visual is not None:
                 flt.predict_step(visual, vis_sigmas)
@@ -380,7 +422,7 @@ class FrontEnd:
                 cv_step = cv
                 flt.predict_constant_velocity(cv_step)
         else:
-            self._gates.first(frame)
+            self._gates.first(tracked, tracked_noise)
         predicted = flt.pose
         scan_sigma = None
         if columns:

@@ -9,13 +9,14 @@ caller gates the result against the wheels: an RGB-D step is only trusted when i
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from longslam.core.frame import Intrinsics
-from longslam.core.geometry.fit import rigid_transform_2d
+from longslam.core.geometry.fit import rigid_transform_2d, weighted_planar_fit
 from longslam.core.parameter import check_declared, param
 
 
@@ -35,6 +36,17 @@ class VisualConfig:
     min_inliers: int = param(
         20, "tracked pairs that must agree for an RGB-D step", at_least=2, why="a planar step needs two points"
     )
+    # Noisy depth (measured, depth_trust): a point's range is uncertain along its ray but its
+    # bearing is not, so each pair is weighed by its own covariance and the step's heading holds
+    # where its distance does not.
+    noisy_max_sigma: float = param(
+        0.3, "noisy depth: a corner whose depth noise (its patch's median) exceeds this is left out", above=0, unit="m"
+    )
+    noisy_patch: int = param(
+        3, "noisy depth: a corner's depth is the median of the (2n + 1)^2 pixels around it", at_least=0, unit="px"
+    )
+    noisy_gate: float = param(3.0, "noisy depth: a pair agrees with the step within this many of its stds", above=0)
+    pixel_sigma: float = param(0.5, "noisy depth: std of a tracked corner's position", above=0, unit="px")
 
     def __post_init__(self) -> None:
         check_declared(self, "front end", "visual_tracking.")
@@ -45,20 +57,31 @@ class VisualStep:
     step: np.ndarray  # (3,) current base pose in the previous base frame
     inliers: int
     rms: float  # m
+    covariance: np.ndarray | None = None  # (3, 3) of the step, fitted on noisy depth; None: exact depth
+
+
+# A median of n Gaussian samples has about sqrt(pi / 2) times the std of their mean.
+MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2.0)
 
 
 class VisualOdometry:
     def __init__(
-        self, intrinsics: Intrinsics, camera_in_base: np.ndarray, config: VisualConfig | None = None, seed: int = 0
+        self,
+        intrinsics: Intrinsics,
+        camera_in_base: np.ndarray,
+        config: VisualConfig | None = None,
+        seed: int = 0,
+        correlated: float = 1.0,
     ):
         self.config = config or VisualConfig()
+        self.correlated = correlated  # pixels over which noisy depth's noise is correlated
         self.rng = np.random.default_rng(seed)
         scale = intrinsics.width / 320.0
         self._min_distance = max(2, round(self.config.min_distance * scale))
         self._window = max(5, round(self.config.window * scale) | 1)  # odd
         self.k = intrinsics
         self.pose = np.asarray(camera_in_base, dtype=np.float64)
-        self._prev: tuple[np.ndarray, np.ndarray] | None = None  # gray, depth
+        self._prev: tuple[np.ndarray, np.ndarray, float | None] | None = None  # gray, depth, its noise sigma_w
 
     def _lift(self, pts: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pixel positions -> base-frame xy (N, 2) and a validity mask."""
@@ -71,19 +94,61 @@ class VisualOdometry:
         base = cam @ self.pose[:3, :3].T + self.pose[:3, 3]
         return base[:, :2], ok
 
+    def _lift_noisy(
+        self, pts: np.ndarray, depth: np.ndarray, sigma_w: float | None, correlated: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pixel positions -> base-frame xy (N, 2), their (N, 2, 2) covariances and a validity
+        mask, each corner's depth the median of its patch: the range noise sigma_w z^2 along the
+        corner's ray, `pixel_sigma` across it."""
+        cfg = self.config
+        h, w = depth.shape
+        r = cfg.noisy_patch
+        offsets = np.arange(-r, r + 1)
+        u = np.clip(np.rint(pts[:, 0]).astype(np.int64)[:, None, None] + offsets[None, None, :], 0, w - 1)
+        v = np.clip(np.rint(pts[:, 1]).astype(np.int64)[:, None, None] + offsets[None, :, None], 0, h - 1)
+        patch = depth[v, u].reshape(len(pts), -1).astype(np.float64)
+        patch[~(np.isfinite(patch) & (patch > 0))] = np.nan
+        count = np.sum(np.isfinite(patch), axis=1)
+        z = np.full(len(pts), np.nan)
+        some = count > 0
+        z[some] = np.nanmedian(patch[some], axis=1)
+        noise = sigma_w or 0.0
+        sigma_z = noise * z * z * MEDIAN_EFFICIENCY / np.sqrt(np.maximum(count, 1) / correlated)
+        ok = some & (sigma_z <= cfg.noisy_max_sigma)
+        z = np.where(ok, z, 1.0)
+        ray = np.column_stack(
+            [(pts[:, 0] - self.k.cx) / self.k.fx, (pts[:, 1] - self.k.cy) / self.k.fy, np.ones(len(pts))]
+        )
+        rot = self.pose[:3, :3]
+        base = (ray * z[:, None]) @ rot.T + self.pose[:3, 3]
+        along = (ray @ rot.T)[:, :2] * sigma_z[:, None]
+        across_x = rot[:2, 0][None, :] * (z * cfg.pixel_sigma / self.k.fx)[:, None]
+        across_y = rot[:2, 1][None, :] * (z * cfg.pixel_sigma / self.k.fy)[:, None]
+        cov = sum(np.einsum("ni,nj->nij", d, d) for d in (along, across_x, across_y)) + 1e-8 * np.eye(2)
+        return base[:, :2], cov, ok
+
     def __call__(
-        self, rgb: np.ndarray, depth: np.ndarray, predicted: np.ndarray | None, first_inlier: float | None = None
+        self,
+        rgb: np.ndarray,
+        depth: np.ndarray,
+        predicted: np.ndarray | None,
+        first_inlier: float | None = None,
+        sigma_w: float | None = None,
     ) -> VisualStep | None:
         """The step from the previous frame to this one, fitted around `predicted` (x, y, yaw);
         pairs within `first_inlier` metres of the prediction start the fit. Without a
-        prediction (no wheels), a two-point RANSAC finds the starting step."""
+        prediction (no wheels), a two-point RANSAC finds the starting step. Depth of measured
+        noise `sigma_w` (1/m, either frame's) is fitted point by point at its own noise, with
+        the noise correlated over `self.correlated` pixels (`_noisy_step`)."""
         cfg = self.config
         gray = cv2.cvtColor(np.asarray(rgb), cv2.COLOR_RGB2GRAY)
         depth = np.asarray(depth, dtype=np.float32)
-        prev, self._prev = self._prev, (gray, depth)
+        prev, self._prev = self._prev, (gray, depth, sigma_w)
         if prev is None:
             return None
-        g0, d0 = prev
+        g0, d0, sigma_w0 = prev
+        if (sigma_w is not None or sigma_w0 is not None) and predicted is not None:
+            return self._noisy_step(g0, d0, sigma_w0, gray, depth, sigma_w, predicted, first_inlier)
         # Corners only where depth is near: in a hall most corners are on a ceiling or walls
         # beyond max_range, and they would crowd out the floor texture that fixes the step.
         mask = ((d0 > 0) & (d0 <= cfg.max_range)).astype(np.uint8)
@@ -118,6 +183,50 @@ class VisualOdometry:
         res = np.linalg.norm(b[inl] @ rot.T + t - a[inl], axis=1)
         step = np.array([t[0], t[1], np.arctan2(rot[1, 0], rot[0, 0])])
         return VisualStep(step, int(inl.sum()), float(np.sqrt(np.mean(res**2))))
+
+    def _noisy_step(
+        self,
+        g0: np.ndarray,
+        d0: np.ndarray,
+        sigma_w0: float | None,
+        gray: np.ndarray,
+        depth: np.ndarray,
+        sigma_w: float | None,
+        predicted: np.ndarray,
+        first_inlier: float | None,
+    ) -> VisualStep | None:
+        """The step on noisy depth: corners wherever the patch median's noise is within
+        `noisy_max_sigma`, the step fitted by each pair's own covariance (first widened by
+        `first_inlier` around the prediction), with the fit's covariance."""
+        cfg, correlated = self.config, self.correlated
+        noise = max(sigma_w0 or 0.0, sigma_w or 0.0)
+        reach = math.sqrt(cfg.noisy_max_sigma * math.sqrt((2 * cfg.noisy_patch + 1) ** 2 / correlated) / noise)
+        mask = ((d0 > 0) & (d0 <= reach)).astype(np.uint8)
+        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, self._min_distance, mask=mask)
+        if p0 is None or len(p0) < cfg.min_inliers:
+            return None
+        lk = dict(winSize=(self._window, self._window), maxLevel=cfg.levels)
+        p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, p0, None, **lk)
+        back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, None, **lk)
+        fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)
+        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
+        a, cov_a, ok0 = self._lift_noisy(p0.reshape(-1, 2), d0, sigma_w0, correlated)
+        b, cov_b, ok1 = self._lift_noisy(p1.reshape(-1, 2), depth, sigma_w, correlated)
+        good &= ok0 & ok1
+        if good.sum() < cfg.min_inliers:
+            return None
+        a, b, cov_a, cov_b = a[good], b[good], cov_a[good], cov_b[good]
+        c, s = np.cos(predicted[2]), np.sin(predicted[2])
+        rot = np.array([[c, -s], [s, c]])
+        cov = cov_a + rot @ cov_b @ rot.T
+        widen = (cfg.first_inlier if first_inlier is None else first_inlier) / cfg.noisy_gate
+        start, _, _ = weighted_planar_fit(b, a, cov + widen**2 * np.eye(2), predicted, cfg.noisy_gate, 2)
+        step, step_cov, inl = weighted_planar_fit(b, a, cov, start, cfg.noisy_gate, 4)
+        if inl.sum() < cfg.min_inliers or not np.all(np.isfinite(step_cov)):
+            return None
+        c, s = np.cos(step[2]), np.sin(step[2])
+        res = np.linalg.norm(b[inl] @ np.array([[c, -s], [s, c]]).T + step[:2] - a[inl], axis=1)
+        return VisualStep(step, int(inl.sum()), float(np.sqrt(np.mean(res**2))), step_cov)
 
     def _ransac(self, a: np.ndarray, b: np.ndarray, hypotheses: int = 64) -> np.ndarray:
         """Best planar step (x, y, yaw) with a = R b + t over random pairs of pairs, all at once."""

@@ -39,10 +39,10 @@ class VisualGates:
         self.counts = counts
         self._forward_refusals = 0
 
-    def first(self, frame: Frame) -> None:
+    def first(self, frame: Frame, sigma_w: float | None = None) -> None:
         """The first frame: the tracker keeps its image, there is no step yet."""
         if self.tracker is not None:
-            self.tracker(frame.rgb, frame.depth, np.zeros(3))
+            self.tracker(frame.rgb, frame.depth, np.zeros(3), sigma_w=sigma_w)
 
     def against_wheels(
         self,
@@ -53,7 +53,8 @@ class VisualGates:
         wheel_forward_variance: float,
         visual_forward_sigma: float,
         bias_filter: BiasFilter,
-    ) -> np.ndarray | None:
+        sigma_w: float | None = None,
+    ) -> VisualStep | None:
         """The RGB-D step if it agrees with the wheels: sideways and in heading within fixed gates
         of the bias-corrected wheel step `expected`; forward within `sigmas` stds of the forward
         bias's own uncertainty (a Mahalanobis gate), so the gate widens when the bias is unsure.
@@ -61,15 +62,18 @@ class VisualGates:
         The wheels' bias jumps to a new value every few seconds; a fixed gate around the old
         value would refuse all the evidence of the new one and leave the estimate metres off. So
         after `reset_after` consecutive forward refusals
-        the filter's forward-bias variance is widened and the gate opens.
+        the filter's forward-bias variance is widened and the gate opens. A step fitted on noisy
+        depth (`sigma_w`) is gated forward at its own forward std where that is the larger.
         """
         g = self.bounds
-        res = self._track(frame, expected)
+        res = self._track(frame, expected, sigma_w)
         if res is None:
             return None
         d = res.step - expected
         if abs(d[1]) > g.distance or abs(wrap_angle(d[2])) > g.angle:
             return self._refused()
+        if res.covariance is not None:
+            visual_forward_sigma = max(visual_forward_sigma, float(np.sqrt(res.covariance[0, 0])))
         if wheel.moving:
             spread = np.sqrt(bias_variance + wheel_forward_variance + visual_forward_sigma**2)
             if (
@@ -86,11 +90,11 @@ class VisualGates:
         elif abs(d[0]) > g.distance:
             return self._refused()
         self._forward_refusals = 0
-        return self._accepted(res.step)
+        return self._accepted(res)
 
     def against_prediction(
         self, frame: Frame, expected: np.ndarray, gate_distance: float, gate_angle: float
-    ) -> np.ndarray | None:
+    ) -> VisualStep | None:
         """Without wheels: the RGB-D step fitted without starting from `expected` (RANSAC), if
         it lies within the gates of that prediction."""
         res = self._track(frame, None)
@@ -99,20 +103,20 @@ class VisualGates:
         d = res.step - expected
         if np.hypot(d[0], d[1]) > gate_distance or abs(wrap_angle(d[2])) > gate_angle:
             return self._refused()
-        return self._accepted(res.step)
+        return self._accepted(res)
 
-    def _track(self, frame: Frame, start: np.ndarray | None) -> VisualStep | None:
+    def _track(self, frame: Frame, start: np.ndarray | None, sigma_w: float | None = None) -> VisualStep | None:
         if self.tracker is None:
             return None
-        res = self.tracker(frame.rgb, frame.depth, start)
+        res = self.tracker(frame.rgb, frame.depth, start, sigma_w=sigma_w)
         if res is None:
             self.counts["visual_failed"] += 1
         return res
 
-    def _refused(self) -> np.ndarray | None:  # always None (no step): the gates return it as their answer
+    def _refused(self) -> VisualStep | None:  # always None (no step): the gates return it as their answer
         self.counts["visual_refused"] += 1
         return None
 
-    def _accepted(self, step: np.ndarray) -> np.ndarray:
+    def _accepted(self, step: VisualStep) -> VisualStep:
         self.counts["visual_accepted"] += 1
         return step

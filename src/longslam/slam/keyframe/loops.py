@@ -19,7 +19,7 @@ from longslam.slam.graph import LoopCheck, PoseGraph
 from longslam.slam.keyframe.config import KeyframeConfig
 from longslam.slam.keyframe.memory import KeyframeMemory, Node
 from longslam.slam.keyframe.scan_proximity import ScanLinkSettings, scan_link
-from longslam.slam.place_recognition import depth_held_transform, planar_link, verify
+from longslam.slam.place_recognition import depth_held_transform, noisy_link_sigmas, planar_link, verify
 
 APPEARANCE, PROXIMITY, SCAN = "appearance", "proximity", "scan_proximity"
 SOURCES = (APPEARANCE, PROXIMITY, SCAN)
@@ -73,6 +73,7 @@ class LoopCloser:
     camera_in_base: np.ndarray  # (4, 4)
     counts: dict[str, int]  # the method's counters, which this updates
     positions: NodePositions = field(default_factory=NodePositions)
+    depth_noise: float | None = None  # the current node's inverse-depth noise (1/m; None: exact)
 
     def detect(self, node: Node, words: np.ndarray) -> None:
         """Try the new node against working memory: the best appearance hypotheses (one loop at
@@ -190,7 +191,7 @@ class LoopCloser:
         if not check.accepted:
             return None
         transform = depth_held_transform(
-            query, candidate, check.transform, self.intrinsics.fx, cfg.refine_3d, min_support
+            query, candidate, check.transform, self.intrinsics.fx, cfg.refine_3d, min_support, self.depth_noise
         )
         if transform is None:
             self.counts[UNHELD_BY_DEPTH] += 1
@@ -207,7 +208,10 @@ class LoopCloser:
         if delta is None:
             self.counts[f"{source}_rejected_verification"] += 1
             return False
-        sigmas = np.array([cfg.loop_sigma_linear, cfg.loop_sigma_linear, cfg.loop_sigma_angular])
+        linear, angular = noisy_link_sigmas(
+            candidate.features.points, self.depth_noise, cfg.loop_sigma_linear, cfg.loop_sigma_angular
+        )
+        sigmas = np.array([linear, linear, angular])
         check = self._try_loop(node, cand_id, delta, sigmas=sigmas)
         if not check.accepted:
             self.counts[f"{source}_rejected_graph"] += 1

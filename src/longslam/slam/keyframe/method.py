@@ -137,12 +137,16 @@ class KeyframeMethod:
         cfg = self.config
         node_id = len(self.nodes)
         depth = np.asarray(frame.depth, dtype=np.float32)
-        # Features, grid and points only where the frame's depth noise allows (the front end's rule).
+        # Grid and points only where the frame's depth noise allows (the front end's rule); loop
+        # features to where their noise, weighed in the verification, still places them.
+        loop_depth, depth_noise = motion.loop_depth(depth)
         depth = motion.trusted_depth(depth)
-        has_depth = bool(np.any(np.isfinite(depth) & (depth > 0)))
+        has_depth = bool(np.any(np.isfinite(loop_depth) & (loop_depth > 0)))
         if not has_depth:
             self.counts[stats.FRAMES_WITHOUT_DEPTH] += 1
-        features = extract(frame.rgb, depth, self.intrinsics, cfg.max_features) if has_depth else Features.empty()
+        if self.loops is not None:
+            self.loops.depth_noise = depth_noise
+        features = extract(frame.rgb, loop_depth, self.intrinsics, cfg.max_features) if has_depth else Features.empty()
         if has_depth and len(features) == 0:
             self.counts["frames_no_features"] += 1
         features = self._drop_floor_and_ceiling_points(features)

@@ -176,6 +176,8 @@ class SubmapMethod:
                 in_submap = invert(pose_from_xyyaw(delta)) @ in_submap
         self._last_odometry = odometry
         depth = np.asarray(frame.depth)
+        # Loop features to where their noise, weighed in the verification, still places them.
+        loop_depth, depth_noise = motion.loop_depth(depth) if depth.ndim == 2 else (depth, None)
         # Integrated only where the frame's depth noise allows (the front end's rule).
         depth = motion.trusted_depth(depth) if depth.ndim == 2 else depth
         updates = 0
@@ -195,11 +197,11 @@ class SubmapMethod:
         self.counts.frames += 1
         if (
             self._vocabulary is not None
-            and updates
+            and (updates or depth_noise is not None)  # noisy depth: loops reach past what is integrated
             and frame.timestamp - self._last_keyframe_time >= self.config.loop_keyframe_interval
         ):
             self._last_keyframe_time = frame.timestamp
-            self._loop_closure(frame, active, in_submap, depth)
+            self._loop_closure(frame, active, in_submap, loop_depth, depth_noise)
         self._pose_in_active = in_submap
         pose = self._world_pose(active.index, in_submap)
         self._stamps.append(float(frame.timestamp))
@@ -315,8 +317,11 @@ class SubmapMethod:
                 self.counts.rejection_reasons[key] = self.counts.rejection_reasons.get(key, 0) + 1
 
     # --- loop closure ------------------------------------------------------------------------------
-    def _loop_closure(self, frame: Frame, active: Submap, in_submap: np.ndarray, depth: np.ndarray) -> None:
-        """Look for a loop from this frame (its trusted `depth`) to an older submap's keyframe."""
+    def _loop_closure(
+        self, frame: Frame, active: Submap, in_submap: np.ndarray, depth: np.ndarray, depth_noise: float | None
+    ) -> None:
+        """Look for a loop from this frame (its `depth` for loops, of inverse-depth noise
+        `depth_noise`, 1/m) to an older submap's keyframe."""
         from longslam.slam import features as feature_module
         from longslam.slam.place_recognition import depth_held_transform, planar_link, verify
 
@@ -344,6 +349,7 @@ class SubmapMethod:
                         frame.intrinsics.fx,
                         c.loop_refine_3d,
                         c.loop_min_depth_support,
+                        depth_noise,
                     )
                     if transform is None:
                         self.counts.loops_rejected_depth += 1
