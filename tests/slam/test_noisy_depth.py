@@ -125,10 +125,15 @@ def test_loop_features_reach_past_the_trusted_range_of_noisy_depth_only():
     loop_depth, sigma_w = step.loop_depth(d435)
     assert (loop_depth > 0).mean() > 0.5
     assert sigma_w == pytest.approx(RealSenseD435().sigma(1.0), rel=0.2)  # 1 cm / m^2
-    # Exact depth is used as it is, with no noise.
+    # Exact depth is used as it is, with no noise; depth that gives a scan (trusted to min_range
+    # or more, a Kinect's) as the maps use it, verified as exact.
     exact_step = FrameStep(0, np.zeros(3), trust, True, None)
     same, none = exact_step.loop_depth(exact)
     assert same is exact and none is None
+    kinect_like = FrameStep(0, np.zeros(3), trust, True, 2.6)
+    loop_depth_scan, no_noise = kinect_like.loop_depth(d435)
+    np.testing.assert_array_equal(loop_depth_scan, kinect_like.trusted_depth(d435))
+    assert no_noise is None
     # The loop range grows as the square root of loop_max_sigma over max_sigma.
     assert loop_depth.max() <= limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma) + 1e-6
     narrow = FrameStep(0, np.zeros(3), DepthTrust(loop_max_sigma=trust.max_sigma), True, limit).loop_depth(d435)[0]

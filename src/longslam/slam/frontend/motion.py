@@ -184,12 +184,14 @@ class FrameStep:
         return trusted_depth(depth, limit)
 
     def loop_depth(self, depth: np.ndarray) -> tuple[np.ndarray, float | None]:
-        """`depth` for loop and proximity features: the returns within `depth_trust.loop_max_sigma`
-        of noise, and the depth's inverse-depth noise sigma_w (1/m; None: exact)."""
+        """`depth` for loop and proximity features, and the noise (sigma_w, 1/m) they are verified
+        and weighed at: depth trusted to less than `min_range` (a D435's, too noisy for a scan),
+        the returns within `depth_trust.loop_max_sigma` of noise, with its sigma_w; other depth
+        as `trusted_depth` gives it, verified as exact (None)."""
         trust = self.depth_trust
         limit = self.depth_limit if self.depth_measured else trusted_range(depth, trust)
-        if limit is None:
-            return depth, None
+        if limit is None or limit >= trust.min_range:
+            return trusted_depth(depth, limit), None
         sigma_w = trust.max_sigma / (limit * limit)
         return trusted_depth(depth, limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma)), sigma_w
 
