@@ -151,17 +151,12 @@ class VisualOdometry:
             return self._noisy_step(g0, d0, sigma_w0, gray, depth, sigma_w, predicted, first_inlier)
         # Corners only where depth is near: in a hall most corners are on a ceiling or walls
         # beyond max_range, and they would crowd out the floor texture that fixes the step.
-        mask = ((d0 > 0) & (d0 <= cfg.max_range)).astype(np.uint8)
-        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, self._min_distance, mask=mask)
-        if p0 is None or len(p0) < cfg.min_inliers:
+        tracked = self._track(g0, gray, (d0 > 0) & (d0 <= cfg.max_range))
+        if tracked is None:
             return None
-        lk = dict(winSize=(self._window, self._window), maxLevel=cfg.levels)
-        p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, p0, None, **lk)
-        back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, None, **lk)
-        fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)
-        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
-        a, ok0 = self._lift(p0.reshape(-1, 2), d0)
-        b, ok1 = self._lift(p1.reshape(-1, 2), depth)
+        p0, p1, good = tracked
+        a, ok0 = self._lift(p0, d0)
+        b, ok1 = self._lift(p1, depth)
         good &= ok0 & ok1
         if good.sum() < cfg.min_inliers:
             return None
@@ -184,6 +179,23 @@ class VisualOdometry:
         step = np.array([t[0], t[1], np.arctan2(rot[1, 0], rot[0, 0])])
         return VisualStep(step, int(inl.sum()), float(np.sqrt(np.mean(res**2))))
 
+    def _track(
+        self, g0: np.ndarray, gray: np.ndarray, where: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Corners of the previous image `g0` within the mask `where`, tracked into `gray`:
+        (their (N, 2) pixels in each image, whether each tracked forward and back alike), or None
+        with fewer corners than `min_inliers`."""
+        cfg = self.config
+        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, self._min_distance, mask=where.astype(np.uint8))
+        if p0 is None or len(p0) < cfg.min_inliers:
+            return None
+        lk = dict(winSize=(self._window, self._window), maxLevel=cfg.levels)
+        p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, p0, None, **lk)
+        back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, None, **lk)
+        fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)
+        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
+        return p0.reshape(-1, 2), p1.reshape(-1, 2), good
+
     def _noisy_step(
         self,
         g0: np.ndarray,
@@ -201,17 +213,12 @@ class VisualOdometry:
         cfg, correlated = self.config, self.correlated
         noise = max(sigma_w0 or 0.0, sigma_w or 0.0)
         reach = math.sqrt(cfg.noisy_max_sigma * math.sqrt((2 * cfg.noisy_patch + 1) ** 2 / correlated) / noise)
-        mask = ((d0 > 0) & (d0 <= reach)).astype(np.uint8)
-        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, self._min_distance, mask=mask)
-        if p0 is None or len(p0) < cfg.min_inliers:
+        tracked = self._track(g0, gray, (d0 > 0) & (d0 <= reach))
+        if tracked is None:
             return None
-        lk = dict(winSize=(self._window, self._window), maxLevel=cfg.levels)
-        p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, p0, None, **lk)
-        back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, None, **lk)
-        fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)
-        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
-        a, cov_a, ok0 = self._lift_noisy(p0.reshape(-1, 2), d0, sigma_w0, correlated)
-        b, cov_b, ok1 = self._lift_noisy(p1.reshape(-1, 2), depth, sigma_w, correlated)
+        p0, p1, good = tracked
+        a, cov_a, ok0 = self._lift_noisy(p0, d0, sigma_w0, correlated)
+        b, cov_b, ok1 = self._lift_noisy(p1, depth, sigma_w, correlated)
         good &= ok0 & ok1
         if good.sum() < cfg.min_inliers:
             return None
