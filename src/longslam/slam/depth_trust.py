@@ -46,12 +46,7 @@ class DepthTrust:
 
     # A loop is verified from a similar viewpoint, where a return's range noise mostly runs along
     # the ray it is seen on again; PnP and the 3D-3D check weigh it by its noise (place_recognition).
-    loop_max_sigma: float = param(
-        0.1,
-        "depth trusted to less than min_range: the axial noise a return may have and give a loop feature its 3D point",
-        above=0,
-        unit="m",
-    )
+    loop_max_sigma: float = param(0.1, "depth under min_range: a loop feature's most range noise", above=0, unit="m")
 
     # A column's returns in the height band measure one range on a wall: averaged, their noise
     # falls with their number, so the scan reaches past the trusted range (ScanExtractor.columns).

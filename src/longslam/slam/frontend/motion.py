@@ -140,13 +140,8 @@ class FrontEndConfig:
     # looser sigma leaves a large wheel bias unseen where no scan registers.
     visual_sigma_yaw: float = param(0.004, "std of an RGB-D step's heading change", above=0, unit="rad per step")
     # A D435's depth, trusted to 1.7 m, gives no scan; its corners still fix each step's heading.
-    visual_noisy: bool = param(
-        True,
-        "depth trusted to less than depth_trust.min_range: RGB-D steps on all of it, each corner weighed by its noise",
-    )
-    visual_noisy_sigma_scale: float = param(
-        2.0, "noisy depth: factor on an RGB-D step's fitted stds (floored at visual_sigma_*)", above=0
-    )
+    visual_noisy: bool = param(True, "depth under depth_trust.min_range: RGB-D steps on all of it, noise-weighed")
+    visual_noisy_sigma_scale: float = param(2.0, "noisy depth: factor on an RGB-D step's fitted stds", above=0)
     visual_sigmas_no_wheels: tuple[float, float, float] = param(
         (0.004, 0.005, 0.002),
         "stds of an RGB-D step without wheels (forward m, lateral m, yaw rad): its measured scatter",

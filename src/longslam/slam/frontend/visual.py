@@ -39,12 +39,8 @@ class VisualConfig:
     # Noisy depth (measured, depth_trust): a point's range is uncertain along its ray but its
     # bearing is not, so each pair is weighed by its own covariance and the step's heading holds
     # where its distance does not.
-    noisy_max_sigma: float = param(
-        0.3, "noisy depth: a corner whose depth noise (its patch's median) exceeds this is left out", above=0, unit="m"
-    )
-    noisy_patch: int = param(
-        3, "noisy depth: a corner's depth is the median of the (2n + 1)^2 pixels around it", at_least=0, unit="px"
-    )
+    noisy_max_sigma: float = param(0.3, "noisy depth: a corner with more range noise is left out", above=0, unit="m")
+    noisy_patch: int = param(3, "noisy depth: a corner's depth, the median of (2n+1)^2 pixels", at_least=0, unit="px")
     noisy_gate: float = param(3.0, "noisy depth: a pair agrees with the step within this many of its stds", above=0)
     pixel_sigma: float = param(0.5, "noisy depth: std of a tracked corner's position", above=0, unit="px")
 
