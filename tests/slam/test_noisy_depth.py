@@ -122,21 +122,22 @@ def test_loop_features_reach_past_the_trusted_range_of_noisy_depth_only():
     assert limit is not None and limit < 2.0  # the wall at 2.6 m is beyond it
     step = FrameStep(0, np.zeros(3), trust, True, limit)
     assert not step.trusted_depth(d435).any()
-    loop_depth, sigma_w = step.loop_depth(d435)
+    trusted, loop_depth, sigma_w = step.depths(d435)
+    np.testing.assert_array_equal(trusted, step.trusted_depth(d435))
     assert (loop_depth > 0).mean() > 0.5
     assert sigma_w == pytest.approx(RealSenseD435().sigma(1.0), rel=0.2)  # 1 cm / m^2
     # Exact depth is used as it is, with no noise; depth that gives a scan (trusted to min_range
     # or more, a Kinect's) as the maps use it, verified as exact.
     exact_step = FrameStep(0, np.zeros(3), trust, True, None)
-    same, none = exact_step.loop_depth(exact)
+    _, same, none = exact_step.depths(exact)
     assert same is exact and none is None
     kinect_like = FrameStep(0, np.zeros(3), trust, True, 2.6)
-    loop_depth_scan, no_noise = kinect_like.loop_depth(d435)
+    _, loop_depth_scan, no_noise = kinect_like.depths(d435)
     np.testing.assert_array_equal(loop_depth_scan, kinect_like.trusted_depth(d435))
     assert no_noise is None
     # The loop range grows as the square root of loop_max_sigma over max_sigma.
     assert loop_depth.max() <= limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma) + 1e-6
-    narrow = FrameStep(0, np.zeros(3), DepthTrust(loop_max_sigma=trust.max_sigma), True, limit).loop_depth(d435)[0]
+    narrow = FrameStep(0, np.zeros(3), DepthTrust(loop_max_sigma=trust.max_sigma), True, limit).depths(d435).loops
     assert not narrow.any()
 
 
@@ -147,3 +148,18 @@ def test_a_noisy_loop_link_is_weighed_by_the_noise_at_its_depth():
     assert linear == pytest.approx(math.hypot(0.05, 0.09))
     assert angular == pytest.approx(math.hypot(0.02, 0.03))
     assert noisy_link_sigmas(points[2:], 0.01, 0.05, 0.02) == (0.05, 0.02)  # no depth to weigh by
+
+
+def test_a_method_on_wheels_alone_measures_a_frames_depth_noise_once(monkeypatch):
+    import longslam.slam.depth_trust as depth_trust
+
+    rgb, exact = _approaching_wall(None, 1, 0.0)[0]
+    d435 = RealSenseD435().sense(rgb, exact, K, FrameMotion.still(), frame_rng("realsense-d435", 0, 0))[1]
+    wheels = camera_poses_from_planar(np.zeros((1, 3)), 1.25)
+    step = FrontEnd(K, FrontEndConfig(mode="wheel")).step(Frame(0, 0.0, rgb, d435, wheels[0], K))
+    measured = []
+    real = depth_trust.inverse_depth_noise
+    monkeypatch.setattr(depth_trust, "inverse_depth_noise", lambda *a, **k: measured.append(1) or real(*a, **k))
+    trusted, loops, noise = step.depths(d435)
+    assert len(measured) == 1  # the maps' depth and the loops' from one measurement
+    assert noise is not None and (loops > 0).sum() > (trusted > 0).sum()

@@ -104,6 +104,13 @@ def trusted_range(depth: np.ndarray, trust: DepthTrust = DepthTrust()) -> float 
     return range_for_noise(measured_noise(depth, trust), trust)
 
 
+def too_noisy_for_scan(limit: float | None, trust: DepthTrust = DepthTrust()) -> bool:
+    """Whether depth trusted to `limit` (m; None: exact) is too noisy for a scan: under `min_range`
+    too little of a corridor is left to register on. Such depth (a D435's) is used noise-weighed
+    instead: the front end's RGB-D steps and the methods' loops take all of it (docs/sensors.md)."""
+    return limit is not None and limit < trust.min_range
+
+
 def scan_weight(sigma_w: float | None, trust: DepthTrust = DepthTrust()) -> float:
     """The factor on a cell scan's registration information (in the online filter and the final
     smoother) for depth of inverse-depth noise sigma_w: 1 / (1 + (sigma_w / scan_noise_half)^2),

@@ -23,7 +23,7 @@ import time
 from array import array
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -38,6 +38,7 @@ from longslam.slam.depth_trust import (
     measured_noise,
     range_for_noise,
     scan_weight,
+    too_noisy_for_scan,
     trusted_depth,
     trusted_range,
 )
@@ -175,20 +176,32 @@ class FrameStep:
     def trusted_depth(self, depth: np.ndarray) -> np.ndarray:
         """`depth` (the frame's depth image as the method holds it) without the returns beyond what
         the frame's own noise lets be trusted (depth_trust)."""
-        limit = self.depth_limit if self.depth_measured else trusted_range(depth, self.depth_trust)
-        return trusted_depth(depth, limit)
+        return trusted_depth(depth, self._limit(depth))
 
-    def loop_depth(self, depth: np.ndarray) -> tuple[np.ndarray, float | None]:
-        """`depth` for loop and proximity features, and the noise (sigma_w, 1/m) they are verified
-        and weighed at: depth trusted to less than `min_range` (a D435's, too noisy for a scan),
-        the returns within `depth_trust.loop_max_sigma` of noise, with its sigma_w; other depth
-        as `trusted_depth` gives it, verified as exact (None)."""
+    def depths(self, depth: np.ndarray) -> MethodDepths:
+        """`trusted_depth`, and the depth for loop features with the noise they are verified and
+        weighed at, the trusted range measured once: depth too noisy for a scan (trusted to less
+        than `min_range`, a D435's) gives loops the returns within `depth_trust.loop_max_sigma` of
+        noise and its sigma_w; other depth gives them the trusted depth, verified as exact."""
         trust = self.depth_trust
-        limit = self.depth_limit if self.depth_measured else trusted_range(depth, trust)
-        if limit is None or limit >= trust.min_range:
-            return trusted_depth(depth, limit), None
-        sigma_w = trust.max_sigma / (limit * limit)
-        return trusted_depth(depth, limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma)), sigma_w
+        limit = self._limit(depth)
+        trusted = trusted_depth(depth, limit)
+        if not too_noisy_for_scan(limit, trust):
+            return MethodDepths(trusted, trusted, None)
+        assert limit is not None  # depth too noisy for a scan was measured
+        loops = trusted_depth(depth, limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma))
+        return MethodDepths(trusted, loops, trust.max_sigma / (limit * limit))
+
+    def _limit(self, depth: np.ndarray) -> float | None:
+        return self.depth_limit if self.depth_measured else trusted_range(depth, self.depth_trust)
+
+
+class MethodDepths(NamedTuple):
+    """A frame's depth as a method uses it (`FrameStep.depths`)."""
+
+    trusted: np.ndarray  # for the maps: the returns within the trusted range
+    loops: np.ndarray  # for loop and proximity features
+    loop_noise: float | None  # inverse-depth noise sigma_w (1/m) the loops are verified at; None: exact
 
 
 class FrontEnd:
@@ -347,9 +360,9 @@ class FrontEnd:
         limit = range_for_noise(sigma_w, cfg.depth_trust)
         self._depth_limit = limit
         trust = cfg.depth_trust
-        # A frame trusted to less than min_range keeps the wheels alone (a D435's): its column
-        # scan alone, without RGB-D steps, moved the heading by as much as the wheels' drift.
-        columns = limit is not None and limit >= trust.min_range and trust.scan_columns
+        # Depth too noisy for a scan (a D435's) makes no column scan either: alone, without RGB-D
+        # steps, it moved the heading by as much as the wheels' drift.
+        columns = limit is not None and not too_noisy_for_scan(limit, trust) and trust.scan_columns
         weight = trust.column_information if columns else scan_weight(sigma_w, trust)
         if weight < 1.0:
             self.counts["scans_weighted"] += 1
@@ -359,13 +372,13 @@ class FrontEnd:
         # Depth too noisy for a scan reaches the corner tracker whole, with its noise; depth that
         # gives a scan (a Kinect's) is tracked within its trusted range, where the scan holds the
         # heading (tracked on all of it, the corners' heading pulled against the scan's).
-        noisy_tracking = sigma_w is not None and cfg.visual_noisy and limit is not None and limit < trust.min_range
+        noisy_tracking = cfg.visual_noisy and too_noisy_for_scan(limit, trust)
         whole = frame
         self._depth = trusted_depth(frame.depth, limit)
         if limit is not None:
             self.counts["depth_limited"] += 1
             self._range_sum += limit
-            if limit < cfg.depth_trust.min_range:  # nothing to register on: the wheels alone
+            if too_noisy_for_scan(limit, trust):  # nothing to register on
                 self.counts["depth_too_noisy"] += 1
                 self._depth = np.zeros_like(self._depth)
             clean = frame

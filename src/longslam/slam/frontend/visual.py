@@ -91,7 +91,7 @@ class VisualOdometry:
         return base[:, :2], ok
 
     def _lift_noisy(
-        self, pts: np.ndarray, depth: np.ndarray, sigma_w: float | None, correlated: float
+        self, pts: np.ndarray, depth: np.ndarray, sigma_w: float | None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pixel positions -> base-frame xy (N, 2), their (N, 2, 2) covariances and a validity
         mask, each corner's depth the median of its patch: the range noise sigma_w z^2 along the
@@ -109,7 +109,7 @@ class VisualOdometry:
         some = count > 0
         z[some] = np.nanmedian(patch[some], axis=1)
         noise = sigma_w or 0.0
-        sigma_z = noise * z * z * MEDIAN_EFFICIENCY / np.sqrt(np.maximum(count, 1) / correlated)
+        sigma_z = noise * z * z * MEDIAN_EFFICIENCY / np.sqrt(np.maximum(count, 1) / self.correlated)
         ok = some & (sigma_z <= cfg.noisy_max_sigma)
         z = np.where(ok, z, 1.0)
         ray = np.column_stack(
@@ -206,15 +206,15 @@ class VisualOdometry:
         """The step on noisy depth: corners wherever the patch median's noise is within
         `noisy_max_sigma`, the step fitted by each pair's own covariance (first widened by
         `first_inlier` around the prediction), with the fit's covariance."""
-        cfg, correlated = self.config, self.correlated
+        cfg = self.config
         noise = max(sigma_w0 or 0.0, sigma_w or 0.0)
-        reach = math.sqrt(cfg.noisy_max_sigma * math.sqrt((2 * cfg.noisy_patch + 1) ** 2 / correlated) / noise)
+        reach = math.sqrt(cfg.noisy_max_sigma * math.sqrt((2 * cfg.noisy_patch + 1) ** 2 / self.correlated) / noise)
         tracked = self._track(g0, gray, (d0 > 0) & (d0 <= reach))
         if tracked is None:
             return None
         p0, p1, good = tracked
-        a, cov_a, ok0 = self._lift_noisy(p0, d0, sigma_w0, correlated)
-        b, cov_b, ok1 = self._lift_noisy(p1, depth, sigma_w, correlated)
+        a, cov_a, ok0 = self._lift_noisy(p0, d0, sigma_w0)
+        b, cov_b, ok1 = self._lift_noisy(p1, depth, sigma_w)
         good &= ok0 & ok1
         if good.sum() < cfg.min_inliers:
             return None

@@ -139,8 +139,7 @@ class KeyframeMethod:
         depth = np.asarray(frame.depth, dtype=np.float32)
         # Grid and points only where the frame's depth noise allows (the front end's rule); loop
         # features to where their noise, weighed in the verification, still places them.
-        loop_depth, depth_noise = motion.loop_depth(depth)
-        depth = motion.trusted_depth(depth)
+        depth, loop_depth, depth_noise = motion.depths(depth)
         has_depth = bool(np.any(np.isfinite(loop_depth) & (loop_depth > 0)))
         if not has_depth:
             self.counts[stats.FRAMES_WITHOUT_DEPTH] += 1

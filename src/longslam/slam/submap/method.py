@@ -176,10 +176,9 @@ class SubmapMethod:
                 in_submap = invert(pose_from_xyyaw(delta)) @ in_submap
         self._last_odometry = odometry
         depth = np.asarray(frame.depth)
-        # Loop features to where their noise, weighed in the verification, still places them.
-        loop_depth, depth_noise = motion.loop_depth(depth) if depth.ndim == 2 else (depth, None)
-        # Integrated only where the frame's depth noise allows (the front end's rule).
-        depth = motion.trusted_depth(depth) if depth.ndim == 2 else depth
+        # Integrated only where the frame's depth noise allows (the front end's rule); loop
+        # features to where their noise, weighed in the verification, still places them.
+        depth, loop_depth, depth_noise = motion.depths(depth) if depth.ndim == 2 else (depth, depth, None)
         updates = 0
         assert active.tsdf is not None  # the active submap holds its TSDF
         if depth.ndim == 2 and depth.shape == (frame.intrinsics.height, frame.intrinsics.width):
