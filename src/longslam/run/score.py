@@ -59,22 +59,12 @@ def score_full(
     return evaluation
 
 
-def score(
-    truth: Trajectory,
-    estimate: Trajectory,
-    align: str | bool = "none",
-    max_diff: float = MAX_DIFF,
-    by_index: bool = False,
-    what: str = "the estimate",
-    min_step: float = MIN_STEP,
-    offset: float = 0.0,
-    **options: Any,
-) -> dict[str, Any]:
+def score(truth: Trajectory, estimate: Trajectory, align: str | bool = "none", **options: Any) -> dict[str, Any]:
     """The paper's metrics and the field's (see `eval.evaluation.evaluate`) of `estimate` against
-    `truth`, poses matched by timestamp (`max_diff` and `offset` in seconds, evo's --t_max_diff
-    and --t_offset) or by index. A metric that overflowed is an error: it measures nothing, and
-    JSON could not hold it."""
-    return score_full(truth, estimate, align, max_diff, by_index, what, min_step, offset, **options).scores
+    `truth`: `score_full`'s scores, with its options (poses matched by timestamp, `max_diff` and
+    `offset` in seconds as evo's --t_max_diff and --t_offset, or `by_index`). A metric that
+    overflowed is an error: it measures nothing, and JSON could not hold it."""
+    return score_full(truth, estimate, align, **options).scores
 
 
 def trajectory_file(path: str | Path, names: tuple[str, ...]) -> Path:

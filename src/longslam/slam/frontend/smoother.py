@@ -25,7 +25,7 @@ from longslam.slam.frontend.filter import MotionNoise
 from longslam.slam.frontend.frame_store import FrameRecord, FrameStore
 from longslam.slam.graph.factors import FactorGraph, WheelStep, X, pose_array
 from longslam.slam.graph.parts import levenberg_marquardt_parts
-from longslam.slam.graph.solver import levenberg_marquardt
+from longslam.slam.graph.solver import Stopping, levenberg_marquardt
 
 # Added to a scan's or loop's information: a registration's Hessian is singular along a corridor.
 INFORMATION_RIDGE = 1e-6
@@ -79,6 +79,11 @@ class SmootherConfig:
         "routes longer than this many frames are finished with the graph's nodes held (0: every route)",
         at_least=0,
     )
+
+    @property
+    def stopping(self) -> Stopping:
+        """When the solver loop stops, from `iterations`, `relative_tolerance` and `optimizer`."""
+        return Stopping(self.iterations, self.relative_tolerance, damping=self.optimizer != "gn")
 
     def __post_init__(self) -> None:
         check_declared(self, "front end", "smoother.")
@@ -147,12 +152,7 @@ class FullSmoother:
         self.solved_by = "every frame"
         window = self.config.window
         if window == 0 or n <= max(window, self.config.whole_frames):
-            out, self.iterations = self.build_graph().solve(
-                n,
-                iterations=self.config.iterations,
-                relative_tolerance=self.config.relative_tolerance,
-                damping=self.config.optimizer != "gn",
-            )
+            out, self.iterations = self.build_graph().solve(n, self.config.stopping)
             return out
         return self._solve_in_parts(window)
 
@@ -172,13 +172,7 @@ class FullSmoother:
             return graph.graph
 
         result, self.iterations = levenberg_marquardt_parts(
-            part,
-            len(ranges),
-            variables.values,
-            variables.dims,
-            iterations=self.config.iterations,
-            relative_tolerance=self.config.relative_tolerance,
-            damping=self.config.optimizer != "gn",
+            part, len(ranges), variables.values, variables.dims, self.config.stopping
         )
         return pose_array(result, range(n))
 
@@ -208,14 +202,7 @@ class FullSmoother:
             graph = FactorGraph()
             chunk_walls = walls[bisect.bisect_right(wall_frames, first) : bisect.bisect_right(wall_frames, last)]
             self._add_held_chunk(graph, first, last, held, out, chunk_walls, bias_range, solved_bias)
-            result, taken = levenberg_marquardt(
-                graph.graph,
-                graph.values,
-                graph.dims,
-                iterations=self.config.iterations,
-                relative_tolerance=self.config.relative_tolerance,
-                damping=self.config.optimizer != "gn",
-            )
+            result, taken = levenberg_marquardt(graph.graph, graph.values, graph.dims, self.config.stopping)
             self.iterations = max(self.iterations, taken)
             out[first : last + 1] = pose_array(result, range(first, last + 1))
             for key in graph.dims:

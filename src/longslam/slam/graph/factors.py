@@ -19,7 +19,7 @@ import numpy as np
 
 from longslam.core.geometry import fold_quarter
 from longslam.slam.graph import noise
-from longslam.slam.graph.solver import levenberg_marquardt
+from longslam.slam.graph.solver import Stopping, levenberg_marquardt
 
 X = gtsam.symbol_shorthand.X
 B = gtsam.symbol_shorthand.B
@@ -160,16 +160,7 @@ class FactorGraph:
         )
 
     # --- solving
-    def solve(
-        self, poses: int | range, *, iterations: int, relative_tolerance: float, damping: bool = True
-    ) -> tuple[np.ndarray, int]:
+    def solve(self, poses: int | range, stop: Stopping) -> tuple[np.ndarray, int]:
         """Poses 0..`poses`-1 (or the keys of a range) optimised, (poses, 3), and the iterations taken."""
-        result, taken = levenberg_marquardt(
-            self.graph,
-            self.values,
-            self.dims,
-            iterations=iterations,
-            relative_tolerance=relative_tolerance,
-            damping=damping,
-        )
+        result, taken = levenberg_marquardt(self.graph, self.values, self.dims, stop)
         return pose_array(result, range(poses) if isinstance(poses, int) else poses), taken

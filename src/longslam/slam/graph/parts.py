@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from longslam.slam.graph.solver import LAMBDA_MAX, add_damping, converged, lowered, raised
+from longslam.slam.graph.solver import LAMBDA_MAX, Stopping, add_damping, converged, lowered, raised
 
 PartBuilder = Callable[[int], gtsam.NonlinearFactorGraph]
 
@@ -145,10 +145,7 @@ def levenberg_marquardt_parts(
     parts: int,
     values: gtsam.Values,
     dims: dict[int, int],
-    *,
-    iterations: int,
-    relative_tolerance: float,
-    damping: bool = True,
+    stop: Stopping,
 ) -> tuple[gtsam.Values, int]:
     """`solver.levenberg_marquardt`'s loop (the same damping and convergence test) over a graph
     given part by part: the optimised values and the iterations taken. A candidate's error is
@@ -158,7 +155,7 @@ def levenberg_marquardt_parts(
     current, on_shared = graph.forward(values, 0.0)
     lam = 0.0
     iteration = 0
-    while iteration < iterations:
+    while iteration < stop.iterations:
         while True:
             next_lam = lowered(lam)
             try:
@@ -173,13 +170,13 @@ def levenberg_marquardt_parts(
                 new_error = np.inf
             if new_error <= current:
                 break
-            if not damping or lam >= LAMBDA_MAX:
+            if not stop.damping or lam >= LAMBDA_MAX:
                 return values, iteration
             lam = raised(lam)
             _, on_shared = graph.forward(values, lam)
         iteration += 1
         decrease = current - new_error
         values, current, lam, on_shared = candidate, new_error, next_lam, next_shared
-        if converged(decrease, current, relative_tolerance):
+        if converged(decrease, current, stop.relative_tolerance):
             break
     return values, iteration

@@ -15,11 +15,22 @@ GTSAM's own Levenberg-Marquardt in C++ (`gtsam_levenberg_marquardt`).
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
 LAMBDA_MIN, LAMBDA_MAX, LAMBDA_FACTOR = 1e-5, 1e5, 10.0  # GTSAM's Levenberg-Marquardt defaults
+
+
+@dataclass(frozen=True)
+class Stopping:
+    """When the solver loop stops: after `iterations` steps, once a step lowers the error by less
+    than `relative_tolerance` of it, or (without `damping`, Gauss-Newton) where a step fails."""
+
+    iterations: int
+    relative_tolerance: float
+    damping: bool = True
 
 
 def add_damping(linear: gtsam.GaussianFactorGraph, keys: Iterable[int], dims: dict[int, int], lam: float) -> None:
@@ -58,17 +69,13 @@ def levenberg_marquardt(
     graph: gtsam.NonlinearFactorGraph,
     values: gtsam.Values,
     dims: dict[int, int],
-    *,
-    iterations: int,
-    relative_tolerance: float,
-    damping: bool = True,
+    stop: Stopping,
 ) -> tuple[gtsam.Values, int]:
-    """The optimised values and the iterations taken. `dims` holds each variable's dimension;
-    without `damping` the loop stops where a Gauss-Newton step fails to lower the error."""
+    """The optimised values and the iterations taken. `dims` holds each variable's dimension."""
     error = graph.error(values)
     lam = 0.0
     iteration = 0
-    while iteration < iterations:
+    while iteration < stop.iterations:
         linear = graph.linearize(values)
         while True:
             try:
@@ -79,14 +86,14 @@ def levenberg_marquardt(
                 new_error = np.inf
             if new_error <= error:
                 break
-            if not damping or lam >= LAMBDA_MAX:
+            if not stop.damping or lam >= LAMBDA_MAX:
                 return values, iteration  # no step lowers the error any more
             lam = raised(lam)
         iteration += 1
         decrease = error - new_error
         values, error = candidate, new_error
         lam = lowered(lam)
-        if converged(decrease, error, relative_tolerance):
+        if converged(decrease, error, stop.relative_tolerance):
             break
     return values, iteration
 
