@@ -26,7 +26,7 @@ from longslam.core.settings import parse_key_values
 # (module, owner in the module or "" for a module-level function, attribute, label)
 FRONTEND = [
     ("longslam.slam.frontend.motion", "FrontEnd", "step", "frontend.step"),
-    ("longslam.slam.frontend.motion", "FrameStep", "trusted_depth", "frame_step.trusted_depth"),
+    ("longslam.slam.frontend.motion", "FrameStep", "depths", "frame_step.depths"),
 ]
 PHASES = {
     "submap": FRONTEND + [

@@ -32,6 +32,7 @@ def _set_commits(study: Path, commits: list[str]) -> None:
             db.execute("UPDATE runs SET measurements = ? WHERE key = ?", (json.dumps(measured), key))
 
 
+@pytest.mark.slow  # runs a study end to end, twice (5 s)
 def test_a_tiny_study_is_published_with_its_stamp_and_runs_of_two_commits_are_refused(
     tmp_path, render_cache, monkeypatch
 ):
@@ -149,6 +150,7 @@ def test_the_degradation_page_gives_each_perturbations_median_range_and_failures
     assert publish.parse_steps("degradation,paper") == ["paper", "degradation"]
 
 
+@pytest.mark.slow  # runs a study end to end (2.4 s)
 def test_a_tiny_perturbation_study_is_published_as_a_degradation_page(tmp_path, render_cache, monkeypatch):
     monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
     (tmp_path / "r.txt").write_text("20 31.25\n21 31.25\n")

@@ -29,6 +29,7 @@ def test_a_route_file_can_be_repeated(tmp_path):
     assert route.name == "r-x2" and route.waypoints == ((20.0, 31.25), (26.0, 31.25)) * 2
 
 
+@pytest.mark.slow  # plans two kilometre tours (3.3 s)
 def test_a_tour_is_as_long_as_asked_and_the_same_for_its_seed():
     world = get_world("university")
     tour = get_route("tour-200m-seed3")

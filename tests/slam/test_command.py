@@ -130,6 +130,7 @@ def _truth_option(sequence: Path) -> tuple[str, str]:
     return "--truth", str(sequence / "groundtruth.txt")
 
 
+@pytest.mark.slow  # starts a program and its child as a run (2.4 s)
 def test_a_program_run_as_a_method_is_anchored_and_measured_with_its_child(tiny, program, tmp_path):
     sequence, truth, _ = tiny
     params = {"command": _command(program, *_truth_option(sequence), "--write", "--child-mb", str(CHILD_MB))}

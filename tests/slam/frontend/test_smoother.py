@@ -247,6 +247,7 @@ def whole_and_nodes() -> tuple[np.ndarray, dict[int, np.ndarray]]:
     return full, {k: full[k] for k in sorted(nodes)}
 
 
+@pytest.mark.slow  # solves a long route's smoother whole for its fixture (4 s)
 def test_with_the_nodes_held_the_frames_between_come_out_where_the_whole_solve_puts_them(whole_and_nodes):
     full, held = whole_and_nodes
     smoother, _ = _long_smoother(window=100)
