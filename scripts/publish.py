@@ -487,7 +487,7 @@ class DegradationCell:
     ates: tuple[float, ...]
     failed: int
     runs: int
-    starved: int  # runs whose threads waited for a core (a real-time system's result is then unsure)
+    starved: int  # a real-time system's runs whose threads waited for a core (the result is then unsure)
 
 
 def perturbation_level(text: str) -> tuple[str, float] | None:
@@ -498,9 +498,23 @@ def perturbation_level(text: str) -> tuple[str, float] | None:
     return name, float(level)
 
 
+def takes_frames_in_real_time(method_name: str) -> bool:
+    """Whether a method's result depends on the CPU it got (its spec's `real_time`): a method that
+    is not installed here counts as one, so its starved runs are never hidden."""
+    from longslam.core.errors import LongslamError
+    from longslam.slam.catalog import get_spec
+
+    try:
+        return get_spec(method_name).real_time
+    except LongslamError:
+        return True
+
+
 def degradation_cells(runs: list[dict]) -> dict[str, dict[str, DegradationCell]]:
     """{perturbation: {method: cell}} over the runs of the degradation studies, failures by the
-    distribution report's rule (dead reckoning's ATE on the same sequence where it ran)."""
+    distribution report's rule (dead reckoning's ATE on the same sequence where it ran). Starved
+    runs are counted for real-time methods only: an offline method waits for each frame, so a
+    core it waited for moves its wall time, not its result."""
     from longslam.run.process_tree import starved
     from longslam.study.report.distribution import dead_reckoning_ates, failure_reasons
 
@@ -514,7 +528,8 @@ def degradation_cells(runs: list[dict]) -> dict[str, dict[str, DegradationCell]]
         for method, group in by_method.items():
             ates = tuple(float(r["ate"]) for r in group if r["status"] == "ok" and r.get("ate") is not None)
             failed = len(failure_reasons([r for r in group if r.get("method_name") != "odometry"], reference))
-            hungry = sum(starved(r.get("cpu_wait_share")) for r in group)
+            real_time = takes_frames_in_real_time(group[0].get("method_name") or method)
+            hungry = sum(starved(r.get("cpu_wait_share")) for r in group) if real_time else 0
             cells[perturbation][method] = DegradationCell(ates, failed, len(group), hungry)
     return cells
 
