@@ -45,14 +45,14 @@ def cli_reference() -> str:
 
 
 def parameter_reference() -> str:
-    from longslam.cli.main import _list_params
+    from longslam.cli.listing import list_params
     from longslam.slam.catalog import method_names
 
     parts = []
     for method in method_names():
         out = io.StringIO()
         with redirect_stdout(out):
-            _list_params(method)
+            list_params(method)
         parts += [f"## `{method}`", "", "```text", out.getvalue().rstrip(), "```", ""]
     return "\n".join(parts)
 

@@ -5,7 +5,7 @@ import typing
 
 import pytest
 
-from longslam.cli.main import _params
+from longslam.cli.common import parse_params
 from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
 from longslam.slam.api import MethodContext
@@ -27,7 +27,7 @@ CASES = [("keyframe", key) for key in _float_fields(KeyframeConfig)] + [("submap
 @pytest.mark.parametrize("method, key", CASES)
 @pytest.mark.parametrize("text", ["nan", "NaN", "inf", "-Infinity"])
 def test_non_finite_values_are_refused(method, key, text):
-    params = _params([f"{key}={text}"])  # as the command line decodes them
+    params = parse_params([f"{key}={text}"])  # as the command line decodes them
     with pytest.raises(InputError, match=rf"{key}.*finite"):
         create_method(method, CONTEXT, params)
 

@@ -8,7 +8,7 @@ import typing
 
 import pytest
 
-from longslam.cli.main import _params
+from longslam.cli.common import parse_params
 from longslam.core.errors import InputError
 from longslam.run.folder import CONFIG, write_config
 from longslam.core.settings import to_mapping
@@ -74,7 +74,7 @@ def test_the_walk_sees_every_nested_front_end_table():
 def test_each_front_end_field_is_a_parameter_and_lands_in_config_toml(method, path, kind, default, tmp_path):
     value = _another(path, default)
     assert value != default
-    config = check_params(method, _params([f"frontend.{path}={_text(value)}"]))
+    config = check_params(method, parse_params([f"frontend.{path}={_text(value)}"]))
     assert _get(config.frontend, path) == value
     # Only that field moved.
     others = [(p, _get(config.frontend, p)) for p, _, _ in LEAVES if p != path]
@@ -89,10 +89,10 @@ def test_each_front_end_field_is_a_parameter_and_lands_in_config_toml(method, pa
 @pytest.mark.parametrize("method", ["keyframe", "submap"])
 def test_front_end_values_are_checked_once_for_both_methods(method):
     with pytest.raises(InputError, match="front end: mode must be one of fused, wheel, got 'magic'"):
-        check_params(method, _params(["frontend.mode=magic"]))
+        check_params(method, parse_params(["frontend.mode=magic"]))
     with pytest.raises(InputError, match="front end: camera_height must be positive"):
-        check_params(method, _params(["frontend.camera_height=0"]))
+        check_params(method, parse_params(["frontend.camera_height=0"]))
     with pytest.raises(InputError, match=r"frontend: parameter visual_sigmas_no_wheels=.*expected a list of 3 values"):
-        check_params(method, _params(["frontend.visual_sigmas_no_wheels=[0.1, 0.2]"]))
+        check_params(method, parse_params(["frontend.visual_sigmas_no_wheels=[0.1, 0.2]"]))
     with pytest.raises(InputError, match=r"unknown parameter camera_height \(did you mean frontend.camera_height\?\)"):
-        check_params(method, _params(["camera_height=1.3"]))  # the front end's now: frontend.camera_height
+        check_params(method, parse_params(["camera_height=1.3"]))  # the front end's now: frontend.camera_height
