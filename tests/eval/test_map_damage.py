@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from longslam.core.errors import InputError
+from longslam.core.gridmap import OCCUPIED, UNKNOWN, GridMap
 from longslam.eval.doubled_walls import doubled_walls
 from longslam.eval.map_align import align_map
-from longslam.eval.map_quality import map_scores, occupied_points
-from longslam.core.gridmap import OCCUPIED, UNKNOWN, GridMap
+from longslam.eval.map_quality import map_scores
 
 RES = 0.05
 
@@ -45,7 +45,7 @@ def moved(truth: GridMap, x: float, y: float, yaw_deg: float) -> GridMap:
     """The truth's walls rotated by yaw about (6, 4) and shifted: a map that drifted as a whole."""
     c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
     # Sample each wall cell finely so the rotated walls stay unbroken.
-    walls = occupied_points(truth)
+    walls = truth.occupied_points()
     fine = (walls[:, None, :] + np.stack(np.meshgrid([-0.02, 0.0, 0.02], [-0.02, 0.0, 0.02]), -1).reshape(1, -1, 2)).reshape(-1, 2)
     centre = np.array([6.0, 4.0])
     out = (fine - centre) @ np.array([[c, -s], [s, c]]).T + centre + (x, y)
@@ -71,12 +71,12 @@ def test_a_map_that_drifted_as_a_whole_scores_low_unaligned_and_high_aligned():
 def test_a_doubled_wall_is_found_where_it_is_and_nowhere_else():
     truth = room()
     true_walls = truth.data == OCCUPIED
-    assert doubled_walls(occupied_points(truth), truth, true_walls, 0.1)[0] == 0.0
+    assert doubled_walls(truth.occupied_points(), truth, true_walls, 0.1)[0] == 0.0
 
     # The top wall (y = 7 m) drawn again 1.2 m lower between x = 2 and 10 m: a fake corridor.
-    copy = occupied_points(truth)
+    copy = truth.occupied_points()
     copy = copy[(copy[:, 1] > 6.95) & (copy[:, 0] > 2.0) & (copy[:, 0] < 10.0)] - (0.0, 1.2)
-    damaged = from_points(np.vstack([occupied_points(truth), copy]), truth)
+    damaged = from_points(np.vstack([truth.occupied_points(), copy]), truth)
     q = map_scores(damaged, truth, 2.0, true_walls, with_places=True)
     places = q["map_doubled_places"]
     assert len(places) == q["map_doubled_wall_cells"] > 0
@@ -91,7 +91,7 @@ def test_a_doubled_wall_is_found_where_it_is_and_nowhere_else():
 
 def test_a_wall_drawn_thick_or_a_little_off_is_not_doubled():
     truth = room()
-    walls = occupied_points(truth)
+    walls = truth.occupied_points()
     thick = np.vstack([walls + (0.0, dy) for dy in (-0.15, -0.1, -0.05, 0.0)])
     share, _ = doubled_walls(thick, truth, truth.data == OCCUPIED, 0.1)
     assert share == 0.0
@@ -100,11 +100,11 @@ def test_a_wall_drawn_thick_or_a_little_off_is_not_doubled():
 def test_alignment_and_doubled_walls_name_bad_arguments():
     truth = room()
     with pytest.raises(InputError, match="tolerance"):
-        align_map(occupied_points(truth), truth, 0.0)
+        align_map(truth.occupied_points(), truth, 0.0)
     with pytest.raises(InputError, match="min_gap"):
-        doubled_walls(occupied_points(truth), truth, None, 0.1, min_gap=2.0, max_gap=1.0)
+        doubled_walls(truth.occupied_points(), truth, None, 0.1, min_gap=2.0, max_gap=1.0)
     with pytest.raises(InputError, match="observed mask"):
-        doubled_walls(occupied_points(truth), truth, np.zeros((3, 3), bool), 0.1)
+        doubled_walls(truth.occupied_points(), truth, np.zeros((3, 3), bool), 0.1)
 
 
 def test_the_alignment_search_convolves_as_scipy_signal_does():

@@ -41,6 +41,10 @@ class GridMap:
         y = self.origin[1] + (rc[:, 0] + 0.5) * self.resolution
         return np.column_stack([x, y])
 
+    def occupied_points(self) -> np.ndarray:
+        """(N, 2) world x, y of the centres of the occupied cells."""
+        return self.cell_to_world(np.argwhere(self.data == OCCUPIED))
+
     def inside(self, rc: np.ndarray) -> np.ndarray:
         rc = np.asarray(rc).reshape(-1, 2)
         rows, cols = self.data.shape

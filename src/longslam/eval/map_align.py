@@ -24,7 +24,6 @@ from scipy.spatial import cKDTree
 from longslam.core.errors import InputError
 from longslam.core.geometry.fit import rigid_transform_2d
 from longslam.core.gridmap import GridMap
-from longslam.eval.map_quality import occupied_points
 
 
 @dataclass(frozen=True)
@@ -87,7 +86,7 @@ def align_map(
             f"got {tolerance}, {coarse}, {yaw_step_deg}, {max_yaw_deg}"
         )
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    walls = occupied_points(truth)
+    walls = truth.occupied_points()
     if not len(points) or not len(walls):
         return IDENTITY
     centre = points.mean(axis=0)

@@ -24,11 +24,8 @@ from scipy.spatial import cKDTree
 
 from longslam.core.errors import InputError
 from longslam.core.gridmap import OCCUPIED, GridMap
-
-
-def occupied_points(grid: GridMap) -> np.ndarray:
-    """(N, 2) world x, y of the centres of the grid's occupied cells."""
-    return grid.cell_to_world(np.argwhere(grid.data == OCCUPIED))
+from longslam.eval.doubled_walls import doubled_walls
+from longslam.eval.map_align import align_map
 
 
 def transform_points(
@@ -180,11 +177,9 @@ def map_scores(
     unaligned score; doubled walls ("fake corridors") lower the aligned one and raise the share.
     With `with_places`, `map_doubled_places` holds the (K, 2) world x, y of the doubled walls;
     without `search_alignment`, only the scores as the map stands (`map_quality`)."""
-    from longslam.eval.doubled_walls import doubled_walls
-    from longslam.eval.map_align import align_map
 
     tolerance = _tolerance(estimate, truth, tolerance_cells, observed)
-    walls = transform_points(occupied_points(estimate), rotation, translation, scale, height)
+    walls = transform_points(estimate.occupied_points(), rotation, translation, scale, height)
     scores = score_points(walls, truth, tolerance, observed)
     if not search_alignment:
         return scores
