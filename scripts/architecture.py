@@ -15,6 +15,7 @@ import argparse
 import ast
 import sys
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent.parent / "src" / "longslam"
@@ -28,25 +29,43 @@ def part_of(module: str) -> str | None:
     return parts[1]
 
 
-def imports_by_part(package: Path = PACKAGE) -> dict[str, dict[str, list[str]]]:
-    """{part: {imported part: [file:line where it is imported]}} over every .py file."""
+def module_of(name: str, package: Path = PACKAGE) -> str | None:
+    """The module of the tree that an imported name lies in (`longslam.a.b.f` -> `longslam.a.b`, a
+    package for its `__init__.py`); None outside longslam."""
+    parts = name.split(".")
+    if parts[0] != "longslam":
+        return None
+    for k in range(len(parts), 1, -1):
+        path = package.joinpath(*parts[1:k])
+        if path.with_suffix(".py").exists() or (path / "__init__.py").exists():
+            return ".".join(parts[:k])
+    return None
+
+
+def imports_by_part(
+    package: Path = PACKAGE, unit: Callable[[str], str | None] = part_of
+) -> dict[str, dict[str, list[str]]]:
+    """{part: {imported part: [file:line where it is imported]}} over every .py file, imports
+    inside functions too; a part is what `unit` makes of a module's name (its package, or with
+    `module_of` the module itself)."""
     found: dict[str, dict[str, list[str]]] = defaultdict(lambda: defaultdict(list))
     for path in sorted(package.rglob("*.py")):
         relative = path.relative_to(package.parent)
-        module = ".".join(relative.with_suffix("").parts)
-        here = part_of(module)
+        module = ".".join(relative.with_suffix("").parts).removesuffix(".__init__")
+        here = unit(module)
         if here is None:
             continue
         found[here]  # a part that imports nothing still stands on the ground
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
-            names: list[str] = []
+            targets: set[str | None] = set()
             if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+                # `from p import m` takes module m of p where there is one, else a name of p.
+                targets = {unit(f"{node.module}.{a.name}") or unit(node.module) for a in node.names}
             elif isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            for name in names:
-                there = part_of(name)
-                if there is not None and there != here and ((package / there).exists() or (package / f"{there}.py").exists()):
+                targets = {unit(a.name) for a in node.names}
+            for there in targets - {None, here}:
+                assert there is not None
+                if unit is not part_of or (package / there).exists() or (package / f"{there}.py").exists():
                     found[here][there].append(f"{relative}:{node.lineno}")
     return {part: dict(targets) for part, targets in found.items()}
 
