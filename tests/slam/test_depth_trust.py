@@ -117,12 +117,12 @@ def test_a_method_gets_the_front_ends_limit_for_the_frame_it_stepped_without_mea
     measured = []
     real = depth_trust.inverse_depth_noise
     monkeypatch.setattr(depth_trust, "inverse_depth_noise", lambda *a, **k: measured.append(1) or real(*a, **k))
-    stepped = step.trusted_depth(kinect)
+    stepped = step.depths(kinect).trusted
     assert measured == []  # the stepped frame's range, as the front end measured it
     np.testing.assert_array_equal(stepped, expected)
     # On wheels alone the step looks at no depth: the range is measured when the method asks.
     wheels = FrontEnd(K, FrontEndConfig(mode="wheel")).step(Frame(0, 0.0, rgb, kinect, poses[0], K))
     assert not wheels.depth_measured
-    np.testing.assert_array_equal(wheels.trusted_depth(kinect), stepped)
+    np.testing.assert_array_equal(wheels.depths(kinect).trusted, stepped)
     assert len(measured) == 1
     assert isinstance(wheels, motion.FrameStep)

@@ -12,7 +12,7 @@ from longslam.core.frame import Frame
 from longslam.core.geometry import camera_poses_from_planar
 from longslam.core.geometry.fit import weighted_planar_fit
 from longslam.sim.sensors import FrameMotion, RealSenseD435, frame_rng
-from longslam.slam.depth_trust import DepthTrust, trusted_range
+from longslam.slam.depth_trust import DepthTrust, trusted_depth, trusted_range
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.slam.frontend.motion import FrameStep
 from longslam.slam.frontend.visual import VisualOdometry
@@ -121,9 +121,9 @@ def test_loop_features_reach_past_the_trusted_range_of_noisy_depth_only():
     limit = trusted_range(d435, trust)
     assert limit is not None and limit < 2.0  # the wall at 2.6 m is beyond it
     step = FrameStep(0, np.zeros(3), trust, True, limit)
-    assert not step.trusted_depth(d435).any()
     trusted, loop_depth, sigma_w = step.depths(d435)
-    np.testing.assert_array_equal(trusted, step.trusted_depth(d435))
+    assert not trusted.any()
+    np.testing.assert_array_equal(trusted, trusted_depth(d435, limit))
     assert (loop_depth > 0).mean() > 0.5
     assert sigma_w == pytest.approx(RealSenseD435().sigma(1.0), rel=0.2)  # 1 cm / m^2
     # Exact depth is used as it is, with no noise; depth that gives a scan (trusted to min_range
@@ -133,7 +133,7 @@ def test_loop_features_reach_past_the_trusted_range_of_noisy_depth_only():
     assert same is exact and none is None
     kinect_like = FrameStep(0, np.zeros(3), trust, True, 2.6)
     _, loop_depth_scan, no_noise = kinect_like.depths(d435)
-    np.testing.assert_array_equal(loop_depth_scan, kinect_like.trusted_depth(d435))
+    np.testing.assert_array_equal(loop_depth_scan, trusted_depth(d435, 2.6))
     assert no_noise is None
     # The loop range grows as the square root of loop_max_sigma over max_sigma.
     assert loop_depth.max() <= limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma) + 1e-6

@@ -173,16 +173,13 @@ class FrameStep:
     depth_measured: bool  # whether `depth_limit` is the step's measurement
     depth_limit: float | None  # metres; None: every return trusted
 
-    def trusted_depth(self, depth: np.ndarray) -> np.ndarray:
-        """`depth` (the frame's depth image as the method holds it) without the returns beyond what
-        the frame's own noise lets be trusted (depth_trust)."""
-        return trusted_depth(depth, self._limit(depth))
-
     def depths(self, depth: np.ndarray) -> MethodDepths:
-        """`trusted_depth`, and the depth for loop features with the noise they are verified and
-        weighed at, the trusted range measured once: depth too noisy for a scan (trusted to less
-        than `min_range`, a D435's) gives loops the returns within `depth_trust.loop_max_sigma` of
-        noise and its sigma_w; other depth gives them the trusted depth, verified as exact."""
+        """`depth` (the frame's depth image as the method holds it) without the returns beyond what
+        the frame's own noise lets be trusted (depth_trust), and the depth for loop features with
+        the noise they are verified and weighed at, the trusted range measured once. Depth too noisy
+        for a scan (trusted to less than `min_range`, a D435's) gives loops the returns within
+        `depth_trust.loop_max_sigma` of noise and its sigma_w; other depth gives them the trusted
+        depth, verified as exact."""
         trust = self.depth_trust
         limit = self._limit(depth)
         trusted = trusted_depth(depth, limit)
@@ -360,9 +357,10 @@ class FrontEnd:
         limit = range_for_noise(sigma_w, cfg.depth_trust)
         self._depth_limit = limit
         trust = cfg.depth_trust
+        no_scan = too_noisy_for_scan(limit, trust)
         # Depth too noisy for a scan (a D435's) makes no column scan either: alone, without RGB-D
         # steps, it moved the heading by as much as the wheels' drift.
-        columns = limit is not None and not too_noisy_for_scan(limit, trust) and trust.scan_columns
+        columns = limit is not None and not no_scan and trust.scan_columns
         weight = trust.column_information if columns else scan_weight(sigma_w, trust)
         if weight < 1.0:
             self.counts["scans_weighted"] += 1
@@ -372,13 +370,13 @@ class FrontEnd:
         # Depth too noisy for a scan reaches the corner tracker whole, with its noise; depth that
         # gives a scan (a Kinect's) is tracked within its trusted range, where the scan holds the
         # heading (tracked on all of it, the corners' heading pulled against the scan's).
-        noisy_tracking = cfg.visual_noisy and too_noisy_for_scan(limit, trust)
+        noisy_tracking = cfg.visual_noisy and no_scan
         whole = frame
         self._depth = trusted_depth(frame.depth, limit)
         if limit is not None:
             self.counts["depth_limited"] += 1
             self._range_sum += limit
-            if too_noisy_for_scan(limit, trust):  # nothing to register on
+            if no_scan:  # nothing to register on
                 self.counts["depth_too_noisy"] += 1
                 self._depth = np.zeros_like(self._depth)
             clean = frame
