@@ -111,6 +111,38 @@ def _ate(values: list[float]) -> str:
     return f"{statistics.median(values):.4f}" + ("*" if max(values) - min(values) > 1e-9 else "")
 
 
+def _groups(rows: list[dict]) -> list[list[dict]]:
+    """The rows of each (method, params), in the order they first come."""
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for row in rows:
+        groups.setdefault((row["method"], row["params"]), []).append(row)
+    return list(groups.values())
+
+
+def _summary(group: list[dict], rev: str) -> list[str]:
+    """One method's line over its sequences: the sums of each side's median wall and CPU seconds,
+    the larger peak and the mean of the median ATEs, over the sequences where neither side failed
+    (a speed claim over several seeds is the ratio of the sums, each sequence weighed by its length)."""
+    both = [row for row in group if all(row[side]["wall_s"] and row[side]["ate_m"] for side in SIDES)]
+    label = f"all {len(both)} of {len(group)}" if len(both) < len(group) else f"all {len(group)}"
+    if not both:
+        return [label, group[0]["method"], group[0]["params"] or "-"] + ["failed", "failed", "-"] * 3 + ["failed"] * 2
+
+    def total(side: str, key: str) -> float | None:
+        values = [median(row[side].get(key, [])) for row in both]
+        return None if any(v is None for v in values) else sum(v for v in values if v is not None)
+
+    wall = {side: total(side, "wall_s") for side in SIDES}
+    cpu = {side: total(side, "cpu_s") for side in SIDES}
+    peak = {side: max(median(row[side]["peak_mb"]) or 0.0 for row in both) for side in SIDES}
+    ate = {side: statistics.mean(statistics.median(row[side]["ate_m"]) for row in both) for side in SIDES}
+    return [label, group[0]["method"], group[0]["params"] or "-",
+            _figure(wall["tree"], ".1f"), _figure(wall["rev"], ".1f"), ratio(wall["tree"], wall["rev"]),
+            _figure(cpu["tree"], ".1f"), _figure(cpu["rev"], ".1f"), ratio(cpu["tree"], cpu["rev"]),
+            _figure(peak["tree"], ".0f"), _figure(peak["rev"], ".0f"), ratio(peak["tree"], peak["rev"]),
+            f"{ate['tree']:.4f}", f"{ate['rev']:.4f}"]
+
+
 def format_table(rows: list[dict], rev: str) -> list[str]:
     """The comparison table's lines. Each row: sequence, method, params (text) and per side ("tree",
     "rev") lists of the runs' wall_s, cpu_s, peak_mb and ate_m (a failed run adds to none of them)."""
@@ -127,6 +159,7 @@ def format_table(rows: list[dict], rev: str) -> list[str]:
                       _figure(cpu["tree"], ".1f"), _figure(cpu["rev"], ".1f"), ratio(cpu["tree"], cpu["rev"]),
                       _figure(peak["tree"], ".0f"), _figure(peak["rev"], ".0f"), ratio(peak["tree"], peak["rev"]),
                       _ate(row["tree"]["ate_m"]), _ate(row["rev"]["ate_m"])])
+    cells += [_summary(group, rev) for group in _groups(rows) if len(group) > 1]
     widths = [max(len(line[i]) for line in [head] + cells) for i in range(len(head))]
 
     def line(values: list[str]) -> str:
@@ -134,6 +167,9 @@ def format_table(rows: list[dict], rev: str) -> list[str]:
 
     out = [line(head), line(["-" * w for w in widths])] + [line(c) for c in cells]
     out.append(f"medians of each side's runs; ratios are tree / {rev}: below 1 the working tree is faster (or smaller)")
+    if any(c[0].startswith("all ") for c in cells):
+        out.append("all N: per method, sums of the sequences' medians (wall, CPU), the larger peak, the mean ATE; "
+                   "sequences where a side failed are left out")
     if any(c[-1].endswith("*") or c[-2].endswith("*") for c in cells):
         out.append("* the repeats' ATE differ (the median is shown; compare.json has each)")
     return out

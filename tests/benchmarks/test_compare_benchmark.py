@@ -65,6 +65,26 @@ def test_the_table_shows_medians_ratios_failures_and_unsteady_ate():
     assert len({len(line) for line in lines[:2]}) == 1  # the rule is as wide as the header
 
 
+def test_a_method_over_several_sequences_gets_a_line_of_sums_and_mean_ate():
+    rows = [
+        {"sequence": f"paper-300m-large-{seed}", "method": "keyframe", "params": "frontend.mode=wheel",
+         "tree": _side([wall, wall + 2.0], [300.0, 310.0], [ate, ate]),
+         "rev": _side([2 * wall, 2 * wall], [400.0, 420.0], [ate + 0.1, ate + 0.1])}
+        for seed, wall, ate in ((0, 8.0, 0.5), (10, 10.0, 0.7))
+    ] + [
+        {"sequence": "paper-300m-large-20", "method": "keyframe", "params": "frontend.mode=wheel",
+         "tree": _side([], [], []), "rev": _side([5.0], [100.0], [0.1])},
+        {"sequence": "paper-300m-large-0", "method": "submap", "params": "",
+         "tree": _side([30.0], [500.0], [0.2]), "rev": _side([20.0], [450.0], [0.3])},
+    ]
+    lines = compare.format_table(rows, "c517f78")
+    summary = [line.split() for line in lines if line.startswith("all ") and "keyframe" in line]
+    # Medians 9 + 11 against 16 + 20; CPU half of wall; the larger peak; mean ATE; the failed seed left out.
+    assert summary == [["all", "2", "of", "3", "keyframe", "frontend.mode=wheel", "20.0", "36.0", "0.56",
+                        "10.0", "18.0", "0.56", "305", "410", "0.74", "0.6000", "0.7000"]]
+    assert any(line.startswith("all N: per method, sums") for line in lines)
+
+
 def test_a_side_runs_its_own_src_first(tmp_path, monkeypatch):
     other = tmp_path / "other-checkout" / "src"
     (other / "longslam").mkdir(parents=True)
