@@ -29,10 +29,10 @@ _MATCH_CHUNK = 1 << 17
 #   then, which founds a near-duplicate word; the cost grows with the log of the dictionary).
 WORD_INDEXES = ("bruteforce", "flat", "hnsw")
 HNSW_NEIGHBOURS = 16  # graph degree M
-# The search breadths: on paper-300m the word search was a quarter of the paper's wheel-only
-# configuration's time at 32 / 40. At 16 / 20 it costs half as much, and ATE over seeds 10-14 moved
-# by under 0.1 % in either configuration: a word missed now and then founds a near-duplicate word,
-# and loop hypotheses rest on many words each.
+# The search breadths. At 32 / 40 the word search was a quarter of the wheel-only keyframe
+# method's time on paper-300m; at 16 / 20 it costs half that. A word missed now and then founds a
+# near-duplicate word, and a loop hypothesis rests on many words, so ATE moves by chance rather
+# than by trend (CHANGELOG's Measured history, 2026-12-06: the seeds and figures).
 HNSW_EF_CONSTRUCTION = 20
 HNSW_EF_SEARCH = 16
 
