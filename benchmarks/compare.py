@@ -119,7 +119,7 @@ def _groups(rows: list[dict]) -> list[list[dict]]:
     return list(groups.values())
 
 
-def _summary(group: list[dict], rev: str) -> list[str]:
+def _summary(group: list[dict]) -> list[str]:
     """One method's line over its sequences: the sums of each side's median wall and CPU seconds,
     the larger peak and the mean of the median ATEs, over the sequences where neither side failed
     (a speed claim over several seeds is the ratio of the sums, each sequence weighed by its length)."""
@@ -130,7 +130,7 @@ def _summary(group: list[dict], rev: str) -> list[str]:
 
     def total(side: str, key: str) -> float | None:
         values = [median(row[side].get(key, [])) for row in both]
-        return None if any(v is None for v in values) else sum(v for v in values if v is not None)
+        return None if any(v is None for v in values) else sum(values)
 
     wall = {side: total(side, "wall_s") for side in SIDES}
     cpu = {side: total(side, "cpu_s") for side in SIDES}
@@ -159,7 +159,7 @@ def format_table(rows: list[dict], rev: str) -> list[str]:
                       _figure(cpu["tree"], ".1f"), _figure(cpu["rev"], ".1f"), ratio(cpu["tree"], cpu["rev"]),
                       _figure(peak["tree"], ".0f"), _figure(peak["rev"], ".0f"), ratio(peak["tree"], peak["rev"]),
                       _ate(row["tree"]["ate_m"]), _ate(row["rev"]["ate_m"])])
-    cells += [_summary(group, rev) for group in _groups(rows) if len(group) > 1]
+    cells += [_summary(group) for group in _groups(rows) if len(group) > 1]
     widths = [max(len(line[i]) for line in [head] + cells) for i in range(len(head))]
 
     def line(values: list[str]) -> str:

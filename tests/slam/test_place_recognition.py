@@ -10,7 +10,7 @@ from longslam.core.errors import InputError
 from longslam.core.frame import Intrinsics
 from longslam.slam.features import Features, extract
 from longslam.slam.place_recognition import (SUPPORT_PIXELS, Vocabulary, depth_held_transform, refine_3d,
-                                             refine_3d_checked, verify)
+                                             match_descriptors, refine_3d_checked, verify)
 
 INTR = Intrinsics.from_fov(320, 240, 90.0)  # fx = fy = 160
 PLANE_Z = 2.0
@@ -273,3 +273,25 @@ def test_a_repeated_search_is_answered_again_only_until_the_dictionary_changes()
     fresh.add(0, image)
     vocab.query(other)
     assert np.array_equal(vocab.add(1, other), fresh.add(1, other))
+
+
+def test_descriptor_matching_gives_opencv_brute_force_pairs_under_the_ratio_test():
+    rng = np.random.default_rng(7)
+    train = rng.integers(0, 256, (300, 32), dtype=np.uint8)
+    # Queries near a train descriptor (a few bits flipped), some of them near two (a tie or an
+    # ambiguous pair the ratio test refuses), and some unrelated.
+    near = train[rng.integers(0, 300, 150)].copy()
+    flips = rng.integers(0, 32, (150, 3))
+    near[np.arange(150)[:, None], flips] ^= np.uint8(1)
+    twins = np.vstack([train[:20], train[:20]])  # every query of these has two equally near
+    query = np.vstack([near, rng.integers(0, 256, (100, 32), dtype=np.uint8), train[:20]])
+    for a, b in ((query, train), (query, twins), (train[:1], train[:2])):
+        knn = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(a, b, k=2)
+        expected = np.array(
+            [(m[0].queryIdx, m[0].trainIdx) for m in knn if len(m) == 2 and m[0].distance < 0.8 * m[1].distance],
+            np.int64,
+        ).reshape(-1, 2)
+        _, first = np.unique(expected[:, 1], return_index=True)
+        assert np.array_equal(match_descriptors(a, b, 0.8), expected[np.sort(first)])
+    assert match_descriptors(query, twins).shape == (0, 2)  # ties refused
+    assert len(match_descriptors(near, train)) > 100
