@@ -295,3 +295,11 @@ def test_descriptor_matching_gives_opencv_brute_force_pairs_under_the_ratio_test
         assert np.array_equal(match_descriptors(a, b, 0.8), expected[np.sort(first)])
     assert match_descriptors(query, twins).shape == (0, 2)  # ties refused
     assert len(match_descriptors(near, train)) > 100
+
+
+def test_descriptor_matching_refuses_descriptors_that_are_not_orb_bytes():
+    good = np.zeros((5, 32), np.uint8)
+    with pytest.raises(InputError, match=r"descriptors must be \(N, 32\) uint8"):
+        match_descriptors(good.astype(np.float32), good)
+    with pytest.raises(InputError, match=r"descriptors must be \(N, 32\) uint8"):
+        match_descriptors(good, np.zeros((5, 16), np.uint8))

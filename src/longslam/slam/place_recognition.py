@@ -355,14 +355,15 @@ class Verification:
 
 def match_descriptors(a: np.ndarray, b: np.ndarray, ratio: float = 0.8) -> np.ndarray:
     """(K, 2) index pairs (into a, into b) passing Lowe's ratio test, one per descriptor of a."""
+    a, b = _check_descriptors(a), _check_descriptors(b)
     if len(a) == 0 or len(b) < 2:
         return np.zeros((0, 2), np.int64)
     # An exact search, so the same pairs as OpenCV's brute-force knnMatch: where the two nearest
     # tie, whichever comes first, the ratio test refuses the match. faiss's single-threaded flat
     # search takes half the time of OpenCV's on two threads, and needs no loop over DMatch objects.
     index = _faiss_index("flat")
-    index.add(np.ascontiguousarray(b, dtype=np.uint8))
-    dist, nearest = index.search(np.ascontiguousarray(a, dtype=np.uint8), 2)
+    index.add(b)
+    dist, nearest = index.search(a, 2)
     passed = np.flatnonzero(dist[:, 0] < ratio * dist[:, 1])
     if not len(passed):
         return np.zeros((0, 2), np.int64)
