@@ -120,3 +120,41 @@ def test_a_real_time_system_reads_its_own_frames_and_others_read_ahead(real_time
         assert set(readers) == {threading.current_thread().name}
     else:
         assert all(name.startswith("longslam-read") for name in readers)
+
+
+class _ThreadCounter(_Watcher):
+    """A method that records the size of OpenCV's thread pool at each step."""
+
+    def step(self, frame):
+        import cv2
+
+        self.pools = getattr(self, "pools", []) + [cv2.getNumThreads()]
+        return super().step(frame)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_runs_opencv_pool_has_the_cores_its_method_declares_and_is_put_back(threads, tiny_sequence, method_catalogue):
+    import cv2
+    from dataclasses import dataclass
+
+    from longslam.io.sequence import SequenceReader
+    from longslam.run.engine import run_frames
+    from longslam.slam.api import MethodContext, MethodSpec
+    from longslam.slam.catalog import choose_method
+
+    @dataclass(frozen=True)
+    class NoConfig:
+        pass
+
+    built = []
+    factory = lambda context, config: built.append(_ThreadCounter(context, config)) or built[-1]  # noqa: E731
+    method_catalogue.register("counter", MethodSpec("counter", NoConfig, factory, "for tests", threads=threads))
+    reader = SequenceReader(tiny_sequence)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(3)
+    try:
+        run_frames(choose_method("counter", {}), reader, MethodContext(reader.intrinsics, reader.max_depth), progress=False)
+        assert set(built[0].pools) == {threads}
+        assert cv2.getNumThreads() == 3
+    finally:
+        cv2.setNumThreads(before)

@@ -28,6 +28,7 @@ from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
 from longslam.run.console import CONSOLE_LOG, native_output_to
+from longslam.run.cores import native_threads
 from longslam.run.folder import write_result
 from longslam.run.isolate import prepare_method, run_isolated
 from longslam.run.measurements import RunMeasurements
@@ -61,6 +62,7 @@ def run_frames(
     map_large_blocks()
     baseline_rss = current_rss_bytes()
     with contextlib.ExitStack() as stack:
+        stack.enter_context(native_threads(method.spec.threads))
         if context.output_dir is not None:
             log = stack.enter_context(native_output_to(Path(context.output_dir) / CONSOLE_LOG))
             context = dataclasses.replace(context, console_log=str(log))

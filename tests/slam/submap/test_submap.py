@@ -378,3 +378,17 @@ def test_a_route_driven_again_keeps_no_keyframe_where_a_kept_one_stands(rendered
     assert kept < 0.6 * tried  # the second lap stands where the first one kept its keyframes
     assert sparse.stats["map_bytes"]["vocabulary"] < every.stats["map_bytes"]["vocabulary"]
     assert ate(reader.ground_truth, sparse.trajectory) < 1.25 * ate(reader.ground_truth, every.trajectory) + 0.02
+
+
+def test_free_space_votes_every_interval_and_leaves_the_trajectory_as_it_was(hall_sequences):
+    _, noisy = hall_sequences
+    frames = list(noisy)[:120]  # 10 Hz
+    _, _, every = run(noisy, frames, grid_free_space_interval=0)
+    _, _, second = run(noisy, frames, grid_free_space_interval=0.2)
+    assert every.stats["free_space_frames"] == 120
+    assert second.stats["free_space_frames"] == 60  # 0.2 s at 10 Hz: every second frame, not every third
+    np.testing.assert_array_equal(second.trajectory.poses, every.trajectory.poses)
+    walls = [(r.grid.data == 100).sum() for r in (every, second)]
+    assert walls[1] == pytest.approx(walls[0], rel=0.1)
+    free = [(r.grid.data == 0).sum() for r in (every, second)]
+    assert free[1] == pytest.approx(free[0], rel=0.1)

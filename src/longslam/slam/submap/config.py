@@ -148,6 +148,10 @@ class SubmapConfig:
     )
     # The wall's face, and the TSDF's wall where submaps placed a little apart saw it at different places.
     grid_free_space_margin: int = param(1, "cells around a cell the rays ended on that they never clear", at_least=0)
+    # Frames 0.1 s apart see nearly the same floor; RTAB-Map, too, makes a grid per node, not per frame.
+    grid_free_space_interval: float = param(
+        0.2, "frame time between frames whose rays vote free space (0: every frame)", at_least=0, unit="s"
+    )
     write_mesh: bool = param(True, "map.ply mesh (marching cubes) in the run folder, if there is one")
 
     @property

@@ -87,6 +87,7 @@ class _Keyframe:  # a frame kept for place recognition (loop closure only)
 class _Counts:
     frames: int = 0
     frames_without_depth: int = 0
+    free_space_frames: int = 0  # frames whose depth voted free space (grid_free_space_interval)
     registrations_accepted: int = 0
     registrations_rejected: int = 0
     submaps_too_few_points: int = 0
@@ -142,6 +143,7 @@ class SubmapMethod:
         self._frame_loops: dict[int, tuple[int, int, np.ndarray]] = {}
         self._vocabulary = None
         self._last_keyframe_time = -np.inf
+        self._last_free_space_time = -np.inf
         if c.loops_on:
             from longslam.slam.place_recognition import Vocabulary
 
@@ -187,11 +189,12 @@ class SubmapMethod:
             )
         if updates == 0:
             self.counts.frames_without_depth += 1
-        elif active.free_space is not None:
+        elif active.free_space is not None and self._free_space_due(frame.timestamp):
             # For the 2D map only: nothing here feeds registration or the trajectory.
             active.free_space.add(
                 depth, frame.intrinsics, self._mount.camera_in_base, self._mount.to_planar(in_submap[None])[0]
             )
+            self.counts.free_space_frames += 1
         active.frames += 1
         self.counts.frames += 1
         if (
@@ -206,6 +209,14 @@ class SubmapMethod:
         self._stamps.append(float(frame.timestamp))
         self._online.append(pose)
         return pose
+
+    def _free_space_due(self, time: float) -> bool:
+        """Whether the frame at `time` votes free space: `grid_free_space_interval` after the last
+        that did (a millisecond early counts, so that 0.2 s at 10 Hz is every second frame)."""
+        if time - self._last_free_space_time < self.config.grid_free_space_interval - 1e-3:
+            return False
+        self._last_free_space_time = time
+        return True
 
     def _start_submap(self, time: float, origin: np.ndarray) -> Submap:
         """Start a submap at `origin`: the world pose (x, y, yaw) for the first submap, the pose in
@@ -483,6 +494,7 @@ class SubmapMethod:
             stats.FRAMES: counts.frames,
             stats.SUBMAPS: len(self.submaps),
             stats.FRAMES_WITHOUT_DEPTH: counts.frames_without_depth,
+            "free_space_frames": counts.free_space_frames,
             "submaps_too_few_points": counts.submaps_too_few_points,
             "registrations_accepted": counts.registrations_accepted,
             "registrations_rejected": counts.registrations_rejected,

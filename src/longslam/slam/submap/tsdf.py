@@ -474,7 +474,6 @@ def depth_points(
     # Pixels on the image's border have no normal; `inside` says which points are not on it.
     inside = np.zeros(ok.shape, bool)
     inside[1:-1, 1:-1] = inner
-    rows = inside[ok]
-    for axis, component in enumerate((nx, ny, nz)):
-        normals[rows, axis] = (component * inverse_length)[inner]
+    scale = inverse_length[inner]
+    normals[inside[ok]] = np.column_stack([nx[inner] * scale, ny[inner] * scale, nz[inner] * scale])
     return points, normals
