@@ -24,9 +24,13 @@ method's ATE, run on every sequence. The methods are deterministic, so a row's A
 not chance or the machine's load. Per row (route, noise, seed, method) it prints the ATE, dead
 reckoning's, the record's and the change in %, and flags (`<<`) a row that moved more than 20 %;
 then each cell's (route, noise) mean ATE per method beside the record's mean over the same seeds.
-A dead reckoning that moved means the sequence itself changed (the simulator), not a method.
+A dead reckoning that moved, or a fingerprint that differs, means the sequence itself changed.
 
-The record, benchmarks/held_out.json, holds each row's ATE and the commit and date it was run at.
+The record, benchmarks/held_out.json, holds each row's ATE, the commit and date it was run at, and
+its sequence's fingerprint (`sequence_fingerprint`: its file lists, trajectories, camera and every
+50th image), so that a row whose frames changed since (the simulator or the renderer, not a
+method) is told apart even where dead reckoning stays the same: its `sequence` column says
+"changed" and the summary counts it.
 Without --record the record is only read; with --record the rows run now replace theirs in it
 (rows not run now are kept, with their own commit). --resume skips a sequence folder that exists
 and a run whose folder has a trajectory.txt and was made by the same code (the commit in its
@@ -37,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import hashlib
 import json
 import os
 import statistics
@@ -65,6 +70,8 @@ MOVED = 0.20  # a row whose ATE changed by more than this share of the record's 
 RECORD = Path(__file__).resolve().with_name("held_out.json")
 
 Key = tuple[str, str, int, str]  # route, noise, seed, method
+Cell = tuple[str, str, int]  # route, noise, seed: one sequence
+FINGERPRINT_EVERY = 50  # every this many frames, the images go into a sequence's fingerprint
 
 
 @dataclass
@@ -75,6 +82,25 @@ class Record:
     date: str
     ates: dict[Key, float]
     commits: dict[Key, str]
+    sequences: dict[Cell, str]  # each sequence's fingerprint, where the record has one
+
+
+def sequence_fingerprint(path: Path, every: int = FINGERPRINT_EVERY) -> str:
+    """A hash of what a run reads from the sequence at `path`: its frame lists, odometry, ground
+    truth and camera files, and the bytes of every `every`-th colour and depth image. Its
+    meta.json is left out: it names the commit that simulated it."""
+    digest = hashlib.sha256()
+    for name in ("rgb.txt", "depth.txt", "odometry.txt", "groundtruth.txt", "camera.json"):
+        if (path / name).is_file():
+            digest.update(name.encode() + b"\0" + (path / name).read_bytes())
+    for listing in ("rgb.txt", "depth.txt"):
+        if not (path / listing).is_file():
+            continue
+        lines = [line.split() for line in (path / listing).read_text().splitlines()]
+        files = [parts[1] for parts in lines if len(parts) >= 2 and not parts[0].startswith("#")]
+        for name in files[::every]:
+            digest.update(name.encode() + b"\0" + (path / name).read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def key_text(key: Key) -> str:
@@ -85,29 +111,40 @@ def key_text(key: Key) -> str:
 def read_record(path: Path) -> Record:
     """The record at `path`; an empty one if there is none yet."""
     if not path.exists():
-        return Record("", "", {}, {})
+        return Record("", "", {}, {}, {})
     data = json.loads(path.read_text())
     ates: dict[Key, float] = {}
     commits: dict[Key, str] = {}
+    sequences: dict[Cell, str] = {}
     for row in data["rows"]:
         key = (row["route"], row["noise"], int(row["seed"]), row["method"])
         ates[key] = float(row["ate"])
         commits[key] = row.get("commit", data["commit"])
-    return Record(data["commit"], data["date"], ates, commits)
+        if row.get("sequence"):
+            sequences[key[:3]] = row["sequence"]
+    return Record(data["commit"], data["date"], ates, commits, sequences)
 
 
-def updated_record(old: Record, ates: dict[Key, float | None], commit: str, date: str) -> Record:
-    """`old` with the rows that ran now (and did not fail) replaced by theirs, at `commit`."""
-    new_ates, commits = dict(old.ates), dict(old.commits)
+def updated_record(
+    old: Record, ates: dict[Key, float | None], commit: str, date: str, sequences: dict[Cell, str] | None = None
+) -> Record:
+    """`old` with the rows that ran now (and did not fail) replaced by theirs, at `commit`, and
+    the fingerprints of the sequences they ran on."""
+    new_ates, commits, fingerprints = dict(old.ates), dict(old.commits), dict(old.sequences)
     for key, ate in ates.items():
         if ate is not None:
             new_ates[key], commits[key] = ate, commit
-    return Record(commit, date, new_ates, commits)
+            if sequences and key[:3] in sequences:
+                fingerprints[key[:3]] = sequences[key[:3]]
+            else:  # run on a sequence of unknown fingerprint: the old one may not be its
+                fingerprints.pop(key[:3], None)
+    return Record(commit, date, new_ates, commits, fingerprints)
 
 
 def write_record(path: Path, record: Record) -> None:
     rows = [{"route": k[0], "noise": k[1], "seed": k[2], "method": k[3], "ate": round(record.ates[k], 6),
-             "commit": record.commits[k]} for k in sorted(record.ates, key=_order)]
+             "commit": record.commits[k], "sequence": record.sequences.get(k[:3])}
+            for k in sorted(record.ates, key=_order)]
     data = {"commit": record.commit, "date": record.date, "moved_threshold": MOVED,
             "note": "benchmarks/held_out.py --record; ATE in metres; dead reckoning is method odometry",
             "rows": rows}
@@ -133,6 +170,15 @@ def moved(share: float | None) -> bool:
     return share is not None and abs(share) > MOVED
 
 
+def sequence_state(cell: Cell, record: Record, sequences: dict[Cell, str] | None) -> str:
+    """'same' or 'changed' against the record's fingerprint of the sequence; '-' where either
+    side has none (a record made before fingerprints)."""
+    now, then = (sequences or {}).get(cell), record.sequences.get(cell)
+    if now is None or then is None:
+        return "-"
+    return "same" if now == then else "changed"
+
+
 def _metres(value: float | None) -> str:
     return "-" if value is None else f"{value:.3f}"
 
@@ -153,9 +199,10 @@ def _table(head: list[str], cells: list[list[str]], left: int) -> list[str]:
     return [line(head), line(["-" * w for w in widths])] + [line(c) for c in cells]
 
 
-def row_table(ates: dict[Key, float | None], record: Record) -> list[str]:
+def row_table(ates: dict[Key, float | None], record: Record, sequences: dict[Cell, str] | None = None) -> list[str]:
     """One line per row run (failed runs as 'failed'): ATE, dead reckoning's ATE on the same
-    sequence, the record's ATE, the change and `<<` where it is more than MOVED."""
+    sequence, the record's ATE, the change, whether the sequence is the record's (`sequences`:
+    fingerprints of the sequences run now) and `<<` where the change is more than MOVED."""
     cells = []
     for key in sorted(ates, key=_order):
         ate, last = ates[key], record.ates.get(key)
@@ -163,8 +210,9 @@ def row_table(ates: dict[Key, float | None], record: Record) -> list[str]:
         dead = ates.get((*key[:3], DEAD_RECKONING))
         cells.append([key[0], key[1], str(key[2]), "dead reckoning" if key[3] == DEAD_RECKONING else key[3],
                       "failed" if ate is None else _metres(ate), _metres(dead), _metres(last), _percent(share),
-                      "<<" if moved(share) else ""])
-    return _table(["route", "noise", "seed", "method", "ATE m", "dead reck. m", "recorded m", "change", ""], cells, 4)
+                      sequence_state(key[:3], record, sequences), "<<" if moved(share) else ""])
+    return _table(["route", "noise", "seed", "method", "ATE m", "dead reck. m", "recorded m", "change", "sequence", ""],
+                  cells, 4)
 
 
 def cell_means(ates: dict[Key, float | None]) -> dict[tuple[str, str], dict[str, tuple[float, list[int]]]]:
@@ -177,9 +225,10 @@ def cell_means(ates: dict[Key, float | None]) -> dict[tuple[str, str], dict[str,
                    for method, rows in methods.items()} for cell, methods in groups.items()}
 
 
-def mean_table(ates: dict[Key, float | None], record: Record) -> list[str]:
+def mean_table(ates: dict[Key, float | None], record: Record, sequences: dict[Cell, str] | None = None) -> list[str]:
     """Per cell and method, the mean ATE beside the record's mean over the same seeds (only where
-    the record has every one of them, so the two means are of the same sequences)."""
+    the record has every one of them), and how many of those seeds' sequences changed since the
+    record (by fingerprint; '-' where the record has none)."""
     cells = []
     means = cell_means(ates)
     for route, noise in sorted(means, key=lambda c: _order((*c, 0, ""))):
@@ -189,10 +238,12 @@ def mean_table(ates: dict[Key, float | None], record: Record) -> list[str]:
             last = [record.ates.get((route, noise, s, method)) for s in seeds]
             last_mean = None if None in last else statistics.fmean(a for a in last if a is not None)
             share = change(mean, last_mean)
+            states = [sequence_state((route, noise, s), record, sequences) for s in seeds]
+            known = "-" if "-" in states else ("same" if "changed" not in states else f"{states.count('changed')} changed")
             cells.append([route, noise, "dead reckoning" if method == DEAD_RECKONING else method,
-                          " ".join(map(str, seeds)), _metres(mean), _metres(last_mean), _percent(share),
+                          " ".join(map(str, seeds)), _metres(mean), _metres(last_mean), _percent(share), known,
                           "<<" if moved(share) else ""])
-    return _table(["route", "noise", "method", "seeds", "mean ATE m", "recorded m", "change", ""], cells, 4)
+    return _table(["route", "noise", "method", "seeds", "mean ATE m", "recorded m", "change", "sequences", ""], cells, 4)
 
 
 # --- running -------------------------------------------------------------------------------------
@@ -256,6 +307,7 @@ class Runner:
         self.work, self.methods, self.resume, self.total, self.commit = work, methods, resume, total, commit
         self.done = 0
         self.start = time.perf_counter()
+        self.fingerprints: dict[Cell, str] = {}
 
     def _progress(self, text: str) -> None:
         with _print_lock:
@@ -307,6 +359,8 @@ class Runner:
     def cell(self, route: str, noise: str, seed: int) -> dict[Key, float | None]:
         """Every method's ATE on one sequence, dead reckoning's first (it is quick)."""
         seq = self.sequence(route, noise, seed)
+        if seq is not None:
+            self.fingerprints[route, noise, seed] = sequence_fingerprint(seq)
         ates: dict[Key, float | None] = {}
         for method in [DEAD_RECKONING, *self.methods]:
             if seq is None:
@@ -360,13 +414,17 @@ def main(argv: list[str] | None = None) -> int:
             ates.update(result)
     minutes = (time.perf_counter() - runner.start) / 60
     print(f"\n{len(ates)} runs in {minutes:.1f} min\n")
-    print("\n".join(row_table(ates, record)))
+    print("\n".join(row_table(ates, record, runner.fingerprints)))
     print()
-    print("\n".join(mean_table(ates, record)))
+    print("\n".join(mean_table(ates, record, runner.fingerprints)))
     flagged = [k for k, a in ates.items() if moved(change(a, record.ates.get(k)))]
     if flagged:
         print(f"\n<< {len(flagged)} rows moved more than {MOVED:.0%} from the record"
               + ("; dead reckoning moved too, so the sequences changed" if any(k[3] == DEAD_RECKONING for k in flagged) else ""))
+    changed = sorted({k[:3] for k in ates if sequence_state(k[:3], record, runner.fingerprints) == "changed"})
+    if changed:
+        print(f"{len(changed)} sequences differ from the ones the record was made on (their fingerprint), so their "
+              f"rows compare other frames: {', '.join(f'{r} {n} seed {s}' for r, n, s in changed)}")
     else:
         compared = sum(a is not None and k in record.ates for k, a in ates.items())
         print(f"\nnone of the {compared} rows the record has moved more than {MOVED:.0%}" if compared
@@ -377,7 +435,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.record:
         date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         # Read again: another run of the benchmark (other routes) may have recorded since this one began.
-        write_record(args.record_file, updated_record(read_record(args.record_file), ates, commit, date))
+        write_record(args.record_file,
+                     updated_record(read_record(args.record_file), ates, commit, date, runner.fingerprints))
         print(f"\nrecorded {sum(a is not None for a in ates.values())} rows at {commit} in {args.record_file}")
     return 1 if failed else 0
 

@@ -118,3 +118,42 @@ def test_resume_reuses_only_runs_of_the_same_code():
     assert not held_out.same_code("abc1234+dirty", "abc1234")
     assert not held_out.same_code("abc1234", "abc1234+dirty")
     assert not held_out.same_code(None, "abc1234")
+
+
+def _sequence(path: Path, depth_byte: bytes = b"\x01") -> Path:
+    (path / "rgb").mkdir(parents=True)
+    (path / "depth").mkdir()
+    for i in range(3):
+        (path / "rgb" / f"{i}.png").write_bytes(b"rgb%d" % i)
+        (path / "depth" / f"{i}.png").write_bytes(depth_byte + b"%d" % i)
+    (path / "rgb.txt").write_text("# colour\n" + "".join(f"{i}.0 rgb/{i}.png\n" for i in range(3)))
+    (path / "depth.txt").write_text("".join(f"{i}.0 depth/{i}.png\n" for i in range(3)))
+    (path / "odometry.txt").write_text("0 0 0 0 0 0 0 1\n")
+    (path / "meta.json").write_text('{"longslam_commit": "abc"}')
+    return path
+
+
+def test_a_sequence_whose_frames_changed_has_another_fingerprint_though_its_odometry_is_the_same(tmp_path):
+    first = held_out.sequence_fingerprint(_sequence(tmp_path / "a"), every=1)
+    assert held_out.sequence_fingerprint(_sequence(tmp_path / "b"), every=1) == first
+    assert held_out.sequence_fingerprint(_sequence(tmp_path / "c", b"\x02"), every=1) != first
+    again = _sequence(tmp_path / "d")
+    (again / "meta.json").write_text('{"longslam_commit": "def"}')  # who simulated it is not what it holds
+    assert held_out.sequence_fingerprint(again, every=1) == first
+
+
+def test_rows_on_a_changed_sequence_say_so_and_the_record_keeps_the_fingerprints(record, tmp_path):
+    cell = ("paper-300m", "large", 40)
+    new = held_out.updated_record(record, NOW, "def5678", "2027-02-02", {cell: "aaaa", ("paper-300m", "large", 41): "bbbb"})
+    path = tmp_path / "again.json"
+    held_out.write_record(path, new)
+    again = held_out.read_record(path)
+    assert again.sequences == {cell: "aaaa", ("paper-300m", "large", 41): "bbbb"}
+    lines = held_out.row_table(NOW, again, {cell: "cccc", ("paper-300m", "large", 41): "bbbb"})
+    seed40 = next(line for line in lines if " 40 " in line and "keyframe" in line)
+    seed41 = next(line for line in lines if " 41 " in line and "keyframe" in line)
+    assert "changed" in seed40 and "same" in seed41
+    assert " - " in next(line for line in held_out.row_table(NOW, record, {cell: "cccc"}) if " 40 " in line)  # no record
+    keyframe = next(line for line in held_out.mean_table(NOW, again, {cell: "cccc", ("paper-300m", "large", 41): "bbbb"})
+                    if "keyframe" in line)
+    assert "1 changed" in keyframe
