@@ -246,6 +246,23 @@ def mean_table(ates: dict[Key, float | None], record: Record, sequences: dict[Ce
     return _table(["route", "noise", "method", "seeds", "mean ATE m", "recorded m", "change", "sequences", ""], cells, 4)
 
 
+def summary(ates: dict[Key, float | None], record: Record, sequences: dict[Cell, str] | None = None) -> list[str]:
+    """What moved from the record, and which sequences are not the record's (by fingerprint)."""
+    flagged = [k for k, a in ates.items() if moved(change(a, record.ates.get(k)))]
+    if flagged:
+        lines = [f"<< {len(flagged)} rows moved more than {MOVED:.0%} from the record"
+                 + ("; dead reckoning moved too, so the sequences changed" if any(k[3] == DEAD_RECKONING for k in flagged) else "")]
+    else:
+        compared = sum(a is not None and k in record.ates for k, a in ates.items())
+        lines = [f"none of the {compared} rows the record has moved more than {MOVED:.0%}" if compared
+                 else "the record has none of these rows"]
+    changed = sorted({k[:3] for k in ates if sequence_state(k[:3], record, sequences) == "changed"})
+    if changed:
+        lines.append(f"{len(changed)} sequences differ from the ones the record was made on (their fingerprint), so "
+                     f"their rows compare other frames: {', '.join(f'{r} {n} seed {s}' for r, n, s in changed)}")
+    return lines
+
+
 # --- running -------------------------------------------------------------------------------------
 
 _print_lock = threading.Lock()
@@ -417,18 +434,7 @@ def main(argv: list[str] | None = None) -> int:
     print("\n".join(row_table(ates, record, runner.fingerprints)))
     print()
     print("\n".join(mean_table(ates, record, runner.fingerprints)))
-    flagged = [k for k, a in ates.items() if moved(change(a, record.ates.get(k)))]
-    if flagged:
-        print(f"\n<< {len(flagged)} rows moved more than {MOVED:.0%} from the record"
-              + ("; dead reckoning moved too, so the sequences changed" if any(k[3] == DEAD_RECKONING for k in flagged) else ""))
-    changed = sorted({k[:3] for k in ates if sequence_state(k[:3], record, runner.fingerprints) == "changed"})
-    if changed:
-        print(f"{len(changed)} sequences differ from the ones the record was made on (their fingerprint), so their "
-              f"rows compare other frames: {', '.join(f'{r} {n} seed {s}' for r, n, s in changed)}")
-    else:
-        compared = sum(a is not None and k in record.ates for k, a in ates.items())
-        print(f"\nnone of the {compared} rows the record has moved more than {MOVED:.0%}" if compared
-              else "\nthe record has none of these rows")
+    print("\n" + "\n".join(summary(ates, record, runner.fingerprints)))
     failed = [k for k, a in ates.items() if a is None]
     if failed:
         print(f"\nfailed: {', '.join(key_text(k) for k in failed)}")

@@ -157,3 +157,14 @@ def test_rows_on_a_changed_sequence_say_so_and_the_record_keeps_the_fingerprints
     keyframe = next(line for line in held_out.mean_table(NOW, again, {cell: "cccc", ("paper-300m", "large", 41): "bbbb"})
                     if "keyframe" in line)
     assert "1 changed" in keyframe
+
+
+def test_the_summary_says_what_moved_and_which_sequences_changed(record):
+    cell = ("paper-300m", "large", 40)
+    marked = held_out.updated_record(record, {}, "abc1234", "2027-01-01", None)
+    marked.sequences[cell] = "aaaa"
+    lines = held_out.summary(NOW, marked, {cell: "cccc"})
+    assert lines[0].startswith("<< 1 rows moved more than 20%")
+    assert lines[1].startswith("1 sequences differ") and "paper-300m large seed 40" in lines[1]
+    still = {**NOW, ("paper-300m", "large", 40, "keyframe"): 0.100}
+    assert held_out.summary(still, marked, {cell: "aaaa"}) == ["none of the 4 rows the record has moved more than 20%"]
