@@ -144,7 +144,7 @@ class SubmapConfig:
     )
     # The TSDF's band behind a thin wall otherwise draws it 0.2-0.7 m into the room in front.
     grid_free_space: bool = param(
-        True, "clear the 2D map's cells the camera saw through, by 2D rays from each frame's depth (free_space.py)"
+        True, "clear the 2D map's cells the camera saw through, by 2D rays from frames' depth (free_space.py)"
     )
     # The wall's face, and the TSDF's wall where submaps placed a little apart saw it at different places.
     grid_free_space_margin: int = param(1, "cells around a cell the rays ended on that they never clear", at_least=0)

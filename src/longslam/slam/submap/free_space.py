@@ -10,11 +10,12 @@ band, so nothing in it says that the corridor's camera saw through those cells. 
 (Voxblox carves such voxels inside its TSDF; longslam's TSDF feeds registration, which this
 leaves as it is).
 
-Each frame's depth becomes a `LocalGrid` (the keyframe method's obstacle and free cells, as
-RTAB-Map makes them) voted into its submap's grid at the frame's pose in the submap; a finished
-submap keeps the cells its votes decided, and at the end every submap's cells are voted into
-one world grid at the submap's final origin (`fuse_free_space`), so the free space moves with
-the trajectory as the TSDF does. `carve` applies it to the grid sliced from the TSDF.
+A frame's depth, every `grid_free_space_interval` of frame time, becomes a `LocalGrid` (the
+keyframe method's obstacle and free cells, as RTAB-Map makes them) voted into its submap's grid
+at the frame's pose in the submap; a finished submap keeps the cells its votes decided, and at
+the end every submap's cells are voted into one world grid at the submap's final origin
+(`fuse_free_space`), so the free space moves with the trajectory as the TSDF does. `carve`
+applies it to the grid sliced from the TSDF.
 """
 
 from __future__ import annotations
