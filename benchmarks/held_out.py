@@ -57,6 +57,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # This checkout's code simulates, runs and scores, whichever longslam the interpreter has installed.
 sys.path.insert(0, str(ROOT / "src"))
 
+from longslam.io.sequence import SequenceReader  # noqa: E402
 from longslam.run.provenance import source_commit  # noqa: E402
 from longslam.run.score import score_files  # noqa: E402
 
@@ -87,19 +88,18 @@ class Record:
 
 def sequence_fingerprint(path: Path, every: int = FINGERPRINT_EVERY) -> str:
     """A hash of what a run reads from the sequence at `path`: its frame lists, odometry, ground
-    truth and camera files, and the bytes of every `every`-th colour and depth image. Its
-    meta.json is left out: it names the commit that simulated it."""
+    truth and camera files, and the bytes of every `every`-th frame's colour and depth images (the
+    frames as `SequenceReader` pairs them). Its meta.json is left out: it names the commit that
+    simulated it."""
     digest = hashlib.sha256()
     for name in ("rgb.txt", "depth.txt", "odometry.txt", "groundtruth.txt", "camera.json"):
         if (path / name).is_file():
             digest.update(name.encode() + b"\0" + (path / name).read_bytes())
-    for listing in ("rgb.txt", "depth.txt"):
-        if not (path / listing).is_file():
-            continue
-        lines = [line.split() for line in (path / listing).read_text().splitlines()]
-        files = [parts[1] for parts in lines if len(parts) >= 2 and not parts[0].startswith("#")]
-        for name in files[::every]:
-            digest.update(name.encode() + b"\0" + (path / name).read_bytes())
+    reader = SequenceReader(path)
+    for image in (reader.rgb_path, reader.depth_path):
+        for i in range(0, len(reader), every):
+            file = image(i)
+            digest.update(file.relative_to(reader.path).as_posix().encode() + b"\0" + file.read_bytes())
     return digest.hexdigest()[:16]
 
 

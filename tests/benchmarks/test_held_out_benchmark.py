@@ -4,6 +4,7 @@ writing the record), on a tiny fake record: nothing is simulated or run."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -120,24 +121,21 @@ def test_resume_reuses_only_runs_of_the_same_code():
     assert not held_out.same_code(None, "abc1234")
 
 
-def _sequence(path: Path, depth_byte: bytes = b"\x01") -> Path:
-    (path / "rgb").mkdir(parents=True)
-    (path / "depth").mkdir()
-    for i in range(3):
-        (path / "rgb" / f"{i}.png").write_bytes(b"rgb%d" % i)
-        (path / "depth" / f"{i}.png").write_bytes(depth_byte + b"%d" % i)
-    (path / "rgb.txt").write_text("# colour\n" + "".join(f"{i}.0 rgb/{i}.png\n" for i in range(3)))
-    (path / "depth.txt").write_text("".join(f"{i}.0 depth/{i}.png\n" for i in range(3)))
-    (path / "odometry.txt").write_text("0 0 0 0 0 0 0 1\n")
-    (path / "meta.json").write_text('{"longslam_commit": "abc"}')
+def _copy(sequence: Path, path: Path) -> Path:
+    shutil.copytree(sequence, path)
     return path
 
 
-def test_a_sequence_whose_frames_changed_has_another_fingerprint_though_its_odometry_is_the_same(tmp_path):
-    first = held_out.sequence_fingerprint(_sequence(tmp_path / "a"), every=1)
-    assert held_out.sequence_fingerprint(_sequence(tmp_path / "b"), every=1) == first
-    assert held_out.sequence_fingerprint(_sequence(tmp_path / "c", b"\x02"), every=1) != first
-    again = _sequence(tmp_path / "d")
+def test_a_sequence_whose_frames_changed_has_another_fingerprint_though_its_odometry_is_the_same(
+    tiny_sequence, tmp_path
+):
+    first = held_out.sequence_fingerprint(_copy(tiny_sequence, tmp_path / "a"), every=1)
+    assert held_out.sequence_fingerprint(_copy(tiny_sequence, tmp_path / "b"), every=1) == first
+    changed = _copy(tiny_sequence, tmp_path / "c")
+    depth = sorted((changed / "depth").iterdir())[3]
+    depth.write_bytes(depth.read_bytes() + b"\0")
+    assert held_out.sequence_fingerprint(changed, every=1) != first
+    again = _copy(tiny_sequence, tmp_path / "d")
     (again / "meta.json").write_text('{"longslam_commit": "def"}')  # who simulated it is not what it holds
     assert held_out.sequence_fingerprint(again, every=1) == first
 
