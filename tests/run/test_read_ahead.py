@@ -123,12 +123,14 @@ def test_a_real_time_system_reads_its_own_frames_and_others_read_ahead(real_time
 
 
 class _ThreadCounter(_Watcher):
-    """A method that records the size of OpenCV's thread pool at each step."""
+    """A method that records the size of OpenCV's thread pool at each step, in `pools` (the test's list)."""
+
+    pools: list[int] = []
 
     def step(self, frame):
         import cv2
 
-        self.pools = getattr(self, "pools", []) + [cv2.getNumThreads()]
+        self.pools.append(cv2.getNumThreads())
         return super().step(frame)
 
 
@@ -146,15 +148,14 @@ def test_a_runs_opencv_pool_has_the_cores_its_method_declares_and_is_put_back(th
     class NoConfig:
         pass
 
-    built = []
-    factory = lambda context, config: built.append(_ThreadCounter(context, config)) or built[-1]  # noqa: E731
-    method_catalogue.register("counter", MethodSpec("counter", NoConfig, factory, "for tests", threads=threads))
+    pools = _ThreadCounter.pools = []
+    method_catalogue.register("counter", MethodSpec("counter", NoConfig, _ThreadCounter, "for tests", threads=threads))
     reader = SequenceReader(tiny_sequence)
     before = cv2.getNumThreads()
     cv2.setNumThreads(3)
     try:
         run_frames(choose_method("counter", {}), reader, MethodContext(reader.intrinsics, reader.max_depth), progress=False)
-        assert set(built[0].pools) == {threads}
+        assert pools and set(pools) == {threads}
         assert cv2.getNumThreads() == 3
     finally:
         cv2.setNumThreads(before)

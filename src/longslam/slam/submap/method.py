@@ -194,6 +194,7 @@ class SubmapMethod:
             active.free_space.add(
                 depth, frame.intrinsics, self._mount.camera_in_base, self._mount.to_planar(in_submap[None])[0]
             )
+            self._last_free_space_time = frame.timestamp
             self.counts.free_space_frames += 1
         active.frames += 1
         self.counts.frames += 1
@@ -213,10 +214,7 @@ class SubmapMethod:
     def _free_space_due(self, time: float) -> bool:
         """Whether the frame at `time` votes free space: `grid_free_space_interval` after the last
         that did (a millisecond early counts, so that 0.2 s at 10 Hz is every second frame)."""
-        if time - self._last_free_space_time < self.config.grid_free_space_interval - 1e-3:
-            return False
-        self._last_free_space_time = time
-        return True
+        return time - self._last_free_space_time >= self.config.grid_free_space_interval - 1e-3
 
     def _start_submap(self, time: float, origin: np.ndarray) -> Submap:
         """Start a submap at `origin`: the world pose (x, y, yaw) for the first submap, the pose in
