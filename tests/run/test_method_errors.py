@@ -20,17 +20,24 @@ from longslam.slam.api import MethodContext, MethodSpec, Result
 
 @dataclass(frozen=True)
 class BrokenConfig:
-    breaks: str = "step"  # "step": step() raises; "shape": step() returns a (3,) pose; "finish": finish() raises
+    # "step": step() raises; "shape": step() returns a (3,) pose; "finish": finish() raises;
+    # "ahead": work_ahead() raises (on the read-ahead thread)
+    breaks: str = "step"
 
     def __post_init__(self) -> None:
-        if self.breaks not in ("step", "shape", "finish", "input"):
-            raise InputError(f"breaks: expected step, shape, finish or input, got {self.breaks!r}")
+        if self.breaks not in ("step", "shape", "finish", "input", "ahead"):
+            raise InputError(f"breaks: expected step, shape, finish, input or ahead, got {self.breaks!r}")
 
 
 class Broken:
     def __init__(self, context: MethodContext, config: BrokenConfig):
         self.config = config
         self.stamps: list[float] = []
+        self.images_every_frame = ("depth",) if config.breaks == "ahead" else ()
+
+    def work_ahead(self, frame) -> None:
+        if self.config.breaks == "ahead" and frame.index == 2:
+            {}["no such key"]
 
     def step(self, frame) -> np.ndarray:
         self.stamps.append(frame.timestamp)
@@ -56,7 +63,8 @@ def broken_method(method_catalogue):
 
 
 @pytest.mark.parametrize("breaks, where", [("step", "step() of frame 2 raised KeyError"),
-                                            ("finish", "finish() raised ZeroDivisionError")])
+                                            ("finish", "finish() raised ZeroDivisionError"),
+                                            ("ahead", "work_ahead() of frame 2 raised KeyError")])
 def test_a_method_that_raises_is_a_method_error_naming_it_and_the_call(tiny_sequence, broken_method, breaks, where):
     reader = SequenceReader(tiny_sequence)
     with pytest.raises(MethodError, match=re.escape(f"method 'broken': {where}")) as caught:

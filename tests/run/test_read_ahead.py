@@ -42,6 +42,33 @@ def test_a_read_error_comes_with_its_frame_after_the_frames_before_it():
     assert seen == [0, 1, 2, 3, 4]
 
 
+def test_work_is_done_on_each_frame_in_order_after_its_images_on_the_ahead_thread():
+    done = []
+
+    def work(frame):
+        assert isinstance(frame._depth, np.ndarray)  # its images are decoded first
+        done.append((frame.index, threading.current_thread().name))
+
+    out = []
+    for frame in read_ahead(_frames(8), ("depth",), ahead=2, work=work):
+        assert frame.index in [i for i, _ in done]  # worked out before it is taken
+        out.append(frame.index)
+    assert out == [i for i, _ in done] == list(range(8))
+    assert all(name.startswith("longslam-ahead") for _, name in done)
+
+
+def test_an_error_of_the_work_comes_with_its_frame():
+    def work(frame):
+        if frame.index == 3:
+            raise ValueError("frame 3 will not do")
+
+    seen = []
+    with pytest.raises(ValueError, match="frame 3 will not do"):
+        for frame in read_ahead(_frames(8), ("depth",), ahead=2, work=work):
+            seen.append(frame.index)
+    assert seen == [0, 1, 2]
+
+
 def test_methods_say_which_images_they_read_every_frame(tiny_sequence, tmp_path):
     from longslam.io.sequence import SequenceReader
     from longslam.slam.api import MethodContext

@@ -38,7 +38,7 @@ from longslam.run.process_tree import TreeUsage
 from longslam.run.provenance import provenance
 from longslam.run.read_ahead import IMAGES, read_ahead
 from longslam.run.resources import current_rss_bytes
-from longslam.slam.api import Closable, MethodChoice, MethodContext, Result, wanted_images
+from longslam.slam.api import Closable, MethodChoice, MethodContext, Result, ahead_work, wanted_images
 
 
 def run_frames(
@@ -94,6 +94,18 @@ def _method_code(method_name: str, call: str, frame: int | None = None) -> Itera
         raise MethodError(f"method {method_name!r}: {where} raised {type(err).__name__}: {err}") from err
 
 
+def _guarded_work(method_name: str, work: Callable[[Frame], None] | None) -> Callable[[Frame], None] | None:
+    """The method's `work_ahead`, its errors raised as the method's (`_method_code`)."""
+    if work is None:
+        return None
+
+    def guarded(frame: Frame) -> None:
+        with _method_code(method_name, "work_ahead()", frame.index):
+            work(frame)
+
+    return guarded
+
+
 def _feed(
     choice: MethodChoice,
     method: Any,
@@ -110,7 +122,7 @@ def _feed(
     # A real-time system is fed at the sequence's own rate: reading ahead saves it nothing, and its
     # thread would compete with the system's own for the cores.
     if images and not choice.spec.real_time:
-        frames = read_ahead(frames, images)
+        frames = read_ahead(frames, images, work=_guarded_work(method_name, ahead_work(method)))
     meter = RunMeter()
     try:
         if observer is not None:

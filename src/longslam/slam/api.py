@@ -83,6 +83,12 @@ class Method(Protocol):
     - `images_every_frame: tuple[str, ...]`, the images ("rgb", "depth") that `step` looks at in
       every frame: the run engine then decodes them for the next frames on a second thread while
       the method works (run/read_ahead.py). Default (): images are read when used.
+    - `work_ahead(frame) -> None`: work on a frame that depends on its images alone (a
+      measured noise, a grey image, corners tracked from the frame before). When the engine
+      reads images ahead it calls this on its own thread, for every frame in order, after the
+      frame's images are decoded and before `step(frame)`; the method keeps what it worked out
+      for `step` (by frame index) and `step` computes it itself for a frame without it, with
+      the same result. It must not touch what `step` changes. Default: none.
     - `graph: PoseGraph | None`, the method's pose graph: the live view draws its loop and
       registration edges. Default None.
     """
@@ -110,6 +116,12 @@ class Closable(Protocol):
 def wanted_images(method: Method) -> tuple[str, ...]:
     """The images the method's `step` reads in every frame (see `Method`)."""
     return tuple(getattr(method, "images_every_frame", ()))
+
+
+def ahead_work(method: Method) -> Callable[[Frame], None] | None:
+    """The method's `work_ahead`, or None if it has none (see `Method`)."""
+    work = getattr(method, "work_ahead", None)
+    return work if callable(work) else None
 
 
 def pose_graph(method: Method) -> PoseGraph | None:

@@ -42,6 +42,7 @@ from longslam.slam.depth_trust import (
     trusted_depth,
     trusted_range,
 )
+from longslam.slam.frontend.ahead import AheadWorker, FrameAhead
 from longslam.slam.frontend.filter import BiasFilter, MotionNoise
 from longslam.slam.frontend.local_map import LocalMap, LocalMapConfig
 from longslam.slam.frontend.registration import RegistrationConfig, information_in_body, register
@@ -250,6 +251,10 @@ class FrontEnd:
         self._range_sum = 0.0  # of the trusted ranges of the frames whose depth was limited
         self._depth_limit: float | None = None  # the latest fused frame's trusted range
         self._depth: np.ndarray | None = None
+        self._ahead = AheadWorker(
+            intrinsics, self.config.depth_trust, self.config.visual_tracking if self.config.visual else None
+        )
+        self._stepped: int | None = None  # index of the frame stepped last
 
     # --- per frame ---------------------------------------------------------------------------
     def step(self, frame: Frame) -> FrameStep:
@@ -273,12 +278,21 @@ class FrontEnd:
             pose = self._fused_step(k, frame, wheel)
         self._frame_rows.extend((k, wheel is not None, self._visual_used, *self._frame_scan))
         self._online.append(pose)
+        self._stepped = frame.index
         self.counts["frames"] += 1
         self._time += time.perf_counter() - t0
         # A fused step measured this frame's trusted range; on wheels alone the method measures it.
         fused = self.config.mode == "fused"
         limit = self._depth_limit if fused else None
         return FrameStep(frame.index, pose.copy(), self.config.depth_trust, fused, limit)
+
+    def work_ahead(self, frame: Frame) -> FrameAhead | None:
+        """Work out ahead, on the engine's read-ahead thread, what the fused step computes from
+        this frame's images alone (`ahead.py`); `step` takes it. Frames come in order, each before
+        its step. Nothing on wheels alone, which does not look at the images."""
+        if self.config.mode != "fused":
+            return None
+        return self._ahead.work(frame)
 
     @property
     def images_every_frame(self) -> tuple[str, ...]:
@@ -352,8 +366,10 @@ class FrontEnd:
 
     def _fused_step(self, k: int, frame: Frame, wheel: WheelStep | None) -> np.ndarray:
         cfg = self.config
+        ahead = self._ahead.take(frame.index)
+        visual_ahead = None if ahead is None else ahead.visual_after(self._stepped)
         # Scans and tracked corners only where the frame's own depth noise allows (depth_trust).
-        sigma_w = measured_noise(frame.depth, cfg.depth_trust)
+        sigma_w = ahead.sigma_w if ahead is not None else measured_noise(frame.depth, cfg.depth_trust)
         limit = range_for_noise(sigma_w, cfg.depth_trust)
         self._depth_limit = limit
         trust = cfg.depth_trust
@@ -405,6 +421,7 @@ class FrontEnd:
                 vis_sigmas[0],
                 flt,
                 tracked_noise,
+                visual_ahead,
             )
             visual = None if accepted is None else accepted.step
             if accepted is not None and accepted.covariance is not None:
@@ -420,7 +437,7 @@ class FrontEnd:
             # velocity), loosely.
             cv = relative(self._online.row(-2), self._online.row(-1)) if k > 1 else np.zeros(3)
             accepted = self._gates.against_prediction(
-                frame, cv, cfg.visual_gate_distance_no_wheels, cfg.visual_gate_angle_no_wheels
+                frame, cv, cfg.visual_gate_distance_no_wheels, cfg.visual_gate_angle_no_wheels, visual_ahead
             )
             visual = None if accepted is None else accepted.step
             vis_sigmas = np.asarray(cfg.visual_sigmas_no_wheels, dtype=np.float64)
@@ -430,7 +447,7 @@ class FrontEnd:
                 cv_step = cv
                 flt.predict_constant_velocity(cv_step)
         else:
-            self._gates.first(tracked, tracked_noise)
+            self._gates.first(tracked, tracked_noise, visual_ahead)
         predicted = flt.pose
         scan_sigma = None
         if columns:

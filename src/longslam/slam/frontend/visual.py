@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -60,6 +61,61 @@ class VisualStep:
 MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2.0)
 
 
+class Tracks(NamedTuple):
+    """Corners of one image and where Lucas-Kanade found them in the next."""
+
+    previous: np.ndarray  # (N, 2) pixels in the earlier image
+    current: np.ndarray  # (N, 2) pixels in the later image
+    good: np.ndarray  # (N,) bool: tracked forward and back alike
+
+
+@dataclass(frozen=True)
+class TrackedAhead:
+    """A frame's grey image and its corners tracked from the frame before it, worked out ahead
+    of the front end's step (`FrontEnd.work_ahead`). `tracks` is None where too few corners were
+    found; `tracked` False where they were not looked for (either frame's depth is tracked with
+    its noise, which takes another mask), so the step tracks them itself."""
+
+    gray: np.ndarray
+    tracks: Tracks | None
+    tracked: bool
+
+
+def gray_image(rgb: np.ndarray) -> np.ndarray:
+    return cv2.cvtColor(np.asarray(rgb), cv2.COLOR_RGB2GRAY)
+
+
+def near_mask(depth: np.ndarray, max_range: float) -> np.ndarray:
+    """Where corners are looked for: returns within `max_range`."""
+    return (depth > 0) & (depth <= max_range)
+
+
+class CornerTracker:
+    """Shi-Tomasi corners of one image tracked into the next by pyramidal Lucas-Kanade, forward
+    and back. It keeps no state: the tracks are a function of the two images and the mask, so
+    they may be worked out on another thread ahead of the step that uses them."""
+
+    def __init__(self, intrinsics: Intrinsics, config: VisualConfig):
+        self.config = config
+        scale = intrinsics.width / 320.0
+        self._min_distance = max(2, round(config.min_distance * scale))
+        self._window = max(5, round(config.window * scale) | 1)  # odd
+
+    def __call__(self, g0: np.ndarray, gray: np.ndarray, where: np.ndarray) -> Tracks | None:
+        """Corners of the earlier image `g0` within the mask `where`, tracked into `gray`; None
+        with fewer corners than `min_inliers`."""
+        cfg = self.config
+        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, self._min_distance, mask=where.astype(np.uint8))
+        if p0 is None or len(p0) < cfg.min_inliers:
+            return None
+        lk = dict(winSize=(self._window, self._window), maxLevel=cfg.levels)
+        p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, p0, None, **lk)
+        back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, None, **lk)
+        fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)
+        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
+        return Tracks(p0.reshape(-1, 2), p1.reshape(-1, 2), good)
+
+
 class VisualOdometry:
     def __init__(
         self,
@@ -72,9 +128,7 @@ class VisualOdometry:
         self.config = config or VisualConfig()
         self.correlated = correlated  # pixels over which noisy depth's noise is correlated
         self.rng = np.random.default_rng(seed)
-        scale = intrinsics.width / 320.0
-        self._min_distance = max(2, round(self.config.min_distance * scale))
-        self._window = max(5, round(self.config.window * scale) | 1)  # odd
+        self.corners = CornerTracker(intrinsics, self.config)
         self.k = intrinsics
         self.pose = np.asarray(camera_in_base, dtype=np.float64)
         self._prev: tuple[np.ndarray, np.ndarray, float | None] | None = None  # gray, depth, its noise sigma_w
@@ -130,14 +184,16 @@ class VisualOdometry:
         predicted: np.ndarray | None,
         first_inlier: float | None = None,
         sigma_w: float | None = None,
+        ahead: TrackedAhead | None = None,
     ) -> VisualStep | None:
         """The step from the previous frame to this one, fitted around `predicted` (x, y, yaw);
         pairs within `first_inlier` metres of the prediction start the fit. Without a
         prediction (no wheels), a two-point RANSAC finds the starting step. Depth of measured
         noise `sigma_w` (1/m, either frame's) is fitted point by point at its own noise, with
-        the noise correlated over `self.correlated` pixels (`_noisy_step`)."""
+        the noise correlated over `self.correlated` pixels (`_noisy_step`). `ahead` holds this
+        frame's grey image and tracks worked out ahead from these images (the same numbers)."""
         cfg = self.config
-        gray = cv2.cvtColor(np.asarray(rgb), cv2.COLOR_RGB2GRAY)
+        gray = ahead.gray if ahead is not None else gray_image(rgb)
         depth = np.asarray(depth, dtype=np.float32)
         prev, self._prev = self._prev, (gray, depth, sigma_w)
         if prev is None:
@@ -147,7 +203,10 @@ class VisualOdometry:
             return self._noisy_step(g0, d0, sigma_w0, gray, depth, sigma_w, predicted, first_inlier)
         # Corners only where depth is near: in a hall most corners are on a ceiling or walls
         # beyond max_range, and they would crowd out the floor texture that fixes the step.
-        tracked = self._track(g0, gray, (d0 > 0) & (d0 <= cfg.max_range))
+        if ahead is not None and ahead.tracked:
+            tracked = ahead.tracks
+        else:
+            tracked = self.corners(g0, gray, near_mask(d0, cfg.max_range))
         if tracked is None:
             return None
         p0, p1, good = tracked
@@ -175,23 +234,6 @@ class VisualOdometry:
         step = np.array([t[0], t[1], np.arctan2(rot[1, 0], rot[0, 0])])
         return VisualStep(step, int(inl.sum()), float(np.sqrt(np.mean(res**2))))
 
-    def _track(
-        self, g0: np.ndarray, gray: np.ndarray, where: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Corners of the previous image `g0` within the mask `where`, tracked into `gray`:
-        (their (N, 2) pixels in each image, whether each tracked forward and back alike), or None
-        with fewer corners than `min_inliers`."""
-        cfg = self.config
-        p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality, self._min_distance, mask=where.astype(np.uint8))
-        if p0 is None or len(p0) < cfg.min_inliers:
-            return None
-        lk = dict(winSize=(self._window, self._window), maxLevel=cfg.levels)
-        p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, p0, None, **lk)
-        back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, None, **lk)
-        fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)
-        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
-        return p0.reshape(-1, 2), p1.reshape(-1, 2), good
-
     def _noisy_step(
         self,
         g0: np.ndarray,
@@ -209,7 +251,7 @@ class VisualOdometry:
         cfg = self.config
         noise = max(sigma_w0 or 0.0, sigma_w or 0.0)
         reach = math.sqrt(cfg.noisy_max_sigma * math.sqrt((2 * cfg.noisy_patch + 1) ** 2 / self.correlated) / noise)
-        tracked = self._track(g0, gray, (d0 > 0) & (d0 <= reach))
+        tracked = self.corners(g0, gray, near_mask(d0, reach))
         if tracked is None:
             return None
         p0, p1, good = tracked

@@ -10,7 +10,7 @@ import numpy as np
 from longslam.core.frame import Frame
 from longslam.core.geometry import wrap_angle
 from longslam.slam.frontend.filter import BiasFilter
-from longslam.slam.frontend.visual import VisualOdometry, VisualStep
+from longslam.slam.frontend.visual import TrackedAhead, VisualOdometry, VisualStep
 from longslam.slam.graph.factors import WheelStep
 
 
@@ -39,10 +39,10 @@ class VisualGates:
         self.counts = counts
         self._forward_refusals = 0
 
-    def first(self, frame: Frame, sigma_w: float | None = None) -> None:
+    def first(self, frame: Frame, sigma_w: float | None = None, ahead: TrackedAhead | None = None) -> None:
         """The first frame: the tracker keeps its image, there is no step yet."""
         if self.tracker is not None:
-            self.tracker(frame.rgb, frame.depth, np.zeros(3), sigma_w=sigma_w)
+            self.tracker(frame.rgb, frame.depth, np.zeros(3), sigma_w=sigma_w, ahead=ahead)
 
     def against_wheels(
         self,
@@ -54,6 +54,7 @@ class VisualGates:
         visual_forward_sigma: float,
         bias_filter: BiasFilter,
         sigma_w: float | None = None,
+        ahead: TrackedAhead | None = None,
     ) -> VisualStep | None:
         """The RGB-D step if it agrees with the wheels: sideways and in heading within fixed gates
         of the bias-corrected wheel step `expected`; forward within `sigmas` stds of the forward
@@ -64,9 +65,10 @@ class VisualGates:
         after `reset_after` consecutive forward refusals
         the filter's forward-bias variance is widened and the gate opens. A step fitted on noisy
         depth (`sigma_w`) is gated forward at its own forward std where that is the larger.
+        `ahead`: the frame's tracks worked out ahead (`FrontEnd.work_ahead`).
         """
         g = self.bounds
-        res = self._track(frame, expected, sigma_w)
+        res = self._track(frame, expected, sigma_w, ahead)
         if res is None:
             return None
         d = res.step - expected
@@ -93,11 +95,16 @@ class VisualGates:
         return self._accepted(res)
 
     def against_prediction(
-        self, frame: Frame, expected: np.ndarray, gate_distance: float, gate_angle: float
+        self,
+        frame: Frame,
+        expected: np.ndarray,
+        gate_distance: float,
+        gate_angle: float,
+        ahead: TrackedAhead | None = None,
     ) -> VisualStep | None:
         """Without wheels: the RGB-D step fitted without starting from `expected` (RANSAC), if
         it lies within the gates of that prediction."""
-        res = self._track(frame, None)
+        res = self._track(frame, None, ahead=ahead)
         if res is None:
             return None
         d = res.step - expected
@@ -105,10 +112,12 @@ class VisualGates:
             return self._refused()
         return self._accepted(res)
 
-    def _track(self, frame: Frame, start: np.ndarray | None, sigma_w: float | None = None) -> VisualStep | None:
+    def _track(
+        self, frame: Frame, start: np.ndarray | None, sigma_w: float | None = None, ahead: TrackedAhead | None = None
+    ) -> VisualStep | None:
         if self.tracker is None:
             return None
-        res = self.tracker(frame.rgb, frame.depth, start, sigma_w=sigma_w)
+        res = self.tracker(frame.rgb, frame.depth, start, sigma_w=sigma_w, ahead=ahead)
         if res is None:
             self.counts["visual_failed"] += 1
         return res

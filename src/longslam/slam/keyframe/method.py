@@ -89,6 +89,10 @@ class KeyframeMethod:
         return pose, odom
 
     # --- per frame ---------------------------------------------------------------------------
+    def work_ahead(self, frame: Frame) -> None:
+        """On the engine's read-ahead thread, before this frame's step: the front end's part."""
+        self.frontend.work_ahead(frame)
+
     def step(self, frame: Frame) -> np.ndarray:
         motion = self._frontend_motion(frame)
         odom = motion.xyyaw

@@ -50,6 +50,7 @@ from longslam.core.memory_release import release_free_memory
 from longslam.core.trajectory import Trajectory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result
+from longslam.slam.depth_trust import measured_noise, range_for_noise, trusted_depth
 from longslam.slam.frontend import FrontEnd
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
 from longslam.slam.rows import Rows
@@ -58,7 +59,7 @@ from longslam.slam.submap.free_space import SubmapFreeSpace, carve, fuse_free_sp
 from longslam.slam.submap.global_map import fuse_submaps, grid_from_tsdf, write_mesh
 from longslam.slam.submap.registration import RegistrationSettings, register
 from longslam.slam.submap.store import SubmapStore
-from longslam.slam.submap.tsdf import TSDF
+from longslam.slam.submap.tsdf import TSDF, depth_points
 
 MIN_VERTICAL_NORMAL = 0.7  # |normal z| above this: floor or ceiling, useless for x, y, yaw
 
@@ -144,6 +145,8 @@ class SubmapMethod:
         self._vocabulary = None
         self._last_keyframe_time = -np.inf
         self._last_free_space_time = -np.inf
+        # Each frame's points and normals to integrate, worked out ahead (`work_ahead`) until its step.
+        self._ahead_points: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         if c.loops_on:
             from longslam.slam.place_recognition import Vocabulary
 
@@ -158,6 +161,28 @@ class SubmapMethod:
         return self._origin_pose(self.graph.estimate(submap)) @ in_submap
 
     # --- frames ------------------------------------------------------------------------------
+    def work_ahead(self, frame: Frame) -> None:
+        """On the engine's read-ahead thread, before this frame's step: the front end's part
+        (`FrontEnd.work_ahead`) and the frame's points to integrate, from its trusted depth."""
+        ahead = self.frontend.work_ahead(frame)
+        depth = np.asarray(frame.depth)
+        if not self._integrates(depth, frame):
+            return
+        trust = self.config.frontend.depth_trust
+        sigma_w = ahead.sigma_w if ahead is not None else measured_noise(depth, trust)
+        self._ahead_points[frame.index] = self._depth_points(
+            trusted_depth(depth, range_for_noise(sigma_w, trust)), frame
+        )
+
+    def _integrates(self, depth: np.ndarray, frame: Frame) -> bool:
+        return depth.ndim == 2 and depth.shape == (frame.intrinsics.height, frame.intrinsics.width)
+
+    def _depth_points(self, depth: np.ndarray, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+        points, normals = depth_points(
+            depth, frame.intrinsics, self.config.integration_stride, self._max_depth, with_normals=True
+        )
+        return points, normals
+
     def step(self, frame: Frame) -> np.ndarray:
         motion = self.frontend.step(frame)
         odometry = self.frontend.camera_poses(motion.xyyaw[None])[0]
@@ -183,10 +208,11 @@ class SubmapMethod:
         depth, loop_depth, depth_noise = motion.depths(depth) if depth.ndim == 2 else (depth, depth, None)
         updates = 0
         assert active.tsdf is not None  # the active submap holds its TSDF
-        if depth.ndim == 2 and depth.shape == (frame.intrinsics.height, frame.intrinsics.width):
-            updates = active.tsdf.integrate_depth(
-                depth, frame.intrinsics, in_submap, self._max_depth, self.config.integration_stride
-            )
+        points = self._ahead_points.pop(frame.index, None)
+        if self._integrates(depth, frame):
+            if points is None:  # not worked out ahead
+                points = self._depth_points(depth, frame)
+            updates = active.tsdf.integrate_camera_points(*points, in_submap)
         if updates == 0:
             self.counts.frames_without_depth += 1
         elif active.free_space is not None and self._free_space_due(frame.timestamp):

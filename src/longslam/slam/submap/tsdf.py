@@ -318,12 +318,17 @@ class TSDF:
         w_new, wd_new = w_new[good], wd_new[good]
         blocks, binv = group_cells_3d(i >> 4, j >> 4, k >> 4)
         slots = self._allocate(pack_3d(np.column_stack(blocks)))[binv]
-        local = _local_index(i, j, k)
-        w_old = self._weight[slots, local].astype(np.float64)
-        d_old = self._sdf[slots, local].astype(np.float64)
+        # One flat index per voxel: gathers and scatters on the flat arrays take a third of the
+        # time of the same (slot, local) pairs on the 2D ones. The arrays are made C-contiguous
+        # (`_grow`), so the flat views write through.
+        flat = slots * BLOCK_VOXELS + _local_index(i, j, k)
+        weight, sdf = self._weight.reshape(-1), self._sdf.reshape(-1)
+        assert self._weight.flags.c_contiguous and self._sdf.flags.c_contiguous
+        w_old = weight[flat].astype(np.float64)
+        d_old = sdf[flat].astype(np.float64)
         total = w_old + w_new
-        self._sdf[slots, local] = ((w_old * d_old + wd_new) / total).astype(np.float32)
-        self._weight[slots, local] = np.minimum(total, self.max_weight).astype(np.float32)
+        sdf[flat] = ((w_old * d_old + wd_new) / total).astype(np.float32)
+        weight[flat] = np.minimum(total, self.max_weight).astype(np.float32)
         return int(len(i))
 
     def integrate_depth(
@@ -337,6 +342,11 @@ class TSDF:
         """Integrate a depth image (metres, 0 = no return) taken at `camera_pose` (camera in this
         TSDF's frame, OpenCV axes). Returns the number of voxel updates (0 without valid depth)."""
         points, normals = depth_points(depth, intrinsics, stride, max_depth, with_normals=True)
+        return self.integrate_camera_points(points, normals, camera_pose)
+
+    def integrate_camera_points(self, points: np.ndarray, normals: np.ndarray, camera_pose: np.ndarray) -> int:
+        """Integrate a depth image's `depth_points` (camera frame, with their normals) taken at
+        `camera_pose` (camera in this TSDF's frame). Returns the number of voxel updates."""
         if not len(points):
             return 0
         pose = np.asarray(camera_pose, dtype=np.float64)
@@ -469,11 +479,11 @@ def depth_points(
     with np.errstate(invalid="ignore", divide="ignore"):
         inverse_length = 1.0 / np.sqrt(nx * nx + ny * ny + nz * nz)
         inverse_length[span2 > limit * limit] = np.nan
-    inner = ok[1:-1, 1:-1]
-    normals = np.full((len(points), 3), np.nan)
-    # Pixels on the image's border have no normal; `inside` says which points are not on it.
-    inside = np.zeros(ok.shape, bool)
-    inside[1:-1, 1:-1] = inner
-    scale = inverse_length[inner]
-    normals[inside[ok]] = np.column_stack([nx[inner] * scale, ny[inner] * scale, nz[inner] * scale])
+    # Each component as an image (NaN on the border, where a pixel has no normal), read at the
+    # points' pixels: filling the rows of an (N, 3) array through a mask took three times as long.
+    normals = np.empty((len(points), 3))
+    component = np.full(ok.shape, np.nan)
+    for axis, c in enumerate((nx, ny, nz)):
+        np.multiply(c, inverse_length, out=component[1:-1, 1:-1])
+        normals[:, axis] = component[ok]
     return points, normals
