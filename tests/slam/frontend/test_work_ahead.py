@@ -1,7 +1,7 @@
 """A method's work ahead (`work_ahead`, on the read-ahead thread) gives the numbers its step would
 have computed itself: the same poses and trajectory with it and without, at exact depth, at a
-Kinect's noise (depth trusted to a range, column scans) and at a D435's (tracked with its noise
-and without a scan, so not ahead); and the step does not do again what was worked out ahead."""
+Kinect's noise (depth trusted to a range) and at a D435's (tracked with its noise, so not ahead);
+and the step does not track again what was tracked ahead."""
 
 import threading
 
@@ -14,7 +14,6 @@ from longslam.run.read_ahead import WORK_THREAD_NAME, read_ahead
 from longslam.sim.routes import get_route
 from longslam.slam.api import MethodContext, ahead_work
 from longslam.slam.catalog import create_method
-from longslam.slam.frontend.scan import ScanExtractor
 from longslam.slam.frontend.visual import CornerTracker
 
 pytestmark = pytest.mark.slow  # runs both methods on a rendered route
@@ -69,22 +68,14 @@ def corner_threads(monkeypatch):
     return _record_threads(monkeypatch, CornerTracker, ["__call__"])
 
 
-@pytest.fixture()
-def scan_threads(monkeypatch):
-    """The name of the thread of every scan extracted (cell scan or column scan)."""
-    return _record_threads(monkeypatch, ScanExtractor, ["__call__", "columns"])
-
-
 @pytest.mark.parametrize("name", ["keyframe", "submap"])
 @pytest.mark.parametrize("noise", list(NOISE))
-def test_work_ahead_gives_the_step_its_own_numbers(demo, name, noise, corner_threads, scan_threads):
+def test_work_ahead_gives_the_step_its_own_numbers(demo, name, noise, corner_threads):
     frames = _frames(demo, NOISE[noise])
     _, alone, result_alone = _run(name, demo, frames, threaded=False)
     here = threading.current_thread().name
     assert corner_threads and all(t == here for t in corner_threads)
-    assert len(scan_threads) == FRAMES and all(t == here for t in scan_threads)
     corner_threads.clear()
-    scan_threads.clear()
     method, ahead, result_ahead = _run(name, demo, frames, threaded=True)
     assert np.array_equal(alone, ahead)
     assert np.array_equal(result_alone.trajectory.poses, result_ahead.trajectory.poses)
@@ -94,14 +85,11 @@ def test_work_ahead_gives_the_step_its_own_numbers(demo, name, noise, corner_thr
     assert not method.frontend._ahead._done  # every frame's work taken by its step
     worked = [t for t in corner_threads if t.startswith(WORK_THREAD_NAME)]
     if noise == "d435":
-        # Tracked with its noise, in the step's own masks, and no scan: nothing worked out ahead.
+        # Tracked with its noise, in the step's own masks: nothing tracked ahead.
         assert not worked
-        assert len(scan_threads) == FRAMES and all(t == here for t in scan_threads)
     else:
-        # Every frame after the first tracked ahead, and every scan extracted ahead; none again
-        # in the step.
+        # Every frame after the first tracked ahead; none again in the step.
         assert len(worked) == FRAMES - 1 and len(corner_threads) == len(worked)
-        assert len(scan_threads) == FRAMES and all(t.startswith(WORK_THREAD_NAME) for t in scan_threads)
 
 
 def test_a_frame_without_work_ahead_is_worked_out_by_the_step(demo, corner_threads):

@@ -137,16 +137,6 @@ class CameraMount:
         height = z if camera_height is None else camera_height
         return cls(float(height), z - float(height))
 
-    @classmethod
-    def for_first_frame(
-        cls, first_odometry: np.ndarray | None, camera_height: float | None, default_height: float
-    ) -> "CameraMount":
-        """The mount a front end places at its first frame: from that frame's odometry pose, or
-        without odometry at `camera_height` (None: `default_height`) over a floor at z = 0."""
-        if first_odometry is not None:
-            return cls.from_first_pose(np.asarray(first_odometry, dtype=np.float64), camera_height)
-        return cls(default_height if camera_height is None else camera_height, 0.0)
-
     @property
     def camera_in_base(self) -> np.ndarray:
         return base_to_camera(self.camera_height)

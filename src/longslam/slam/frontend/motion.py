@@ -251,7 +251,9 @@ class FrontEnd:
         self._range_sum = 0.0  # of the trusted ranges of the frames whose depth was limited
         self._depth_limit: float | None = None  # the latest fused frame's trusted range
         self._depth: np.ndarray | None = None
-        self._ahead = AheadWorker(intrinsics, self.config)
+        self._ahead = AheadWorker(
+            intrinsics, self.config.depth_trust, self.config.visual_tracking if self.config.visual else None
+        )
         self._stepped: int | None = None  # index of the frame stepped last
 
     # --- per frame ---------------------------------------------------------------------------
@@ -305,10 +307,11 @@ class FrontEnd:
                 f"frame {frame.index} (t={frame.timestamp:.6f}) has no odometry pose; the front end's "
                 f"mode 'wheel' needs a sequence with odometry.txt (mode 'fused' runs without)"
             )
-        self.mount = CameraMount.for_first_frame(frame.odometry, cfg.camera_height, cfg.default_camera_height)
         if frame.odometry is not None:
+            self.mount = CameraMount.from_first_pose(np.asarray(frame.odometry, dtype=np.float64), cfg.camera_height)
             self._wheels = JumpFilteredOdometry(self.mount, cfg.jump_distance, cfg.jump_angle)
         else:
+            self.mount = CameraMount(cfg.default_camera_height if cfg.camera_height is None else cfg.camera_height, 0.0)
             self._odom = np.zeros(3)  # a sequence without odometry starts at the origin
         self._extract = ScanExtractor(self.intrinsics, self.mount.camera_in_base, cfg.scan)
         tracker = None
@@ -447,9 +450,7 @@ class FrontEnd:
             self._gates.first(tracked, tracked_noise, visual_ahead)
         predicted = flt.pose
         scan_sigma = None
-        if ahead is not None and ahead.scan is not None and ahead.mount == self.mount:
-            scan, scan_sigma = ahead.scan
-        elif columns:
+        if columns:
             assert sigma_w is not None  # `columns` needs measured noise
             scan, scan_sigma = self._extract.columns(
                 full_depth, sigma_w, trust.column_returns, trust.column_max_sigma, trust.column_correlation
