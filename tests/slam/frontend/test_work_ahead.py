@@ -104,3 +104,13 @@ def test_a_frame_without_work_ahead_is_worked_out_by_the_step(demo, corner_threa
             method.work_ahead(frame)
         poses.append(method.step(frame))
     assert np.array_equal(alone, np.array(poses))
+
+
+def test_work_ahead_without_wheel_odometry(demo, corner_threads):
+    """Without odometry the step is fitted from the tracks alone (RANSAC): the same poses."""
+    frames = [Frame(f.index, f.timestamp, f.rgb, f.depth, None, f.intrinsics) for f in _frames(demo, NOISE["kinect"])]
+    _, alone, _ = _run("submap", demo, frames, threaded=False)
+    corner_threads.clear()
+    _, ahead, _ = _run("submap", demo, frames, threaded=True)
+    assert np.array_equal(alone, ahead)
+    assert len(corner_threads) == FRAMES - 1 and all(t.startswith(WORK_THREAD_NAME) for t in corner_threads)
