@@ -47,6 +47,8 @@ class AheadWorker:
         # exact depth: its corners are looked for within the mask, in the next frame's tracking.
         self._last: tuple[int, np.ndarray, np.ndarray] | None = None
         self._done: dict[int, FrameAhead] = {}
+        # Index of the frame the step took last: written by the step's thread, read here.
+        self.stepped: int | None = None
 
     def work(self, frame: Frame) -> FrameAhead:
         sigma_w = measured_noise(frame.depth, self._trust)
@@ -60,12 +62,20 @@ class AheadWorker:
             if not too_noisy_for_scan(limit, self._trust):
                 trusted = np.asarray(trusted_depth(frame.depth, limit), dtype=np.float32)
                 self._last = (frame.index, gray, near_mask(trusted, self._max_range))
-                if last is not None:
+                if last is not None and not self._step_waits_for(frame.index):
                     previous, tracks, tracked = last[0], self._corners(last[1], gray, last[2]), True
             visual = TrackedAhead(gray, tracks, tracked)
         ahead = FrameAhead(frame.index, previous, sigma_w, visual)
         self._done[frame.index] = ahead
         return ahead
+
+    def _step_waits_for(self, index: int) -> bool:
+        """Whether the step has caught up: it took the frame before `index` and waits for this
+        one. Tracking is the costly part of the work, so it is then left to the step, and the two
+        threads share it as their pace allows (a light step, the keyframe method's, would
+        otherwise wait for this thread). Either thread tracks to the same numbers."""
+        stepped = self.stepped
+        return stepped is not None and index - stepped <= 1
 
     def take(self, index: int) -> FrameAhead | None:
         """Frame `index` as worked out, once; None if it was not."""

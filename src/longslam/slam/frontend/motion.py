@@ -254,7 +254,6 @@ class FrontEnd:
         self._ahead = AheadWorker(
             intrinsics, self.config.depth_trust, self.config.visual_tracking if self.config.visual else None
         )
-        self._stepped: int | None = None  # index of the frame stepped last
 
     # --- per frame ---------------------------------------------------------------------------
     def step(self, frame: Frame) -> FrameStep:
@@ -278,7 +277,7 @@ class FrontEnd:
             pose = self._fused_step(k, frame, wheel)
         self._frame_rows.extend((k, wheel is not None, self._visual_used, *self._frame_scan))
         self._online.append(pose)
-        self._stepped = frame.index
+        self._ahead.stepped = frame.index  # the frame stepped last
         self.counts["frames"] += 1
         self._time += time.perf_counter() - t0
         # A fused step measured this frame's trusted range; on wheels alone the method measures it.
@@ -367,7 +366,7 @@ class FrontEnd:
     def _fused_step(self, k: int, frame: Frame, wheel: WheelStep | None) -> np.ndarray:
         cfg = self.config
         ahead = self._ahead.take(frame.index)
-        visual_ahead = None if ahead is None else ahead.visual_after(self._stepped)
+        visual_ahead = None if ahead is None else ahead.visual_after(self._ahead.stepped)
         # Scans and tracked corners only where the frame's own depth noise allows (depth_trust).
         sigma_w = ahead.sigma_w if ahead is not None else measured_noise(frame.depth, cfg.depth_trust)
         limit = range_for_noise(sigma_w, cfg.depth_trust)
