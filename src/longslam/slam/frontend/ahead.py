@@ -26,6 +26,7 @@ class FrameAhead:
     index: int
     previous: int | None  # the frame its corners were tracked from; None: not tracked ahead
     sigma_w: float | None  # the depth's measured noise (`measured_noise`)
+    trusted: np.ndarray  # the depth within the range that noise allows (`trusted_depth`)
     visual: TrackedAhead | None  # None without visual tracking
 
     def visual_after(self, stepped: int | None) -> TrackedAhead | None:
@@ -53,6 +54,7 @@ class AheadWorker:
     def work(self, frame: Frame) -> FrameAhead:
         sigma_w = measured_noise(frame.depth, self._trust)
         limit = range_for_noise(sigma_w, self._trust)
+        trusted = trusted_depth(frame.depth, limit)
         visual, previous = None, None
         if self._corners is not None:
             gray = gray_image(frame.rgb)
@@ -60,12 +62,12 @@ class AheadWorker:
             tracks, tracked = None, False
             # Depth too noisy for a scan is tracked with its noise, in other masks: the step's.
             if not too_noisy_for_scan(limit, self._trust):
-                trusted = np.asarray(trusted_depth(frame.depth, limit), dtype=np.float32)
-                self._last = (frame.index, gray, near_mask(trusted, self._max_range))
+                mask = near_mask(np.asarray(trusted, dtype=np.float32), self._max_range)
+                self._last = (frame.index, gray, mask)
                 if last is not None and not self._step_waits_for(frame.index):
                     previous, tracks, tracked = last[0], self._corners(last[1], gray, last[2]), True
             visual = TrackedAhead(gray, tracks, tracked)
-        ahead = FrameAhead(frame.index, previous, sigma_w, visual)
+        ahead = FrameAhead(frame.index, previous, sigma_w, trusted, visual)
         self._done[frame.index] = ahead
         return ahead
 

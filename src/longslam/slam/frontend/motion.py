@@ -387,7 +387,7 @@ class FrontEnd:
         # heading (tracked on all of it, the corners' heading pulled against the scan's).
         noisy_tracking = cfg.visual_noisy and no_scan
         whole = frame
-        self._depth = trusted_depth(frame.depth, limit)
+        self._depth = ahead.trusted if ahead is not None else trusted_depth(frame.depth, limit)
         if limit is not None:
             self.counts["depth_limited"] += 1
             self._range_sum += limit

@@ -50,7 +50,7 @@ from longslam.core.memory_release import release_free_memory
 from longslam.core.trajectory import Trajectory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result
-from longslam.slam.depth_trust import measured_noise, range_for_noise, trusted_depth
+from longslam.slam.depth_trust import trusted_depth, trusted_range
 from longslam.slam.frontend import FrontEnd
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
 from longslam.slam.rows import Rows
@@ -168,20 +168,19 @@ class SubmapMethod:
         depth = np.asarray(frame.depth)
         if not self._integrates(depth, frame):
             return
-        trust = self.config.frontend.depth_trust
-        sigma_w = ahead.sigma_w if ahead is not None else measured_noise(depth, trust)
-        self._ahead_points[frame.index] = self._depth_points(
-            trusted_depth(depth, range_for_noise(sigma_w, trust)), frame
+        # The depth `FrameStep.depths` gives the step: the front end's, or on wheels alone measured here.
+        trusted = (
+            ahead.trusted
+            if ahead is not None
+            else trusted_depth(depth, trusted_range(depth, self.config.frontend.depth_trust))
         )
+        self._ahead_points[frame.index] = self._depth_points(trusted, frame)
 
     def _integrates(self, depth: np.ndarray, frame: Frame) -> bool:
         return depth.ndim == 2 and depth.shape == (frame.intrinsics.height, frame.intrinsics.width)
 
     def _depth_points(self, depth: np.ndarray, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
-        points, normals = depth_points(
-            depth, frame.intrinsics, self.config.integration_stride, self._max_depth, with_normals=True
-        )
-        return points, normals
+        return depth_points(depth, frame.intrinsics, self.config.integration_stride, self._max_depth, with_normals=True)
 
     def step(self, frame: Frame) -> np.ndarray:
         motion = self.frontend.step(frame)
