@@ -36,7 +36,8 @@ def heading_errors(path: Path, first: int, last: int) -> dict[str, np.ndarray]:
     """Per step from frame k-1 to k (first < k < last): the true heading change, the wheels' and
     the RGB-D step's errors (NaN where no step was fitted), and the scan's point count at k."""
     reader = SequenceReader(path)
-    assert reader.ground_truth is not None, f"{path}: no groundtruth.txt"
+    if reader.ground_truth is None or reader.odometry is None:
+        raise SystemExit(f"{path}: heading_steps needs groundtruth.txt and odometry.txt in the sequence")
     truth_poses = reader.ground_truth.poses
     trust = DepthTrust()
     mount = tracker = extract = None
@@ -45,8 +46,9 @@ def heading_errors(path: Path, first: int, last: int) -> dict[str, np.ndarray]:
     for frame in reader:
         if frame.index >= last:
             break
-        if frame.index < first or frame.odometry is None:
+        if frame.index < first:
             continue
+        assert frame.odometry is not None  # the sequence has odometry.txt
         odometry = np.asarray(frame.odometry)
         if mount is None:
             mount = CameraMount.from_first_pose(odometry)
@@ -78,14 +80,22 @@ def main() -> None:
     parser.add_argument("--sensor", default="kinect-v1")
     parser.add_argument("--frames", type=int, nargs=2, default=(0, 200), metavar=("FIRST", "LAST"))
     args = parser.parse_args()
+    first, last = args.frames
+    if not 0 <= first < last - 1:
+        parser.error(f"--frames {first} {last}: expected 0 <= FIRST < LAST - 1 (at least one step)")
     path = sequence(args.work, args.route, args.noise, args.seed, args.sensor)
-    errors = heading_errors(path, *args.frames)
+    errors = heading_errors(path, first, last)
+    if not len(errors["true"]):
+        raise SystemExit(f"{path}: no frames in {first}-{last}")
     steps = len(errors["true"])
     fitted = np.isfinite(errors["rgbd"])
     no_scan = errors["scan_points"] < RegistrationConfig().min_matches
     print(f"{path.name}, frames {args.frames[0]}-{args.frames[1]}: {steps} steps, "
           f"{no_scan.mean():.0%} of frames without a scan to register")
     for name, values in (("wheels", errors["wheels"]), ("rgbd", errors["rgbd"][fitted])):
+        if not len(values):
+            print(f"  {name:6s} no step fitted")
+            continue
         print(f"  {name:6s} heading error per step: mean {values.mean():+.5f} rad, std {values.std():.5f} rad "
               f"({len(values)} steps)")
     print(f"  the wheels' heading error over the stretch: {np.degrees(errors['wheels'].sum()):+.2f} deg")
