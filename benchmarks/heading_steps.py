@@ -4,7 +4,9 @@
 
 For every step between consecutive frames: the wheels' heading change and the front end's RGB-D
 step's (corners tracked within the depth's trusted range and fitted around the wheel step, as the
-fused step does for depth that gives a scan), each minus the true change; and whether the scan cut
+fused step does for depth that gives a scan: its heading refitted to the corners' bearings along
+the wheels' arc, `visual_tracking.arc_fit`, and, beside it, the planar fit of the corners' 3D
+positions alone), each minus the true change; and whether the scan cut
 from the frame's trusted depth (the plain scan; the front end cuts a Kinect's by columns, which
 reach as far) has enough points to register at all. It prints the mean (a bias, which adds up along the
 stretch) and the std (a scatter, which adds up as a random walk) of each source, the heading error
@@ -29,18 +31,19 @@ from longslam.io.sequence import SequenceReader  # noqa: E402
 from longslam.slam.depth_trust import DepthTrust, trusted_depth, trusted_range  # noqa: E402
 from longslam.slam.frontend.registration import RegistrationConfig  # noqa: E402
 from longslam.slam.frontend.scan import ScanConfig, ScanExtractor  # noqa: E402
-from longslam.slam.frontend.visual import VisualOdometry  # noqa: E402
+from longslam.slam.frontend.visual import VisualConfig, VisualOdometry  # noqa: E402
 
 
 def heading_errors(path: Path, first: int, last: int) -> dict[str, np.ndarray]:
     """Per step from frame k-1 to k (first < k < last): the true heading change, the wheels' and
-    the RGB-D step's errors (NaN where no step was fitted), and the scan's point count at k."""
+    the RGB-D step's errors (`rgbd`, the front end's; `rgbd_3d`, the planar 3D fit alone; NaN
+    where no step was fitted), and the scan's point count at k."""
     reader = SequenceReader(path)
     if reader.ground_truth is None or reader.odometry is None:
         raise SystemExit(f"{path}: heading_steps needs groundtruth.txt and odometry.txt in the sequence")
     truth_poses = reader.ground_truth.poses
     trust = DepthTrust()
-    mount = tracker = extract = None
+    mount = tracker = planar = extract = None
     previous: tuple[np.ndarray, np.ndarray] | None = None  # true and wheel planar poses
     rows = []
     for frame in reader:
@@ -53,22 +56,32 @@ def heading_errors(path: Path, first: int, last: int) -> dict[str, np.ndarray]:
         if mount is None:
             mount = CameraMount.from_first_pose(odometry)
             tracker = VisualOdometry(reader.intrinsics, mount.camera_in_base)
+            planar = VisualOdometry(reader.intrinsics, mount.camera_in_base, VisualConfig(arc_fit=False))
             extract = ScanExtractor(reader.intrinsics, mount.camera_in_base, ScanConfig())
-        assert tracker is not None and extract is not None
+        assert tracker is not None and planar is not None and extract is not None
         depth = trusted_depth(frame.depth, trusted_range(frame.depth, trust))
         truth = mount.to_planar(truth_poses[frame.index][None])[0]
         wheels = mount.to_planar(odometry[None])[0]
         predicted = None if previous is None else relative_xyyaw(previous[1], wheels)
         step = tracker(frame.rgb, depth, predicted)
+        step_3d = planar(frame.rgb, depth, predicted)
         if previous is not None and predicted is not None:
             true_step = relative_xyyaw(previous[0], truth)
-            visual = np.nan if step is None else float(wrap_angle(step.step[2] - true_step[2]))
+            visual, visual_3d = (
+                np.nan if s is None else float(wrap_angle(s.step[2] - true_step[2])) for s in (step, step_3d)
+            )
             rows.append(
-                (true_step[2], float(wrap_angle(predicted[2] - true_step[2])), visual, len(extract(depth)))
+                (true_step[2], float(wrap_angle(predicted[2] - true_step[2])), visual, visual_3d, len(extract(depth)))
             )
         previous = (truth, wheels)
-    table = np.array(rows, dtype=np.float64).reshape(-1, 4)
-    return {"true": table[:, 0], "wheels": table[:, 1], "rgbd": table[:, 2], "scan_points": table[:, 3]}
+    table = np.array(rows, dtype=np.float64).reshape(-1, 5)
+    return {
+        "true": table[:, 0],
+        "wheels": table[:, 1],
+        "rgbd": table[:, 2],
+        "rgbd_3d": table[:, 3],
+        "scan_points": table[:, 4],
+    }
 
 
 def main() -> None:
@@ -88,15 +101,15 @@ def main() -> None:
     if not len(errors["true"]):
         raise SystemExit(f"{path}: no frames in {first}-{last}")
     steps = len(errors["true"])
-    fitted = np.isfinite(errors["rgbd"])
     no_scan = errors["scan_points"] < RegistrationConfig().min_matches
     print(f"{path.name}, frames {args.frames[0]}-{args.frames[1]}: {steps} steps, "
           f"{no_scan.mean():.0%} of frames without a scan to register")
-    for name, values in (("wheels", errors["wheels"]), ("rgbd", errors["rgbd"][fitted])):
+    for name in ("wheels", "rgbd", "rgbd_3d"):
+        values = errors[name][np.isfinite(errors[name])]
         if not len(values):
-            print(f"  {name:6s} no step fitted")
+            print(f"  {name:7s} no step fitted")
             continue
-        print(f"  {name:6s} heading error per step: mean {values.mean():+.5f} rad, std {values.std():.5f} rad "
+        print(f"  {name:7s} heading error per step: mean {values.mean():+.5f} rad, std {values.std():.5f} rad "
               f"({len(values)} steps)")
     print(f"  the wheels' heading error over the stretch: {np.degrees(errors['wheels'].sum()):+.2f} deg")
 

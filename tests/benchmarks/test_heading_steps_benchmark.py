@@ -34,6 +34,11 @@ def test_the_wheels_error_is_the_simulators_bias_and_the_rgbd_steps_stay_near_th
     assert fitted.mean() > 0.9
     assert abs(errors["rgbd"][fitted].mean()) < 1e-3
     assert errors["rgbd"][fitted].std() < 3e-3
+    # The front end's step refits the heading to the corners' bearings: it scatters less than the
+    # planar fit of their 3D positions on the same corners.
+    fitted_3d = np.isfinite(errors["rgbd_3d"])
+    assert fitted_3d.mean() > 0.9
+    assert errors["rgbd"][fitted].std() < errors["rgbd_3d"][fitted_3d].std()
     assert errors["scan_points"].min() >= 0
 
 

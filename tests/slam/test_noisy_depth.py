@@ -15,7 +15,7 @@ from longslam.sim.sensors import FrameMotion, RealSenseD435, frame_rng
 from longslam.slam.depth_trust import DepthTrust, trusted_depth, trusted_range
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
 from longslam.slam.frontend.motion import FrameStep
-from longslam.slam.frontend.visual import VisualOdometry
+from longslam.slam.frontend.visual import VisualConfig, VisualOdometry
 from longslam.slam.place_recognition import noisy_link_sigmas
 
 from helpers.flat_walls import K, TEXTURED_HALF, render, square_wall
@@ -106,8 +106,9 @@ def test_a_step_on_d435_depth_takes_its_heading_from_the_corners_not_the_predict
         worst = max(worst, abs(step.step[2]))
     assert worst < 0.002
     # Without the noise given, the same depth is fitted as exact (3D points, a 3 cm gate): its
-    # heading is further off.
-    tracker = VisualOdometry(K, mount)
+    # heading is further off. (The arc fit, on by default, takes the heading from the bearings and
+    # would hide that: it is left out here.)
+    tracker = VisualOdometry(K, mount, VisualConfig(arc_fit=False))
     tracker(rgb0, d0, np.zeros(3))
     plain = tracker(rgb1, d1, np.array([forward, 0.0, 0.0]))
     assert plain is None or abs(plain.step[2]) > 2 * worst
