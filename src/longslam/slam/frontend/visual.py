@@ -143,15 +143,14 @@ class VisualOdometry:
         self._prev: tuple[np.ndarray, np.ndarray, float | None] | None = None  # gray, depth, its noise sigma_w
 
     def _lift(self, pts: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pixel positions -> base-frame xy (N, 2) and a validity mask."""
+        """Pixel positions -> base-frame points (N, 3) and a validity mask."""
         h, w = depth.shape
         u = np.clip(np.rint(pts[:, 0]).astype(np.int64), 0, w - 1)
         v = np.clip(np.rint(pts[:, 1]).astype(np.int64), 0, h - 1)
         z = depth[v, u].astype(np.float64)
         ok = np.isfinite(z) & (z > 0) & (z <= self.config.max_range)
         cam = np.column_stack([(pts[:, 0] - self.k.cx) / self.k.fx * z, (pts[:, 1] - self.k.cy) / self.k.fy * z, z])
-        base = cam @ self.pose[:3, :3].T + self.pose[:3, 3]
-        return base[:, :2], ok
+        return cam @ self.pose[:3, :3].T + self.pose[:3, 3], ok
 
     def _lift_noisy(
         self, pts: np.ndarray, depth: np.ndarray, sigma_w: float | None
@@ -219,12 +218,13 @@ class VisualOdometry:
         if tracked is None:
             return None
         p0, p1, good = tracked
-        a, ok0 = self._lift(p0, d0)
-        b, ok1 = self._lift(p1, depth)
+        lifted0, ok0 = self._lift(p0, d0)
+        lifted1, ok1 = self._lift(p1, depth)
         good &= ok0 & ok1
         if good.sum() < cfg.min_inliers:
             return None
-        a, b = a[good], b[good]  # a = R b + t for the step (R, t) of the current base in the previous
+        # a = R b + t for the step (R, t) of the current base in the previous
+        a, b = lifted0[good, :2], lifted1[good, :2]
         guessed = predicted is None  # no wheels: nothing says the base moves along an arc
         if predicted is None:
             predicted = self._ransac(a, b)
@@ -244,29 +244,24 @@ class VisualOdometry:
         step = np.array([t[0], t[1], np.arctan2(rot[1, 0], rot[0, 0])])
         rms = float(np.sqrt(np.mean(res**2)))
         if cfg.arc_fit and not guessed:
-            arc = self._arc_step(g0, d0, gray, p0[ok0], step)
+            arc = self._arc_step(g0, gray, p0[ok0], lifted0[ok0], step)
             if arc is not None:
                 return VisualStep(arc, int(inl.sum()), rms)
         return VisualStep(step, int(inl.sum()), rms)
 
     def _arc_step(
-        self, g0: np.ndarray, d0: np.ndarray, gray: np.ndarray, p0: np.ndarray, start: np.ndarray
+        self, g0: np.ndarray, gray: np.ndarray, p0: np.ndarray, lifted: np.ndarray, start: np.ndarray
     ) -> np.ndarray | None:
         """The step `start` (x, y, yaw) refitted along an arc, (d cos(yaw / 2), d sin(yaw / 2),
         yaw), its distance d kept from `start` and its heading the one that best reprojects the
-        corners `p0` of the earlier image, lifted with its depth `d0`, onto where Lucas-Kanade
+        corners `p0` of the earlier image, `lifted` (N, 3) into its base frame, onto where Lucas-Kanade
         finds them in this one. They are tracked again from where `start` puts them: from no
         motion, a turn's shift of ten pixels is found a little short (about 1 % of the turn). The
         distance is not refitted: from the bearings alone it comes out short by about 2 %, as a
         corner's patch grows between the images. None with too few corners tracked."""
         cfg = self.config
         k = self.k
-        h, w = d0.shape
-        z = d0[
-            np.clip(np.rint(p0[:, 1]).astype(np.int64), 0, h - 1), np.clip(np.rint(p0[:, 0]).astype(np.int64), 0, w - 1)
-        ].astype(np.float64)
-        lifted = np.column_stack([(p0[:, 0] - k.cx) / k.fx * z, (p0[:, 1] - k.cy) / k.fy * z, z, np.ones(len(p0))])
-        in_base = lifted @ self.pose.T  # the earlier base frame, homogeneous
+        in_base = np.column_stack([lifted, np.ones(len(lifted))])  # homogeneous
         to_camera = np.linalg.inv(self.pose)
         distance = start[0] / math.cos(start[2] / 2)
 
@@ -289,7 +284,7 @@ class VisualOdometry:
         p1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, gray, first, guess, **lk)
         back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, g0, p1, first.copy(), **lk)
         fb = np.linalg.norm((back - first).reshape(-1, 2), axis=1)
-        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error) & (z > 0)
+        good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
         if good.sum() < cfg.min_inliers:
             return None
         in_base, seen = in_base[good], p1.reshape(-1, 2)[good]
