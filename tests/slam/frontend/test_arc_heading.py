@@ -10,7 +10,7 @@ import numpy as np
 from helpers.flat_walls import LOOK_ALONG_X, SETTINGS, K, _quads_mesh
 
 from longslam.sim.camera import RGBDCamera
-from longslam.slam.frontend.visual import VisualConfig, VisualOdometry
+from longslam.slam.frontend.visual import VisualConfig, VisualOdometry, fit_arc_heading
 
 # The camera looks along the base's x axis from the base's origin, 1.25 m up.
 MOUNT = LOOK_ALONG_X.copy()
@@ -75,3 +75,33 @@ def test_without_wheels_the_step_is_not_put_on_an_arc():
     found = tracker(rgb1, d1, None)
     assert found is not None
     np.testing.assert_allclose(found.step, sideways, atol=0.01)
+
+
+def _arc_projection(distance: float):
+    """Pixels of base-frame points (N, 4, homogeneous) seen after a step of `distance` along the arc of a turn."""
+    to_camera = np.linalg.inv(MOUNT)
+
+    def project(points: np.ndarray, yaw: float) -> np.ndarray:
+        step = _base(distance * math.cos(yaw / 2), distance * math.sin(yaw / 2), yaw)
+        q = points @ (to_camera @ np.linalg.inv(step)).T
+        return np.column_stack([K.fx * q[:, 0] / q[:, 2] + K.cx, K.fy * q[:, 1] / q[:, 2] + K.cy])
+
+    return project
+
+
+def test_corners_locked_a_few_pixels_off_leave_the_arc_fit():
+    rng = np.random.default_rng(5)
+    n = 200
+    points = np.column_stack(
+        [rng.uniform(1.0, 5.0, n), rng.uniform(-2.0, 2.0, n), rng.uniform(0.0, 2.5, n), np.ones(n)]
+    )
+    project = _arc_projection(0.15)
+    turn = 0.03
+    seen = project(points, turn) + rng.normal(0.0, 0.1, (n, 2))
+    # A sixth of the corners held by the next grout line, 4 pixels over, all the same way.
+    seen[: n // 6, 0] += 4.0
+    kept = fit_arc_heading(project, points, seen, 0.0, VisualConfig(arc_max_residual=0.0))
+    left_out = fit_arc_heading(project, points, seen, 0.0, VisualConfig(arc_max_residual=1.5))
+    assert kept is not None and left_out is not None
+    assert abs(left_out - turn) < 1e-4
+    assert abs(kept - turn) > 10 * abs(left_out - turn)

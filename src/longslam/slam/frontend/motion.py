@@ -137,10 +137,11 @@ class FrontEndConfig:
     visual_sigma_lateral: float = param(
         0.05, "std of an RGB-D step's lateral component (the wheels hold it)", above=0, unit="m per step"
     )
-    # Looser than the step's white scatter on purpose: the tracked heading also has a small bias
-    # per step, which at its scatter's weight would outvote wheels with a small bias, while a much
-    # looser sigma leaves a large wheel bias unseen where no scan registers.
-    visual_sigma_yaw: float = param(0.004, "std of an RGB-D step's heading change", above=0, unit="rad per step")
+    # About twice the refitted step's scatter (0.0004-0.0005 rad a step on paper-300m, ideal and
+    # Kinect v1 frames): with the corners that lock onto a floor tile's next grout line left out
+    # (`visual_tracking.arc_max_residual`), its bias is small enough to outvote the wheels', and a
+    # looser sigma leaves a wheel bias unseen where no scan registers.
+    visual_sigma_yaw: float = param(0.001, "std of an RGB-D step's heading change", above=0, unit="rad per step")
     # A D435's depth, trusted to 1.7 m, gives no scan; its corners still fix each step's heading.
     visual_noisy: bool = param(True, "depth under depth_trust.min_range: RGB-D steps on all of it, noise-weighed")
     visual_noisy_sigma_scale: float = param(2.0, "noisy depth: factor on an RGB-D step's fitted stds", above=0)

@@ -10,6 +10,7 @@ caller gates the result against the wheels: an RGB-D step is only trusted when i
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -53,6 +54,15 @@ class VisualConfig:
     arc_pixel_scale: float = param(
         1.0, "arc fit: reprojection error beyond which a corner counts less (Huber)", above=0, unit="px"
     )
+    # On a tiled floor Lucas-Kanade can lock onto the next grout line, forward and back alike, so
+    # the forward-backward check keeps the track; such tracks sit several pixels off the fit and
+    # lean the same way, and Huber's weight still lets them pull the heading.
+    arc_max_residual: float = param(
+        1.5,
+        "arc fit: corners further than this from the fitted step leave it and it is fitted again (0: kept)",
+        at_least=0,
+        unit="px",
+    )
 
     def __post_init__(self) -> None:
         check_declared(self, "front end", "visual_tracking.")
@@ -68,6 +78,8 @@ class VisualStep:
 
 # A median of n Gaussian samples has about sqrt(pi / 2) times the std of their mean.
 MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2.0)
+# The arc fit leaves out corners far off it this many times at most; a second round rarely leaves any.
+MAX_ARC_ROUNDS = 4
 
 
 class Tracks(NamedTuple):
@@ -123,6 +135,54 @@ class CornerTracker:
         fb = np.linalg.norm((back - p0).reshape(-1, 2), axis=1)
         good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
         return Tracks(p0.reshape(-1, 2), p1.reshape(-1, 2), good)
+
+
+def fit_arc_heading(
+    project: Callable[[np.ndarray, float], np.ndarray],
+    points: np.ndarray,
+    seen: np.ndarray,
+    yaw: float,
+    config: VisualConfig,
+) -> float | None:
+    """The heading whose `project(points, heading)` (N, 2) puts the corners nearest where they
+    are `seen` (N, 2), fitted from `yaw`; corners further than `config.arc_max_residual` pixels
+    from the fitted step leave it and it is fitted again, while `config.min_inliers` remain.
+    None where the fit has no curvature."""
+    for _ in range(MAX_ARC_ROUNDS):
+        fitted = _gauss_newton_heading(project, points, seen, yaw, config.arc_pixel_scale)
+        if fitted is None:
+            return None
+        yaw = fitted
+        if config.arc_max_residual <= 0:
+            break
+        near = np.linalg.norm(project(points, yaw) - seen, axis=1) < config.arc_max_residual
+        if near.all() or near.sum() < config.min_inliers:
+            break
+        points, seen = points[near], seen[near]
+    return yaw
+
+
+def _gauss_newton_heading(
+    project: Callable[[np.ndarray, float], np.ndarray],
+    points: np.ndarray,
+    seen: np.ndarray,
+    yaw: float,
+    pixel_scale: float,
+) -> float | None:
+    """Gauss-Newton in one unknown from `yaw`, Huber-weighted (scale `pixel_scale`) pixel residuals."""
+    eps = 1e-6
+    for _ in range(10):
+        residual = (project(points, yaw) - seen).ravel()
+        slope = ((project(points, yaw + eps) - seen).ravel() - residual) / eps
+        weight = np.minimum(1.0, pixel_scale / np.maximum(np.abs(residual), 1e-12))
+        curvature = float(slope @ (weight * slope))
+        if not curvature > 0.0:
+            return None
+        update = float(slope @ (weight * residual)) / curvature
+        yaw -= update
+        if abs(update) < 1e-9:
+            break
+    return yaw
 
 
 class VisualOdometry:
@@ -265,16 +325,16 @@ class VisualOdometry:
         to_camera = np.linalg.inv(self.pose)
         distance = start[0] / math.cos(start[2] / 2)
 
-        def project(yaw: float) -> np.ndarray:
+        def project(points: np.ndarray, yaw: float) -> np.ndarray:
             c, s = math.cos(yaw), math.sin(yaw)
             x, y = distance * math.cos(yaw / 2), distance * math.sin(yaw / 2)
             base_inverse = np.array([[c, s, 0, -c * x - s * y], [-s, c, 0, s * x - c * y], [0, 0, 1, 0], [0, 0, 0, 1]])
-            q = in_base @ (to_camera @ base_inverse).T
+            q = points @ (to_camera @ base_inverse).T
             depth = np.maximum(q[:, 2], 1e-6)
             return np.column_stack([k.fx * q[:, 0] / depth + k.cx, k.fy * q[:, 1] / depth + k.cy])
 
         first = p0.astype(np.float32).reshape(-1, 1, 2)
-        guess = project(float(start[2])).astype(np.float32).reshape(-1, 1, 2)
+        guess = project(in_base, float(start[2])).astype(np.float32).reshape(-1, 1, 2)
         lk = dict(
             winSize=(self.corners.window, self.corners.window),
             maxLevel=cfg.levels,
@@ -287,19 +347,9 @@ class VisualOdometry:
         good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < cfg.max_fb_error)
         if good.sum() < cfg.min_inliers:
             return None
-        in_base, seen = in_base[good], p1.reshape(-1, 2)[good]
-        yaw, eps = float(start[2]), 1e-6
-        for _ in range(10):  # Gauss-Newton in one unknown, Huber-weighted pixel residuals
-            residual = (project(yaw) - seen).ravel()
-            slope = ((project(yaw + eps) - seen).ravel() - residual) / eps
-            weight = np.minimum(1.0, cfg.arc_pixel_scale / np.maximum(np.abs(residual), 1e-12))
-            curvature = float(slope @ (weight * slope))
-            if not curvature > 0.0:
-                return None
-            update = float(slope @ (weight * residual)) / curvature
-            yaw -= update
-            if abs(update) < 1e-9:
-                break
+        yaw = fit_arc_heading(project, in_base[good], p1.reshape(-1, 2)[good], float(start[2]), cfg)
+        if yaw is None:
+            return None
         return np.array([distance * math.cos(yaw / 2), distance * math.sin(yaw / 2), yaw])
 
     def _noisy_step(
