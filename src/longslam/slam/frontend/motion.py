@@ -78,6 +78,8 @@ FRAME_COLUMNS = ("frame", "wheel", "visual", "scan", "scan_shift_m", "scan_turn_
 SCAN_REGISTERED, SCAN_REFUSED = 1.0, -1.0
 # Below this forward step (m) the robot is turning in place: the wheels' forward bias is not added.
 TRANSLATING_STEP = 1e-4
+# The focal length `visual_sigma_yaw` is given for: the paper's camera, 320 px across 90 degrees.
+REFERENCE_FOCAL_PX = 160.0
 
 
 @dataclass(frozen=True)
@@ -141,7 +143,13 @@ class FrontEndConfig:
     # Kinect v1 frames): with the corners that lock onto a floor tile's next grout line left out
     # (`visual_tracking.arc_max_residual`), its bias is small enough to outvote the wheels', and a
     # looser sigma leaves a wheel bias unseen where no scan registers.
-    visual_sigma_yaw: float = param(0.001, "std of an RGB-D step's heading change", above=0, unit="rad per step")
+    visual_sigma_yaw: float = param(
+        0.001,
+        "std of an RGB-D step's heading change at a focal length of 160 px (320 px across 90 deg); "
+        "it scales as 160 / fx, a pixel's angle",
+        above=0,
+        unit="rad per step",
+    )
     # A D435's depth, trusted to 1.7 m, gives no scan; its corners still fix each step's heading.
     visual_noisy: bool = param(True, "depth under depth_trust.min_range: RGB-D steps on all of it, noise-weighed")
     visual_noisy_sigma_scale: float = param(2.0, "noisy depth: factor on an RGB-D step's fitted stds", above=0)
@@ -210,6 +218,9 @@ class FrontEnd:
     def __init__(self, intrinsics: Intrinsics, config: FrontEndConfig | None = None):
         self.config = config or FrontEndConfig()
         self.intrinsics = intrinsics
+        # The step's heading is read from where its corners are seen: it scatters by a share of a
+        # pixel, so a coarser image's steps count for less (an 80 px wide one's at 4x the std).
+        self._visual_sigma_yaw = self.config.visual_sigma_yaw * (REFERENCE_FOCAL_PX / intrinsics.fx)
         self.mount: CameraMount | None = None  # known at the first frame
         self._extract: ScanExtractor | None = None
         self._gates: VisualGates | None = None
@@ -404,7 +415,7 @@ class FrontEnd:
         assert flt is not None and self._gates is not None and self._extract is not None  # `_start` made them
         cv_step = None
         visual = None
-        vis_sigmas = np.array([cfg.visual_sigma_forward, cfg.visual_sigma_lateral, cfg.visual_sigma_yaw])
+        vis_sigmas = np.array([cfg.visual_sigma_forward, cfg.visual_sigma_lateral, self._visual_sigma_yaw])
         if wheel is not None:
             bias = flt.bias if cfg.use_bias else np.zeros(2)
             expected = np.array(
