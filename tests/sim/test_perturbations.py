@@ -103,6 +103,18 @@ def test_depth_offset_shows_the_depth_from_where_the_camera_was():
     assert np.median(leading[leading > 0]) == pytest.approx(1.9, abs=1e-4)
 
 
+def test_depth_offset_moves_by_the_step_on_its_side_of_the_stamp():
+    # Stopped at this frame after driving 1 m/s: a lag sees the depth from where the camera was on
+    # the way in; a lead, from where it will be (nowhere else: it stays).
+    forward = FrameMotion(0.9, np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    stopped = FrameContext(10, 1.0, 0.0, 10.0, K, FrameMotion.still(1.0), 0, forward)
+    rgb, wall = np.zeros((24, 32, 3), np.uint8), np.full((24, 32), 2.0, np.float32)
+    _, lagging = get_perturbation("depth-offset", 0.1).perturb(rgb, wall, stopped, np.random.default_rng(0))
+    assert np.median(lagging[lagging > 0]) == pytest.approx(2.1, abs=1e-4)
+    _, leading = get_perturbation("depth-offset", -0.1).perturb(rgb, wall, stopped, np.random.default_rng(0))
+    assert np.array_equal(leading, wall)
+
+
 def test_depth_offset_moves_an_edge_by_the_turn_over_the_offset():
     turn = FrameMotion(1.0, np.array([0.0, -math.radians(90.0), 0.0]), np.zeros(3))  # turning left at 90 deg/s
     depth = np.full((24, 32), 3.0, np.float32)

@@ -56,7 +56,14 @@ def cmd_run(args: argparse.Namespace) -> None:
         "run: method %s on %s into %s, parameters %s", method.name, sequence, args.out, method.params or "the defaults"
     )
     measurements = run_sequence(
-        method, sequence, args.out, overwrite=args.overwrite, intrinsics=args.intrinsics, viz=args.viz, prepare=True
+        method,
+        sequence,
+        args.out,
+        overwrite=args.overwrite,
+        intrinsics=args.intrinsics,
+        viz=args.viz,
+        prepare=True,
+        depth_delay=args.depth_delay,
     )
     from longslam.run.speed import describe_real_time_factor
 
@@ -356,6 +363,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--intrinsics",
         metavar="FX,FY,CX,CY",
         help="camera intrinsics in pixels, for a sequence without camera.json (or to replace it)",
+    )
+    p.add_argument(
+        "--depth-delay",
+        type=float,
+        metavar="SECONDS",
+        help="the depth lags the colour by this much (negative: leads), both stamped alike: each depth image "
+        "is moved back in step by the odometry before the method sees it",
     )
     p.add_argument(
         "--viz",

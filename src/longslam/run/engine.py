@@ -27,8 +27,10 @@ from longslam.io.overwrite_policy import RUN, check_not_an_input, check_replacea
 from longslam.io.partials import clean_stale_partials
 from longslam.io.paths import check_output_folder
 from longslam.io.sequence import SequenceReader
+from longslam.io.sequence.layout import ODOMETRY
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.cores import native_threads
+from longslam.run.depth_delay import check_depth_delay, frames_in_step
 from longslam.run.folder import write_result
 from longslam.run.isolate import prepare_method, run_isolated
 from longslam.run.measurements import RunMeasurements
@@ -233,6 +235,7 @@ def run_sequence(
     intrinsics: str | tuple[float, float, float, float] | None = None,
     viz: str | None = None,
     prepare: bool = False,
+    depth_delay: float | None = None,
 ) -> RunMeasurements:
     """Run `method` over a sequence on disk and write the run folder `out`. Returns the measurements.
 
@@ -242,7 +245,9 @@ def run_sequence(
     its peak memory (this process's peak is part of the run's); a study or the demo prepares once
     for all its runs instead.
     `viz`: "viewer" streams the run to a rerun viewer, a path ending in .rrd records it there
-    (`longslam.viz.live`, the optional extra `longslam[viz]`)."""
+    (`longslam.viz.live`, the optional extra `longslam[viz]`).
+    `depth_delay`: the seconds the sequence's depth lags its colour (negative: leads); each depth
+    image is moved back in step by the odometry before the method sees it (`run/depth_delay.py`)."""
     out = check_output_folder(out, "run folder")
     # --overwrite replaces a run folder, never the sequence or a folder holding it (or the user's files).
     check_not_an_input(out, {"input sequence": sequence}, "run folder")
@@ -250,6 +255,10 @@ def run_sequence(
     if viz is not None and viz != "viewer":
         check_not_an_input(viz, {"input sequence": sequence, "run folder": out}, "--viz")
     reader = SequenceReader(sequence, intrinsics=intrinsics)
+    if depth_delay is not None:
+        depth_delay = check_depth_delay(depth_delay)
+        if reader.odometry is None:
+            raise InputError(f"{reader.path}: no {ODOMETRY}, which --depth-delay needs to move each depth image")
     if prepare and method.spec.prepare is not None:
         run_isolated(
             prepare_method,
@@ -264,8 +273,8 @@ def run_sequence(
         with LiveView(
             viz, f"{method.name} on {Path(sequence).name}", truth=reader.ground_truth, overwrite=overwrite
         ) as view:
-            return _run_into(method, sequence, reader, out, overwrite, progress, view)
-    return _run_into(method, sequence, reader, out, overwrite, progress, None)
+            return _run_into(method, sequence, reader, out, overwrite, progress, view, depth_delay)
+    return _run_into(method, sequence, reader, out, overwrite, progress, None, depth_delay)
 
 
 def _run_into(
@@ -276,6 +285,7 @@ def _run_into(
     overwrite: bool,
     progress: bool,
     observer: RunObserver | None,
+    depth_delay: float | None = None,
 ) -> RunMeasurements:
     clean_stale_partials(out.parent)  # run folders of runs that were killed
     about: dict[str, Any] = {
@@ -284,11 +294,15 @@ def _run_into(
     }
     if reader.notes:
         about["sequence_notes"] = list(reader.notes)
+    frames: Iterable[Frame] = reader
+    if depth_delay is not None:
+        about["depth_delay_s"] = depth_delay
+        frames = frames_in_step(reader, depth_delay, str(reader.path))
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
     _, measurements = run_into_folder(
         out,
         method,
-        reader,
+        frames,
         reader,
         about,
         progress=progress,

@@ -43,8 +43,11 @@ class FrameContext:
     start: float  # the sequence's first and last timestamps: stretches of the route lie between them
     end: float
     intrinsics: Intrinsics
-    motion: FrameMotion  # the camera's true motion during the frame
+    motion: FrameMotion  # the camera's true motion during the frame (the step to the next frame)
     seed: int
+    # The step from the previous frame, which the camera made before this frame's stamp; None: the
+    # same as `motion` (the first frame).
+    motion_before: FrameMotion | None = None
 
 
 class Perturbation:

@@ -28,6 +28,7 @@ def frame_context(frame: Frame, timestamps: np.ndarray, motions: Sequence[FrameM
         frame.intrinsics,
         motions[frame.index],
         int(seed),
+        motions[frame.index - 1] if frame.index > 0 else None,
     )
 
 
