@@ -58,8 +58,12 @@ class DepthTrust:
     column_correlation: float = param(
         1.0, "pixels over which a column's depth noise is correlated (1: independent)", at_least=1, unit="px"
     )
+    # Under 1: a column's mean keeps what its returns share (a Kinect v1's disparity step is the
+    # same for every return of a column on a wall facing it), and the local map is made of the same
+    # noisy scans; with the RGB-D heading at visual_sigma_yaw 0.001 the scans' full weight pulled
+    # it. Chosen among 0.1, 0.25 and 1 on paper-300m Kinect seeds 10-14 (docs/sensors.md).
     column_information: float = param(
-        1.0, "factor on a column scan's registration information (instead of scan_noise_half's)", at_least=0
+        0.25, "factor on a column scan's registration information (instead of scan_noise_half's)", at_least=0
     )
 
     def __post_init__(self) -> None:
