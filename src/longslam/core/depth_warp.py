@@ -3,9 +3,20 @@ with its colour stream needs, whichever side (the simulator's perturbation, a ru
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from longslam.core.frame import Intrinsics
+
+
+def move_at_velocity(
+    angular_velocity: np.ndarray, linear_velocity: np.ndarray, seconds: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation, position) of a camera `seconds` on (before, for negative seconds) in the frame of
+    the camera now, moving at `angular_velocity` (rad/s) and `linear_velocity` (m/s) in its own
+    axes, held constant: first order in the move, as over a step or two it is small."""
+    rotation = cv2.Rodrigues(np.asarray(angular_velocity, dtype=np.float64) * seconds)[0]
+    return rotation, np.asarray(linear_velocity, dtype=np.float64) * seconds
 
 
 def reproject_depth(

@@ -10,7 +10,7 @@ from collections.abc import Iterable, Iterator
 import cv2
 import numpy as np
 
-from longslam.core.depth_warp import reproject_depth
+from longslam.core.depth_warp import move_at_velocity, reproject_depth
 from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 
@@ -28,17 +28,15 @@ def check_depth_delay(seconds: float, what: str = "--depth-delay") -> float:
     return float(seconds)
 
 
-def camera_move_over(previous: np.ndarray, current: np.ndarray, step_s: float, seconds: float) -> np.ndarray:
-    """The (4, 4) pose of a camera in itself as it was `seconds` earlier (a later self for negative
-    seconds), moving at the velocity of the step from `previous` to `current` (camera-in-world
-    poses `step_s` apart) held in its own axes: first order in the move, as one step's is small."""
+def camera_move_over(
+    previous: np.ndarray, current: np.ndarray, step_s: float, seconds: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation, position) of a camera in itself as it was `seconds` earlier (a later self for
+    negative seconds), moving at the velocity of the step from `previous` to `current`
+    (camera-in-world poses `step_s` apart) held in its own axes (`move_at_velocity`)."""
     step = np.linalg.inv(previous) @ current
-    rate = seconds / step_s
-    move = np.eye(4)
-    rotation_vector = cv2.Rodrigues(np.ascontiguousarray(step[:3, :3]))[0] * rate
-    move[:3, :3] = cv2.Rodrigues(rotation_vector)[0]
-    move[:3, 3] = step[:3, 3] * rate
-    return move
+    turn = cv2.Rodrigues(np.ascontiguousarray(step[:3, :3]))[0].ravel()
+    return move_at_velocity(turn, step[:3, 3], seconds / step_s)  # velocities per step, time in steps
 
 
 def frames_in_step(frames: Iterable[Frame], seconds: float, source: str) -> Iterator[Frame]:
@@ -68,11 +66,11 @@ def _moved_along(first: Frame, second: Frame, frame: Frame, seconds: float) -> F
     if step_s <= 0:
         return frame
     assert first.odometry is not None and second.odometry is not None  # checked as they came
-    return _with_depth_moved(frame, camera_move_over(first.odometry, second.odometry, step_s, seconds))
+    return _with_depth_moved(frame, *camera_move_over(first.odometry, second.odometry, step_s, seconds))
 
 
-def _with_depth_moved(frame: Frame, move: np.ndarray) -> Frame:
+def _with_depth_moved(frame: Frame, rotation: np.ndarray, position: np.ndarray) -> Frame:
     def depth() -> np.ndarray:
-        return reproject_depth(np.asarray(frame.depth, dtype=np.float32), frame.intrinsics, move[:3, :3], move[:3, 3])
+        return reproject_depth(np.asarray(frame.depth, dtype=np.float32), frame.intrinsics, rotation, position)
 
     return Frame(frame.index, frame.timestamp, lambda: frame.rgb, depth, frame.odometry, frame.intrinsics)

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 
-from longslam.core.depth_warp import reproject_depth
+from longslam.core.depth_warp import move_at_velocity, reproject_depth
 from longslam.sim.perturbations.base import FrameContext, Perturbation
 from longslam.sim.perturbations.stretches import PERIOD_S, in_stretch
 
@@ -34,9 +33,8 @@ class DepthOffset(Perturbation):
     def perturb(self, rgb, depth, frame: FrameContext, rng: np.random.Generator):
         before = frame.motion_before if frame.motion_before is not None else frame.motion
         motion = before if self.level > 0 else frame.motion
-        seconds = -self.level  # the depth's moment, relative to the colour's
-        rotation = cv2.Rodrigues(np.asarray(motion.angular_velocity, dtype=np.float64) * seconds)[0]
-        moved = np.asarray(motion.linear_velocity, dtype=np.float64) * seconds
+        # -level: the depth's moment, relative to the colour's
+        rotation, moved = move_at_velocity(motion.angular_velocity, motion.linear_velocity, -self.level)
         return rgb, reproject_depth(depth, frame.intrinsics, rotation, moved)
 
 
