@@ -170,3 +170,17 @@ def test_a_tiny_perturbation_study_is_published_as_a_degradation_page(tmp_path, 
     assert "| perturbation | odometry |" in text and "| none | " in text and "| drop=0.3 | " in text
     assert "(degradation-abc1234/degradation-drop.png)" in text
     assert (tmp_path / "docs" / "results" / "degradation-abc1234" / "degradation-drop.png").is_file()
+
+
+def test_orbslam3_left_out_by_the_flag_says_so_plugin_or_not(tmp_path, monkeypatch):
+    import longslam.slam.catalog as catalog
+
+    pub = publish.Publication(ROOT, tmp_path / "work", tmp_path / "docs" / "results", "publish")
+    monkeypatch.setattr(catalog, "method_names", lambda: ["keyframe", "orbslam3"])
+    assert publish.orbslam3_left_out(pub, "it did not run") is None  # installed and not left out: it runs
+    pub.without_orbslam3 = True
+    note = publish.orbslam3_left_out(pub, "it did not run")
+    assert note is not None and "--without-orbslam3" in note and "3 cores" in note and note.endswith("it did not run.")
+    pub.without_orbslam3 = False
+    monkeypatch.setattr(catalog, "method_names", lambda: ["keyframe"])
+    assert "was not installed" in publish.orbslam3_left_out(pub, "it did not run")

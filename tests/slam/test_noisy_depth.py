@@ -8,13 +8,14 @@ import math
 import numpy as np
 import pytest
 
+from longslam.core.errors import InputError
 from longslam.core.frame import Frame
 from longslam.core.geometry import camera_poses_from_planar
 from longslam.core.geometry.fit import weighted_planar_fit
 from longslam.sim.sensors import FrameMotion, RealSenseD435, frame_rng
 from longslam.slam.depth_trust import DepthTrust, trusted_depth, trusted_range
 from longslam.slam.frontend import FrontEnd, FrontEndConfig
-from longslam.slam.frontend.motion import FrameStep
+from longslam.slam.frontend.motion import FrameStep, MethodDepths
 from longslam.slam.frontend.visual import VisualConfig, VisualOdometry
 from longslam.slam.place_recognition import noisy_link_sigmas
 
@@ -122,24 +123,34 @@ def test_loop_features_reach_past_the_trusted_range_of_noisy_depth_only():
     limit = trusted_range(d435, trust)
     assert limit is not None and limit < 2.0  # the wall at 2.6 m is beyond it
     step = FrameStep(0, np.zeros(3), trust, True, limit)
-    trusted, loop_depth, sigma_w = step.depths(d435)
+    trusted, loop_depth, sigma_w, share = step.depths(d435)
     assert not trusted.any()
     np.testing.assert_array_equal(trusted, trusted_depth(d435, limit))
     assert (loop_depth > 0).mean() > 0.5
     assert sigma_w == pytest.approx(RealSenseD435().sigma(1.0), rel=0.2)  # 1 cm / m^2
+    assert share == 1.0  # its loop features reach past the trusted range: the method's own count
     # Exact depth is used as it is, with no noise; depth that gives a scan (trusted to min_range
     # or more, a Kinect's) as the maps use it, verified as exact.
     exact_step = FrameStep(0, np.zeros(3), trust, True, None)
-    _, same, none = exact_step.depths(exact)
-    assert same is exact and none is None
+    _, same, none, exact_share = exact_step.depths(exact)
+    assert same is exact and none is None and exact_share == 1.0  # the method's own inlier count
     kinect_like = FrameStep(0, np.zeros(3), trust, True, 2.6)
-    _, loop_depth_scan, no_noise = kinect_like.depths(d435)
+    _, loop_depth_scan, no_noise, cut_share = kinect_like.depths(d435)
     np.testing.assert_array_equal(loop_depth_scan, trusted_depth(d435, 2.6))
-    assert no_noise is None
+    assert no_noise is None and cut_share == trust.loop_inlier_share < 1  # cut: fewer points to match
     # The loop range grows as the square root of loop_max_sigma over max_sigma.
     assert loop_depth.max() <= limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma) + 1e-6
     narrow = FrameStep(0, np.zeros(3), DepthTrust(loop_max_sigma=trust.max_sigma), True, limit).depths(d435).loops
     assert not narrow.any()
+
+
+def test_a_loop_from_depth_cut_at_a_trusted_range_needs_its_share_of_the_methods_inliers():
+    nothing = np.zeros((2, 2), dtype=np.float32)
+    assert MethodDepths(nothing, nothing, None).loop_min_inliers(20) == 20  # exact depth: as the method asks
+    cut = MethodDepths(nothing, nothing, None, 0.75)
+    assert [cut.loop_min_inliers(n) for n in (20, 4, 1)] == [15, 3, 1]  # never none at all
+    with pytest.raises(InputError, match="loop_inlier_share"):
+        DepthTrust(loop_inlier_share=1.5)
 
 
 def test_a_noisy_loop_link_is_weighed_by_the_noise_at_its_depth():
@@ -161,6 +172,6 @@ def test_a_method_on_wheels_alone_measures_a_frames_depth_noise_once(monkeypatch
     measured = []
     real = depth_trust.inverse_depth_noise
     monkeypatch.setattr(depth_trust, "inverse_depth_noise", lambda *a, **k: measured.append(1) or real(*a, **k))
-    trusted, loops, noise = step.depths(d435)
+    trusted, loops, noise, _ = step.depths(d435)
     assert len(measured) == 1  # the maps' depth and the loops' from one measurement
     assert noise is not None and (loops > 0).sum() > (trusted > 0).sum()

@@ -47,6 +47,14 @@ class DepthTrust:
     # A loop is verified from a similar viewpoint, where a return's range noise mostly runs along
     # the ray it is seen on again; PnP and the 3D-3D check weigh it by its noise (place_recognition).
     loop_max_sigma: float = param(0.1, "depth under min_range: a loop feature's most range noise", above=0, unit="m")
+    # Loop features on depth cut at its trusted range (a Kinect v1's 4.2 m) leave most of a place's
+    # corners without a point to match by PnP; the 3D-3D support check (the methods'
+    # loop_min_depth_support) and the graph's error check still hold each loop. Depth too noisy for
+    # a scan (a D435's) keeps the methods' count: its loop features reach past the trusted range.
+    # Chosen on paper-300m Kinect v1 seeds 10-14 (docs/sensors.md).
+    loop_inlier_share: float = param(
+        0.75, "loops on depth cut at a trusted range: share of the method's PnP inliers they need", above=0, at_most=1
+    )
 
     # A column's returns in the height band measure one range on a wall: averaged, their noise
     # falls with their number, so the scan reaches past the trusted range (ScanExtractor.columns).

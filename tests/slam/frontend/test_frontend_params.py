@@ -16,7 +16,7 @@ from longslam.slam.catalog import check_params
 from longslam.slam.frontend import FrontEndConfig
 
 # Another valid value for each text field (the rest are derived from the default below).
-OTHER_WORD = {"mode": "wheel", "smoother.optimizer": "gn", "smoother.window": 2000}  # values another than the default
+OTHER_WORD = {"mode": "wheel", "smoother.optimizer": "gn", "smoother.window": 2000, "depth_trust.loop_inlier_share": 0.5}  # values another than the default
 
 
 def _leaves(cls: type, default: object, prefix: str = "") -> list[tuple[str, typing.Any, typing.Any]]:

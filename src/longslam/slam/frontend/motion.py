@@ -189,12 +189,14 @@ class FrameStep:
         the noise they are verified and weighed at, the trusted range measured once. Depth too noisy
         for a scan (trusted to less than `min_range`, a D435's) gives loops the returns within
         `depth_trust.loop_max_sigma` of noise and its sigma_w; other depth gives them the trusted
-        depth, verified as exact."""
+        depth, verified as exact; where that depth was cut at a trusted range (a Kinect's), fewer of
+        the loop features have a point to match, so a loop needs `depth_trust.loop_inlier_share` of
+        the method's PnP inliers."""
         trust = self.depth_trust
         limit = self._limit(depth)
         trusted = trusted_depth(depth, limit)
         if not too_noisy_for_scan(limit, trust):
-            return MethodDepths(trusted, trusted, None)
+            return MethodDepths(trusted, trusted, None, 1.0 if limit is None else trust.loop_inlier_share)
         assert limit is not None  # depth too noisy for a scan was measured
         loops = trusted_depth(depth, limit * math.sqrt(trust.loop_max_sigma / trust.max_sigma))
         return MethodDepths(trusted, loops, trust.max_sigma / (limit * limit))
@@ -209,6 +211,11 @@ class MethodDepths(NamedTuple):
     trusted: np.ndarray  # for the maps: the returns within the trusted range
     loops: np.ndarray  # for loop and proximity features
     loop_noise: float | None  # inverse-depth noise sigma_w (1/m) the loops are verified at; None: exact
+    loop_inlier_share: float = 1.0  # of the method's PnP inliers a loop from this frame needs
+
+    def loop_min_inliers(self, method_min_inliers: int) -> int:
+        """The PnP inliers a loop from this frame needs, for a method that asks `method_min_inliers`."""
+        return max(1, round(method_min_inliers * self.loop_inlier_share))
 
 
 class FrontEnd:

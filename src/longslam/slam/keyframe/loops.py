@@ -74,6 +74,7 @@ class LoopCloser:
     counts: dict[str, int]  # the method's counters, which this updates
     positions: NodePositions = field(default_factory=NodePositions)
     depth_noise: float | None = None  # the current node's inverse-depth noise (1/m; None: exact)
+    min_inliers: int | None = None  # the current node's PnP inliers (MethodDepths.loop_min_inliers; None: the config's)
 
     def detect(self, node: Node, words: np.ndarray) -> None:
         """Try the new node against working memory: the best appearance hypotheses (one loop at
@@ -187,7 +188,8 @@ class LoopCloser:
         None when PnP does not verify it, the motion is not planar, or fewer than `min_support`
         3D-3D matches hold it."""
         cfg = self.config
-        check = verify(query, candidate, self.intrinsics, cfg.min_inliers)
+        min_inliers = cfg.min_inliers if self.min_inliers is None else self.min_inliers
+        check = verify(query, candidate, self.intrinsics, min_inliers)
         if not check.accepted:
             return None
         transform = depth_held_transform(

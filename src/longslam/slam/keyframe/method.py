@@ -143,12 +143,15 @@ class KeyframeMethod:
         depth = np.asarray(frame.depth, dtype=np.float32)
         # Grid and points only where the frame's depth noise allows (the front end's rule); loop
         # features to where their noise, weighed in the verification, still places them.
-        depth, loop_depth, depth_noise = motion.depths(depth)
+        depths = motion.depths(depth)
+        depth, loop_depth, depth_noise = depths.trusted, depths.loops, depths.loop_noise
+        min_inliers = depths.loop_min_inliers(cfg.min_inliers)
         has_depth = bool(np.any(np.isfinite(loop_depth) & (loop_depth > 0)))
         if not has_depth:
             self.counts[stats.FRAMES_WITHOUT_DEPTH] += 1
         if self.loops is not None:
             self.loops.depth_noise = depth_noise
+            self.loops.min_inliers = min_inliers
         features = extract(frame.rgb, loop_depth, self.intrinsics, cfg.max_features) if has_depth else Features.empty()
         if has_depth and len(features) == 0:
             self.counts["frames_no_features"] += 1
@@ -181,7 +184,7 @@ class KeyframeMethod:
 
         # One dictionary search per node: the words serve the query and then the index.
         words = self.memory.vocabulary.quantise(features.descriptors, grow=True)
-        if features.valid.sum() >= cfg.min_inliers:
+        if features.valid.sum() >= min_inliers:
             assert self.loops is not None  # made at the first frame, before its node
             self.loops.detect(node, words)
             self.counts[stats.OPTIMIZATIONS] = self.graph.optimizations

@@ -51,7 +51,7 @@ from longslam.core.trajectory import Trajectory
 from longslam.slam import stats
 from longslam.slam.api import MethodContext, MethodSpec, Result
 from longslam.slam.depth_trust import trusted_depth, trusted_range
-from longslam.slam.frontend import FrontEnd
+from longslam.slam.frontend import FrontEnd, MethodDepths
 from longslam.slam.graph import LOOP, ODOMETRY, REGISTRATION, PoseGraph
 from longslam.slam.rows import Rows
 from longslam.slam.submap.config import SubmapConfig
@@ -204,7 +204,8 @@ class SubmapMethod:
         depth = np.asarray(frame.depth)
         # Integrated only where the frame's depth noise allows (the front end's rule); loop
         # features to where their noise, weighed in the verification, still places them.
-        depth, loop_depth, depth_noise = motion.depths(depth) if depth.ndim == 2 else (depth, depth, None)
+        depths = motion.depths(depth) if depth.ndim == 2 else MethodDepths(depth, depth, None)
+        depth, loop_depth, depth_noise = depths.trusted, depths.loops, depths.loop_noise
         updates = 0
         assert active.tsdf is not None  # the active submap holds its TSDF
         points = self._ahead_points.pop(frame.index, None)
@@ -229,7 +230,9 @@ class SubmapMethod:
             and frame.timestamp - self._last_keyframe_time >= self.config.loop_keyframe_interval
         ):
             self._last_keyframe_time = frame.timestamp
-            self._loop_closure(frame, active, in_submap, loop_depth, depth_noise)
+            self._loop_closure(
+                frame, active, in_submap, loop_depth, depth_noise, depths.loop_min_inliers(self.config.loop_min_inliers)
+            )
         self._pose_in_active = in_submap
         pose = self._world_pose(active.index, in_submap)
         self._stamps.append(float(frame.timestamp))
@@ -351,10 +354,16 @@ class SubmapMethod:
 
     # --- loop closure ------------------------------------------------------------------------------
     def _loop_closure(
-        self, frame: Frame, active: Submap, in_submap: np.ndarray, depth: np.ndarray, depth_noise: float | None
+        self,
+        frame: Frame,
+        active: Submap,
+        in_submap: np.ndarray,
+        depth: np.ndarray,
+        depth_noise: float | None,
+        min_inliers: int,
     ) -> None:
         """Look for a loop from this frame (its `depth` for loops, of inverse-depth noise
-        `depth_noise`, 1/m) to an older submap's keyframe."""
+        `depth_noise`, 1/m) to an older submap's keyframe, verified by at least `min_inliers` PnP inliers."""
         from longslam.slam import features as feature_module
         from longslam.slam.place_recognition import depth_held_transform, planar_link, verify
 
@@ -372,7 +381,7 @@ class SubmapMethod:
             if hits and hits[0][1] >= c.loop_min_score:
                 self.counts.loop_hypotheses += 1
                 candidate = self._keyframes[hits[0][0]]
-                check = verify(feats, candidate.features, frame.intrinsics, min_inliers=c.loop_min_inliers)
+                check = verify(feats, candidate.features, frame.intrinsics, min_inliers=min_inliers)
                 transform = None
                 if check.accepted:
                     transform = depth_held_transform(
