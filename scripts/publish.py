@@ -1,10 +1,11 @@
 """Regenerate every published result from its runs: one command, each step resumable.
 
-    python scripts/publish.py [--only STEP[,STEP...]] [--work DIR] [--jobs N]
+    python scripts/publish.py [--only STEP[,STEP...]] [--work DIR] [--jobs N] [--without-orbslam3]
 
 The steps, in order (without --only: paper, sensors, scale, maps; real-systems and degradation
 only when --only names them, as ORB-SLAM3's condition, a run alone with the CPU it asks for,
-cannot be met on 2 cores). Estimated wall time on this project's 2-core machine, from the last
+cannot be met on 2 cores; --without-orbslam3 leaves ORB-SLAM3 out of sensors and degradation,
+plugin or not, and the pages say so). Estimated wall time on this project's 2-core machine, from the last
 recorded runs (degradation's from its runs' count):
 
   paper         studies/paper.toml (200 runs, 5 variants at today's defaults)
