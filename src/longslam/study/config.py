@@ -18,6 +18,10 @@
                                     # optional: perturbations after the sensor model, NAME[=LEVEL],
                                     # several joined by '+', or none; an axis of the study (default:
                                     # none, with no perturbation in the run keys and folders)
+    depth_delay = 0.1               # optional: seconds the depth lags the colour (negative: leads),
+                                    # as `longslam run --depth-delay`: every run's depth is moved
+                                    # back in step by the odometry (default: none; the delay is in
+                                    # the run keys and folders)
 
     [camera]                        # optional: width, height, fov, max_depth, camera_height
     width = 320
@@ -79,6 +83,7 @@ TOP_KEYS = (
     "sensors",
     "repeats",
     "perturbations",
+    "depth_delay",
 )
 REQUIRED_KEYS = ("routes", "noise", "methods", "seeds")
 FOLLOWER_KEYS = tuple(f.name for f in fields(FollowerSettings))
@@ -133,6 +138,8 @@ class StudyConfig:
     # The `perturbations` axis, each entry's canonical text (`drop=0.1`, `none`); empty for a study
     # without one, whose runs keep the keys, folders and hashes they had before perturbations.
     perturbations: tuple[str, ...] = ()
+    # Seconds each run's depth is moved back in step by (`longslam run --depth-delay`); None: as read.
+    depth_delay: float | None = None
     # Runs of each cell: a non-deterministic system (threads that race) gives a distribution, and
     # the report gives its median, spread and failure rate. 1 keeps a study's keys and hashes.
     repeats: int = 1
@@ -198,6 +205,8 @@ class StudyConfig:
             described["perturbations"] = list(self.perturbations)
         if self.repeats != 1:  # absent for one run per cell, as cameras are
             described["repeats"] = self.repeats
+        if self.depth_delay is not None:  # absent without one, as repeats are
+            described["depth_delay"] = self.depth_delay
         return described
 
 
@@ -325,6 +334,7 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
     sensors = _sensors(r, data) if "sensors" in data else []
     perturbations = _perturbations(r, data) if "perturbations" in data else []
     repeats = _repeats(r, data.get("repeats", 1))
+    depth_delay = _depth_delay(r, data["depth_delay"]) if "depth_delay" in data else None
     config = StudyConfig(
         name=name,
         world=world,
@@ -341,6 +351,7 @@ def parse_study(data: dict, path: Path, methods_available: list[str]) -> StudyCo
         sensors=tuple(sensors),
         repeats=repeats,
         perturbations=tuple(perturbations),
+        depth_delay=depth_delay,
     )
     if config.run_count > MAX_RUNS:
         raise StudyConfigError(
@@ -466,6 +477,17 @@ def _repeats(r: _Reader, value: Any) -> int:
     if not _is_int(value) or not 1 <= value <= MAX_REPEATS:
         raise r.error("repeats", f"expected a whole number of runs per cell, 1 to {MAX_REPEATS}, got {value!r}")
     return int(value)
+
+
+def _depth_delay(r: _Reader, value: Any) -> float:
+    from longslam.run.depth_delay import check_depth_delay
+
+    if not _is_number(value):
+        raise r.error("depth_delay", f"expected the seconds the depth lags the colour, a number, got {value!r}")
+    try:
+        return check_depth_delay(float(value), "depth_delay")
+    except InputError as err:
+        raise r.error("depth_delay", str(err).removeprefix("depth_delay: ")) from None
 
 
 def _seeds(r: _Reader, value: Any) -> list[int]:

@@ -28,6 +28,7 @@ def _grid(config: dict[str, Any]) -> dict[str, Any]:
         "sensors": sorted(config.get("sensors", [])),
         "perturbations": sorted(config.get("perturbations", [])),
         "repeats": config.get("repeats", 1),
+        "depth_delay": config.get("depth_delay"),
     }
 
 
@@ -38,6 +39,7 @@ def _summary(config: dict[str, Any]) -> str:
     sensors = f"; sensors {', '.join(config['sensors'])}" if config.get("sensors") else ""
     sensors += f"; perturbations {', '.join(config['perturbations'])}" if config.get("perturbations") else ""
     sensors += f"; {config['repeats']} repeats" if config.get("repeats", 1) != 1 else ""
+    sensors += f"; depth delay {config['depth_delay']:g} s" if config.get("depth_delay") is not None else ""
     return (
         f"study {config.get('name')!r} (routes {routes}; noise {', '.join(config.get('noise', []))}; "
         f"methods {methods}{sensors}; {len(seeds)} seed{'' if len(seeds) == 1 else 's'})"
@@ -87,6 +89,13 @@ def check_same_study(out: Path, config: dict[str, Any], extend: bool) -> dict[st
             f"study folder {out} holds {_summary(old)}; {config.get('source') or 'this study'} is "
             f"{_summary(config)}, different in {', '.join(changed)}; choose another --out, or pass --extend to add "
             "its runs to this folder (its report then covers both)"
+        )
+    if old.get("depth_delay") != config.get("depth_delay"):
+        # One report describes its runs' depth as moved by one delay (or none).
+        raise InputError(
+            f"study folder {out} holds runs with depth_delay {old.get('depth_delay')}; "
+            f"{config.get('source') or 'this study'} has {config.get('depth_delay')}: a folder holds one depth "
+            "delay; choose another --out"
         )
     return merged(old, config)
 

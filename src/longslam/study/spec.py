@@ -43,6 +43,7 @@ class RunSpec:
     # An entry of the study's `perturbations` (canonical: `drop=0.1`, `none`); "" for a study
     # without them (no perturbation).
     perturbation: str = ""
+    depth_delay: float | None = None  # the study's `depth_delay`: seconds the depth is moved back in step by
 
     @property
     def key(self) -> str:
@@ -52,6 +53,7 @@ class RunSpec:
         camera = f"{self.camera_name}/" if self.camera_name else ""
         sensor = f"{self.sensor}/" if self.sensor else ""
         sensor += f"{self.perturbation}/" if self.perturbation else ""
+        sensor += f"depth-delay={self.depth_delay:g}/" if self.depth_delay is not None else ""
         # A cell's first run keeps the key it had before studies repeated cells.
         repeat = f"-repeat-{self.repeat}" if self.repeat else ""
         return f"{self.route}/{camera}{sensor}{self.noise}/{self.method}/seed-{self.seed}{repeat}"
@@ -75,6 +77,8 @@ class RunSpec:
             described.pop("perturbation")
         if not described["repeat"]:  # a cell's first run: the hashes from before repeats
             described.pop("repeat")
+        if described["depth_delay"] is None:  # depth as read: the hashes from before depth delays
+            described.pop("depth_delay")
         described["world"] = world_identity(self.world)  # a mesh by its content: moving the file is no change
         text = json.dumps(described, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -133,6 +137,7 @@ def plan_runs(config: StudyConfig) -> list[RunSpec]:
                             sensor=sensor,
                             repeat=repeat,
                             perturbation=perturbation,
+                            depth_delay=config.depth_delay,
                         )
                     )
     return runs
