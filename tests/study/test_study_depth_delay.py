@@ -93,3 +93,8 @@ def test_a_study_with_a_depth_delay_moves_each_runs_depth_and_records_it(tmp_pat
     run = out / "runs" / "tiny" / "depth-offset=0.1" / "depth-delay=0.1" / "large" / "keyframe" / "seed-0"
     stats = json.loads((run / "stats.json").read_text())
     assert stats["depth_delay_s"] == 0.1 and stats["perturbation"] == "depth-offset=0.1"
+
+
+def test_the_shipped_depth_delay_study_tells_the_methods_the_perturbations_offset():
+    config = load_study(Path(__file__).resolve().parents[2] / "studies" / "degradation-depth-delay.toml")
+    assert config.perturbations == ("depth-offset=0.1",) and config.depth_delay == 0.1
