@@ -114,3 +114,25 @@ def empty_study_folder(path: Path) -> Path:
     with ResultsDB(path / DB_NAME) as db:
         db.set_study({"name": "s", "routes": [], "noise": [], "methods": [], "seeds": [0]})
     return path
+
+
+AXIS_STUDY = """
+routes = ["tiny.txt"]
+noise = ["large"]
+methods = ["odometry"]
+seeds = 2
+{extra}
+[camera]
+width = 64
+height = 48
+"""
+
+
+def axis_study_file(folder: Path, extra: str = "") -> Path:
+    """study.toml in `folder` (and its 8 m route tiny.txt): odometry at large noise, seeds 0-1, a 64 x 48
+    camera, plus `extra` lines (an axis, a depth_delay): for tests that plan runs without running them."""
+    (folder / "tiny.txt").write_text(ROUTE)
+    path = folder / "study.toml"
+    path.write_text(AXIS_STUDY.format(extra=extra))
+    return path
+

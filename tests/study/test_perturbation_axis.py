@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from helpers.studies import axis_study_file
 
 from longslam.study.config import StudyConfigError, load_study
 from longslam.study.database import ResultsDB
@@ -18,27 +19,8 @@ from longslam.study.report.results import RowGroup
 from longslam.study.report.runs import every_run_table
 from longslam.study.spec import plan_runs
 
-STUDY = """
-routes = ["tiny.txt"]
-noise = ["large"]
-methods = ["odometry"]
-seeds = 2
-{axes}
-[camera]
-width = 64
-height = 48
-"""
-
-
-def _write(tmp_path: Path, axes: str = "") -> Path:
-    (tmp_path / "tiny.txt").write_text("20 31.25\n28 31.25\n")
-    path = tmp_path / "study.toml"
-    path.write_text(STUDY.format(axes=axes))
-    return path
-
-
 def test_perturbations_are_an_axis_with_their_own_run_folders(tmp_path):
-    config = load_study(_write(tmp_path, 'perturbations = ["none", "drop", "drop=0.3", "blur=0.05+exposure=1"]'),
+    config = load_study(axis_study_file(tmp_path, 'perturbations = ["none", "drop", "drop=0.3", "blur=0.05+exposure=1"]'),
                         ["odometry"])
     assert config.perturbations == ("none", "drop=0.1", "drop=0.3", "blur=0.05+exposure=1")  # every level named
     assert config.grid_text() == "1 route x 4 perturbations x 1 noise level x 1 method x 2 seeds = 8 runs"
@@ -52,11 +34,11 @@ def test_perturbations_are_an_axis_with_their_own_run_folders(tmp_path):
 
 
 def test_no_perturbation_is_the_runs_of_a_study_without_the_axis(tmp_path):
-    plain = load_study(_write(tmp_path), ["odometry"])
+    plain = load_study(axis_study_file(tmp_path), ["odometry"])
     assert plain.perturbations == () and "perturbations" not in plain.to_dict()
     assert [r.key for r in plan_runs(plain)] == ["tiny/large/odometry/seed-0", "tiny/large/odometry/seed-1"]
     assert plan_runs(plain)[0].perturbation_name == "none"
-    named = load_study(_write(tmp_path, 'perturbations = ["none", "drop=0.2"]'), ["odometry"])
+    named = load_study(axis_study_file(tmp_path, 'perturbations = ["none", "drop=0.2"]'), ["odometry"])
     none = {r.seed: r.config_hash for r in plan_runs(named) if r.perturbation == "none"}
     drop = {r.seed: r.config_hash for r in plan_runs(named) if r.perturbation == "drop=0.2"}
     # The same frames, so the same hashes as before perturbations were an axis; a perturbation differs.
@@ -65,7 +47,7 @@ def test_no_perturbation_is_the_runs_of_a_study_without_the_axis(tmp_path):
 
 
 def test_sensors_and_perturbations_together_nest_sensor_then_perturbation(tmp_path):
-    config = load_study(_write(tmp_path, 'sensors = ["ideal", "kinect-v1"]\nperturbations = ["none", "depth-dropout=2"]'),
+    config = load_study(axis_study_file(tmp_path, 'sensors = ["ideal", "kinect-v1"]\nperturbations = ["none", "depth-dropout=2"]'),
                         ["odometry"])
     assert [r.key for r in plan_runs(config)[:4]] == [
         "tiny/ideal/none/large/odometry/seed-0", "tiny/ideal/depth-dropout=2/large/odometry/seed-0",
@@ -85,7 +67,7 @@ def test_sensors_and_perturbations_together_nest_sensor_then_perturbation(tmp_pa
     ('perturbation = ["drop"]', "perturbation", "unknown key (did you mean perturbations?)"),
 ])
 def test_a_bad_perturbations_list_names_the_key_and_what_was_expected(tmp_path, axis, key, needle):
-    path = _write(tmp_path, axis)
+    path = axis_study_file(tmp_path, axis)
     with pytest.raises(StudyConfigError) as err:
         load_study(path, ["odometry"])
     message = str(err.value)
@@ -93,8 +75,8 @@ def test_a_bad_perturbations_list_names_the_key_and_what_was_expected(tmp_path, 
 
 
 def test_the_database_has_a_perturbation_column(tmp_path):
-    config = load_study(_write(tmp_path, 'perturbations = ["none", "drop=0.2"]'), ["odometry"])
-    plain = load_study(_write(tmp_path), ["odometry"])
+    config = load_study(axis_study_file(tmp_path, 'perturbations = ["none", "drop=0.2"]'), ["odometry"])
+    plain = load_study(axis_study_file(tmp_path), ["odometry"])
     with ResultsDB(tmp_path / "results.sqlite") as db:
         db.record(plan_runs(config)[1], RunRecord(OK, metrics={"ate": 0.3}), "runs/x")
         db.record(plan_runs(plain)[0], RunRecord(OK, metrics={"ate": 0.2}), "runs/y")
@@ -106,8 +88,8 @@ def test_the_database_has_a_perturbation_column(tmp_path):
 
 
 def test_a_folder_widened_by_perturbations_names_the_difference_and_merges_them(tmp_path):
-    old = load_study(_write(tmp_path, 'perturbations = ["none", "drop=0.1"]'), ["odometry"]).to_dict()
-    new = load_study(_write(tmp_path, 'perturbations = ["drop=0.3"]'), ["odometry"]).to_dict()
+    old = load_study(axis_study_file(tmp_path, 'perturbations = ["none", "drop=0.1"]'), ["odometry"]).to_dict()
+    new = load_study(axis_study_file(tmp_path, 'perturbations = ["drop=0.3"]'), ["odometry"]).to_dict()
     assert differences(old, new) == ["perturbations"]
     assert merged(old, new)["perturbations"] == ["none", "drop=0.1", "drop=0.3"]
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from helpers.studies import axis_study_file
 
 from longslam.study.config import StudyConfigError, load_study
 from longslam.study.database import ResultsDB
@@ -15,27 +16,8 @@ from longslam.study.report.render import table_html, table_markdown
 from longslam.study.report.results import RowGroup, on_camera
 from longslam.study.spec import plan_runs
 
-STUDY = """
-routes = ["tiny.txt"]
-noise = ["large"]
-methods = ["odometry"]
-seeds = 2
-{sensors}
-[camera]
-width = 64
-height = 48
-"""
-
-
-def _write(tmp_path: Path, sensors: str = "", extra: str = "") -> Path:
-    (tmp_path / "tiny.txt").write_text("20 31.25\n28 31.25\n")
-    path = tmp_path / "study.toml"
-    path.write_text(STUDY.format(sensors=sensors) + extra)
-    return path
-
-
 def test_sensors_are_an_axis_with_their_own_run_folders(tmp_path):
-    config = load_study(_write(tmp_path, 'sensors = ["ideal", "kinect-v1", "realsense-d435"]'), ["odometry"])
+    config = load_study(axis_study_file(tmp_path, 'sensors = ["ideal", "kinect-v1", "realsense-d435"]'), ["odometry"])
     assert config.sensors == ("ideal", "kinect-v1", "realsense-d435")
     assert config.grid_text() == "1 route x 3 sensors x 1 noise level x 1 method x 2 seeds = 6 runs"
     assert config.to_dict()["sensors"] == ["ideal", "kinect-v1", "realsense-d435"]
@@ -48,11 +30,11 @@ def test_sensors_are_an_axis_with_their_own_run_folders(tmp_path):
 
 
 def test_the_ideal_sensor_is_the_runs_of_a_study_without_sensors(tmp_path):
-    plain = load_study(_write(tmp_path), ["odometry"])
+    plain = load_study(axis_study_file(tmp_path), ["odometry"])
     assert plain.sensors == () and "sensors" not in plain.to_dict()
     assert [r.key for r in plan_runs(plain)] == ["tiny/large/odometry/seed-0", "tiny/large/odometry/seed-1"]
     assert plan_runs(plain)[0].sensor_name == "ideal"
-    named = load_study(_write(tmp_path, 'sensors = ["ideal", "kinect-v1"]'), ["odometry"])
+    named = load_study(axis_study_file(tmp_path, 'sensors = ["ideal", "kinect-v1"]'), ["odometry"])
     ideal = {r.seed: r.config_hash for r in plan_runs(named) if r.sensor == "ideal"}
     kinect = {r.seed: r.config_hash for r in plan_runs(named) if r.sensor == "kinect-v1"}
     # The same frames, so the same hashes as before sensors were an axis; another sensor differs.
@@ -67,7 +49,7 @@ def test_the_ideal_sensor_is_the_runs_of_a_study_without_sensors(tmp_path):
     ("sensors = [1]", "sensors[0]", "expected a sensor (a string)"),
 ])
 def test_a_bad_sensors_list_names_the_key_and_the_valid_values(tmp_path, sensors, key, needle):
-    path = _write(tmp_path, sensors)
+    path = axis_study_file(tmp_path, sensors)
     with pytest.raises(StudyConfigError) as err:
         load_study(path, ["odometry"])
     message = str(err.value)
@@ -75,8 +57,8 @@ def test_a_bad_sensors_list_names_the_key_and_the_valid_values(tmp_path, sensors
 
 
 def test_the_database_has_a_sensor_column(tmp_path):
-    config = load_study(_write(tmp_path, 'sensors = ["ideal", "kinect-v1"]'), ["odometry"])
-    plain = load_study(_write(tmp_path), ["odometry"])
+    config = load_study(axis_study_file(tmp_path, 'sensors = ["ideal", "kinect-v1"]'), ["odometry"])
+    plain = load_study(axis_study_file(tmp_path), ["odometry"])
     with ResultsDB(tmp_path / "results.sqlite") as db:
         db.record(plan_runs(config)[1], RunRecord(OK, metrics={"ate": 0.3}), "runs/x")
         db.record(plan_runs(plain)[0], RunRecord(OK, metrics={"ate": 0.2}), "runs/y")

@@ -9,6 +9,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from helpers.studies import axis_study_file
 
 from longslam.core.errors import InputError
 from longslam.study.config import StudyConfigError, load_study
@@ -17,49 +18,30 @@ from longslam.study.driver import run_study
 from longslam.study.identity import check_same_study, differences
 from longslam.study.spec import plan_runs
 
-STUDY = """
-routes = ["tiny.txt"]
-noise = ["large"]
-methods = ["odometry"]
-seeds = 2
-{extra}
-[camera]
-width = 64
-height = 48
-"""
-
-
-def _write(tmp_path: Path, extra: str = "") -> Path:
-    (tmp_path / "tiny.txt").write_text("20 31.25\n28 31.25\n")
-    path = tmp_path / "study.toml"
-    path.write_text(STUDY.format(extra=extra))
-    return path
-
-
 def test_a_depth_delay_is_in_each_runs_key_and_hash_and_absent_without_one(tmp_path):
-    plain = load_study(_write(tmp_path), ["odometry"])
+    plain = load_study(axis_study_file(tmp_path), ["odometry"])
     assert plain.depth_delay is None and "depth_delay" not in plain.to_dict()
     assert [r.key for r in plan_runs(plain)] == ["tiny/large/odometry/seed-0", "tiny/large/odometry/seed-1"]
-    delayed = load_study(_write(tmp_path, "depth_delay = 0.1"), ["odometry"])
+    delayed = load_study(axis_study_file(tmp_path, "depth_delay = 0.1"), ["odometry"])
     assert delayed.depth_delay == 0.1 and delayed.to_dict()["depth_delay"] == 0.1
     runs = plan_runs(delayed)
     assert [r.key for r in runs] == ["tiny/depth-delay=0.1/large/odometry/seed-0", "tiny/depth-delay=0.1/large/odometry/seed-1"]
     assert {r.depth_delay for r in runs} == {0.1}
     assert not {r.config_hash for r in runs} & {r.config_hash for r in plan_runs(plain)}
-    leading = load_study(_write(tmp_path, "depth_delay = -0.05"), ["odometry"])
+    leading = load_study(axis_study_file(tmp_path, "depth_delay = -0.05"), ["odometry"])
     assert plan_runs(leading)[0].key == "tiny/depth-delay=-0.05/large/odometry/seed-0"
 
 
 @pytest.mark.parametrize("value", ['"0.1"', "true", "0.7", "nan"])
 def test_a_bad_depth_delay_names_the_key_and_what_was_expected(tmp_path, value):
     with pytest.raises(StudyConfigError, match=r"depth_delay.*(seconds the depth lags the colour)") as err:
-        load_study(_write(tmp_path, f"depth_delay = {value}"), ["odometry"])
+        load_study(axis_study_file(tmp_path, f"depth_delay = {value}"), ["odometry"])
     assert "study.toml" in str(err.value) and "\n" not in str(err.value)
 
 
 def test_a_folder_holds_one_depth_delay_even_when_extended(tmp_path):
-    plain = load_study(_write(tmp_path), ["odometry"]).to_dict()
-    delayed = load_study(_write(tmp_path, "depth_delay = 0.1"), ["odometry"]).to_dict()
+    plain = load_study(axis_study_file(tmp_path), ["odometry"]).to_dict()
+    delayed = load_study(axis_study_file(tmp_path, "depth_delay = 0.1"), ["odometry"]).to_dict()
     assert differences(plain, delayed) == ["depth_delay"]
     out = tmp_path / "out"
     out.mkdir()
