@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Iterator
+from typing import Any
 
 import cv2
 import numpy as np
@@ -37,6 +38,13 @@ def camera_move_over(
     step = np.linalg.inv(previous) @ current
     turn = cv2.Rodrigues(np.ascontiguousarray(step[:3, :3]))[0].ravel()
     return move_at_velocity(turn, step[:3, 3], seconds / step_s)  # velocities per step, time in steps
+
+
+def run_frames_in_step(frames: Iterable[Frame], seconds: float, source: str, about: dict[str, Any]) -> Iterator[Frame]:
+    """`frames_in_step` for a run (`longslam run --depth-delay`, a study's `depth_delay`), with the
+    delay recorded in what the run was given (`about`, its stats.json's `depth_delay_s`)."""
+    about["depth_delay_s"] = seconds
+    return frames_in_step(frames, seconds, source)
 
 
 def frames_in_step(frames: Iterable[Frame], seconds: float, source: str) -> Iterator[Frame]:

@@ -30,7 +30,7 @@ from longslam.io.sequence import SequenceReader
 from longslam.io.sequence.layout import ODOMETRY
 from longslam.run.console import CONSOLE_LOG, native_output_to
 from longslam.run.cores import native_threads
-from longslam.run.depth_delay import check_depth_delay, frames_in_step
+from longslam.run.depth_delay import check_depth_delay, run_frames_in_step
 from longslam.run.folder import write_result
 from longslam.run.isolate import prepare_method, run_isolated
 from longslam.run.measurements import RunMeasurements
@@ -296,8 +296,7 @@ def _run_into(
         about["sequence_notes"] = list(reader.notes)
     frames: Iterable[Frame] = reader
     if depth_delay is not None:
-        about["depth_delay_s"] = depth_delay
-        frames = frames_in_step(reader, depth_delay, str(reader.path))
+        frames = run_frames_in_step(reader, depth_delay, str(reader.path), about)
     # Without --overwrite the final rename refuses a folder another run finished meanwhile.
     _, measurements = run_into_folder(
         out,

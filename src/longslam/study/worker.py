@@ -18,7 +18,7 @@ from typing import Any
 from longslam.core.jsonable import json_default
 from longslam.core.odometry_noise import get_noise
 from longslam.io.sequence import SequenceReader
-from longslam.run.depth_delay import frames_in_step
+from longslam.run.depth_delay import run_frames_in_step
 from longslam.run.engine import run_into_folder
 from longslam.run.folder import RECORD, RUN_FILES
 from longslam.run.measurements import RunMeasurements
@@ -88,8 +88,6 @@ def execute_run(
         frames = sensed_frames(frames, sensor, spec.seed, motions)
     if perturbations:
         frames = perturbed_frames(frames, perturbations, spec.seed, truth.timestamps, motions)
-    if spec.depth_delay is not None:  # after the perturbations: it undoes a known depth-offset
-        frames = frames_in_step(frames, spec.depth_delay, f"study {spec.study}")
     about: dict[str, Any] = {
         "sequence": str(rendered),
         "route": spec.route,
@@ -103,8 +101,8 @@ def execute_run(
         about["sensor"] = spec.sensor
     if spec.perturbation:
         about["perturbation"] = spec.perturbation
-    if spec.depth_delay is not None:
-        about["depth_delay_s"] = spec.depth_delay
+    if spec.depth_delay is not None:  # after the perturbations: it undoes a known depth-offset
+        frames = run_frames_in_step(frames, spec.depth_delay, f"study {spec.study}", about)
     records: list[RunRecord] = []
 
     def score_and_record(tmp: Path, result: Result, measurements: RunMeasurements) -> None:
