@@ -152,6 +152,22 @@ def test_the_degradation_page_gives_each_perturbations_median_range_and_failures
     assert publish.parse_steps("degradation,paper") == ["paper", "degradation"]
 
 
+def test_runs_told_the_depth_delay_are_a_row_of_their_own_and_no_figure(tmp_path):
+    told = [dict(_run(m, "depth-offset=0.1", 0, ate), spec={"depth_delay": 0.1})
+            for m, ate in (("odometry", 1.0), ("keyframe", 0.2))]
+    runs = [_run("odometry", "depth-offset=0.1", 0, 1.0), _run("keyframe", "depth-offset=0.1", 0, 1.4), *told,
+            _run("odometry", "none", 0, 1.0), _run("keyframe", "none", 0, 0.1)]
+    cells = publish.degradation_cells(runs)
+    row = "depth-offset=0.1, told depth_delay 0.1 s"
+    assert publish.degradation_row(told[1]) == row
+    assert cells[row]["keyframe"].ates == (0.2,) and cells["depth-offset=0.1"]["keyframe"].ates == (1.4,)
+    table = publish.degradation_table(cells, ["odometry", "keyframe"])
+    assert [line.split(" | ")[0] for line in table[2:]] == ["| none", "| depth-offset=0.1", f"| {row}"]
+    figures = publish.degradation_figures(cells, ["odometry", "keyframe"], tmp_path)
+    assert [p.name for p in figures] == ["degradation-depth-offset.png"]  # the told row is not a level
+    assert publish.perturbation_level(row) is None
+
+
 @pytest.mark.slow  # runs a study end to end (2.4 s)
 def test_a_tiny_perturbation_study_is_published_as_a_degradation_page(tmp_path, render_cache, monkeypatch):
     monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
