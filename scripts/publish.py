@@ -26,8 +26,9 @@ recorded runs (degradation's from its runs' count):
 All four default steps: about 4 h 30 min with the render cache cold. Every step resumes: a study
 from its database in WORK/STEP, the scale benchmark from the runs it measured in WORK/scale; a
 page is rewritten each time. The command refuses a git tree with uncommitted changes to tracked
-files, and a page whose runs were made at more than one commit (it names them: delete WORK/STEP
-to run the step again at one commit). Each page begins with a stamp: the runs' commit, the date,
+files outside docs/results (there, the pages of a step published before at the same commit may
+wait to be committed), and a page whose runs were made at more than one commit (it names them:
+delete WORK/STEP to run the step again at one commit). Each page begins with a stamp: the runs' commit, the date,
 the machine (cores, CPU model, memory), the command and the step's wall time; its figures go
 beside it in a folder named by the commit.
 """
@@ -93,11 +94,16 @@ def git(root: Path, *args: str) -> str:
     return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=True).stdout.strip()
 
 
-def check_clean(root: Path) -> None:
-    """Refuse a checkout whose tracked files differ from its commit (untracked files are allowed)."""
+def check_clean(root: Path, pages: Path | None = None) -> None:
+    """Refuse a checkout whose tracked files differ from its commit (untracked files are allowed),
+    but for the folder of the pages this script writes (`pages`): a step published after another at
+    the same commit finds the first one's pages there, and committing them would move the commit."""
     status = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
                             capture_output=True, text=True, check=True).stdout
     files = [line[3:] for line in status.splitlines() if line.strip()]  # "XY path": the two status columns
+    if pages is not None and pages.resolve().is_relative_to(root.resolve()):
+        written = pages.resolve().relative_to(root.resolve()).as_posix() + "/"
+        files = [f for f in files if not f.startswith(written)]
     if files:
         raise PublishError(f"the git tree at {root} has uncommitted changes ({', '.join(files[:8])}"
                            + (", ..." if len(files) > 8 else "") + "): commit or stash them; a published "
@@ -695,7 +701,7 @@ def parse_steps(text: str | None) -> list[str]:
 
 
 def publish(pub: Publication, steps: list[str]) -> list[Path]:
-    check_clean(pub.root)
+    check_clean(pub.root, pub.results)
     pages = []
     for i, step in enumerate(steps, 1):
         pub.say(f"step {i}/{len(steps)}: {step}")

@@ -97,6 +97,12 @@ def test_a_tree_with_changes_to_tracked_files_is_refused_before_any_step(tmp_pat
     publish.RUNNERS["noted"] = lambda p: ran.append("noted") or repo
     try:
         (repo / "untracked.txt").write_text("new\n")  # untracked files do not count
+        (repo / "docs" / "results").mkdir(parents=True)
+        (repo / "docs" / "results" / "page.md").write_text("a page\n")
+        _git(repo, "add", "docs")
+        _git(repo, "commit", "-q", "-m", "a page")
+        # A page an earlier step wrote at this commit: the next step may run beside it.
+        (repo / "docs" / "results" / "page.md").write_text("the page written again\n")
         publish.publish(pub, ["noted"])
         assert ran.count("noted") == 1
         (repo / "tracked.txt").write_text("two\n")
