@@ -102,12 +102,22 @@ def test_recording_replaces_the_rows_run_and_keeps_the_others(record, tmp_path):
 def test_the_options():
     args = held_out.parse_args([])
     assert (args.routes, args.noises, args.seeds, args.methods, args.jobs, args.record, args.resume) == (
-        list(held_out.ROUTES), ["large", "xlarge"], [40, 41, 42, 43, 44], ["keyframe", "submap"], 1, False, False)
+        list(held_out.ROUTES), None, [40, 41, 42, 43, 44], ["keyframe", "submap"], 1, False, False)
     assert held_out.parse_args(["--methods", "keyframe", "odometry"]).methods == ["keyframe"]  # it always runs
     with pytest.raises(SystemExit):
         held_out.parse_args(["--jobs", "0"])
     with pytest.raises(SystemExit):
         held_out.parse_args(["--routes", "demo"])
+
+
+def test_the_short_routes_run_at_small_noise_too_unless_the_levels_are_named():
+    cells = held_out.route_noises(list(held_out.ROUTES), None)
+    assert [n for r, n in cells if r == "paper-300m"] == ["small", "large", "xlarge"]
+    assert [n for r, n in cells if r == "wing-loop"] == ["small", "large", "xlarge"]
+    assert [n for r, n in cells if r == "paper-1km"] == ["large", "xlarge"]
+    assert held_out.route_noises(["paper-1km", "wing-loop"], ["small"]) == [("paper-1km", "small"), ("wing-loop", "small")]
+    with pytest.raises(SystemExit):
+        held_out.parse_args(["--noises", "huge"])
 
 
 def test_no_published_seed_is_held_out():
