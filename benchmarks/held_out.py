@@ -13,10 +13,10 @@ chosen on the published studies' seeds (0-4), and issue 42 found changes that ma
 The set: every route of ROUTES at large and xlarge noise, and the short routes of
 SMALL_NOISE_ROUTES at small noise too, seeds SEEDS (40-44, which no study of studies/ and no page
 of docs/ uses, nor the seeds 7, 8, 31 and 32 issue 42 looked at). Small noise is where the wheels
-are good enough for a heading source counted too tight to pull the estimate away from them
-(paper-300m small keyframe went from 0.049 to 0.075 m with the RGB-D heading's sigma at 0.001,
-60cf514, while large noise got better). `--noises` runs every route of --routes at the levels it
-names.
+are good enough for another heading source to pull the estimate away from them (between 94d8590
+and 286a7cb, with the RGB-D heading's arc refit and sigma among the changes, paper-300m small
+keyframe went from 0.049 to 0.075 m on seeds 0-4 while large noise got better). `--noises` runs
+every route of --routes at the levels it names.
 
 - paper-300m, paper-1km: the paper's routes through `university`;
 - annex-tour: the tour of the second building, `annex`;
