@@ -77,7 +77,11 @@ HOG = MethodSpec("hog", None, Sleepy, threads=2, real_time=True, deterministic=F
 '''
 
 
-def write_study(root: Path, name: str, methods: list[str], noise: list[str], seeds: list[int]) -> Path:
+def write_study(
+    root: Path, name: str, methods: list[str], noise: list[str], seeds: list[int], extra: str = ""
+) -> Path:
+    """NAME.toml in `root` over the route tiny.txt there: `methods` at `noise` over `seeds` with a
+    64 x 48 camera, plus `extra` lines (an axis, a depth_delay)."""
     path = root / f"{name}.toml"
     path.write_text(textwrap.dedent(f"""
         name = "{name}"
@@ -85,10 +89,7 @@ def write_study(root: Path, name: str, methods: list[str], noise: list[str], see
         noise = {json.dumps(noise)}
         methods = {json.dumps(methods)}
         seeds = {json.dumps(seeds)}
-        [camera]
-        width = 64
-        height = 48
-    """))
+    """) + (f"{extra}\n" if extra else "") + "[camera]\nwidth = 64\nheight = 48\n")
     return path
 
 

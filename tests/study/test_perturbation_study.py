@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import json
 import sqlite3
-import textwrap
 
 import pytest
+from helpers.studies import ROUTE, write_study
 
 from longslam.io.sequence import SequenceReader
 from longslam.sim.simulate import simulate
@@ -33,19 +33,9 @@ def cache(tmp_path_factory):
 
 
 def test_a_study_with_a_perturbations_axis_runs_records_and_reports_each(cache):
-    (cache / "tiny.txt").write_text("20 31.25\n28 31.25\n")
-    study = cache / "perturbations.toml"
-    study.write_text(textwrap.dedent("""
-        name = "perturbation-axis"
-        routes = ["tiny.txt"]
-        noise = ["large"]
-        methods = ["odometry", "keyframe"]
-        perturbations = ["none", "drop=0.5", "depth-dropout=1+blur=0.05"]
-        seeds = 1
-        [camera]
-        width = 64
-        height = 48
-    """))
+    (cache / "tiny.txt").write_text(ROUTE)
+    study = write_study(cache, "perturbation-axis", ["odometry", "keyframe"], ["large"], [0],
+                        'perturbations = ["none", "drop=0.5", "depth-dropout=1+blur=0.05"]')
     out = cache / "study-out"
     summary = run_study(load_study(study), out, jobs=1, progress=False)
     assert summary.failed == 0 and summary.ran == 6

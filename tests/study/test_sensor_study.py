@@ -7,10 +7,10 @@ from __future__ import annotations
 import json
 import os
 import sqlite3
-import textwrap
 
 import numpy as np
 import pytest
+from helpers.studies import ROUTE as TINY_ROUTE, write_study
 
 from longslam.cli.main import main
 from longslam.io.sequence import SequenceReader
@@ -73,19 +73,9 @@ def test_cli_simulate_sensor(cache, capsys):
 
 
 def test_a_study_with_a_sensors_axis_runs_records_and_reports_each_sensor(cache):
-    (cache / "tiny.txt").write_text("20 31.25\n28 31.25\n")
-    study = cache / "sensors.toml"
-    study.write_text(textwrap.dedent("""
-        name = "sensor-axis"
-        routes = ["tiny.txt"]
-        noise = ["large"]
-        methods = ["odometry", "keyframe"]
-        sensors = ["ideal", "kinect-v1"]
-        seeds = 1
-        [camera]
-        width = 64
-        height = 48
-    """))
+    (cache / "tiny.txt").write_text(TINY_ROUTE)
+    study = write_study(cache, "sensor-axis", ["odometry", "keyframe"], ["large"], [0],
+                        'sensors = ["ideal", "kinect-v1"]')
     out = cache / "study-out"
     summary = run_study(load_study(study), out, jobs=1, progress=False)
     assert summary.failed == 0 and summary.ran == 4

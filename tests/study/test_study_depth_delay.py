@@ -5,11 +5,10 @@ without it), in a folder's identity, and end to end (slow)."""
 from __future__ import annotations
 
 import json
-import textwrap
 from pathlib import Path
 
 import pytest
-from helpers.studies import axis_study_file
+from helpers.studies import ROUTE, axis_study_file, write_study
 
 from longslam.core.errors import InputError
 from longslam.study.config import StudyConfigError, load_study
@@ -56,19 +55,9 @@ def test_a_folder_holds_one_depth_delay_even_when_extended(tmp_path):
 @pytest.mark.slow  # renders a short route and runs a study
 def test_a_study_with_a_depth_delay_moves_each_runs_depth_and_records_it(tmp_path, render_cache, monkeypatch):
     monkeypatch.setenv("LONGSLAM_CACHE", str(render_cache))
-    (tmp_path / "tiny.txt").write_text("20 31.25\n28 31.25\n")
-    study = tmp_path / "delayed.toml"
-    study.write_text(textwrap.dedent("""
-        routes = ["tiny.txt"]
-        noise = ["large"]
-        methods = ["keyframe"]
-        perturbations = ["depth-offset=0.1"]
-        depth_delay = 0.1
-        seeds = 1
-        [camera]
-        width = 64
-        height = 48
-    """))
+    (tmp_path / "tiny.txt").write_text(ROUTE)
+    study = write_study(tmp_path, "delayed", ["keyframe"], ["large"], [0],
+                        'perturbations = ["depth-offset=0.1"]\ndepth_delay = 0.1')
     out = tmp_path / "out"
     summary = run_study(load_study(study), out, jobs=1, progress=False)
     assert summary.failed == 0 and summary.ran == 1
