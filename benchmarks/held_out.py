@@ -433,12 +433,11 @@ def main(argv: list[str] | None = None) -> int:
     record = read_record(args.record_file)
     # The longest routes first, so that the last runs of a parallel pool are short ones.
     length = {"paper-1km": 0, "annex-tour": 1, "paper-300m": 2, WING_LOOP: 3}
-    cells = sorted(((r, n, s) for r, n in route_noises(args.routes, args.noises) for s in args.seeds),
-                   key=lambda c: length[c[0]])
+    pairs = route_noises(args.routes, args.noises)
+    cells = sorted(((r, n, s) for r, n in pairs for s in args.seeds), key=lambda c: length[c[0]])
     runner = Runner(work, args.methods, args.resume, len(cells) * (1 + len(args.methods)), commit)
-    noises = " ".join(args.noises) if args.noises else (
-        " ".join(DEFAULT_NOISES) + ", small for " + " ".join(r for r in SMALL_NOISE_ROUTES if r in args.routes))
-    print(f"held-out benchmark at {commit}: routes {' '.join(args.routes)}, noise {noises}, "
+    noises = ", ".join(f"{r} at {' '.join(n for route, n in pairs if route == r)}" for r in args.routes)
+    print(f"held-out benchmark at {commit}: routes {noises}, "
           f"seeds {' '.join(map(str, args.seeds))}, methods {' '.join(args.methods)} and dead reckoning; "
           f"{args.jobs} at once, work {work}")
     print(f"record: {args.record_file.name}, " + (f"made at {record.commit} on {record.date}" if record.commit else "none yet"),
