@@ -14,6 +14,8 @@ from longslam.slam.frontend import FrontEndConfig
 
 ROBUST_KERNELS = ("cauchy", "huber", "none")
 MAX_TRUNCATION_VOXELS = 40  # truncation / voxel_size: voxels on each side of a surface
+VOXGRAPH_ODOMETRY_SIGMA_XY = 1.0  # m, Voxgraph's odometry information 1 in x and y
+FUSED_ODOMETRY_SIGMA_XY = 0.1  # m, checked on paper-1km-x3 large seeds 1 and 2, which no page reports (docs/scale.md)
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,17 @@ class SubmapConfig:
     )
     registration_effective_points: float = param(20.0, "scales the registration constraint's information", above=0)
     # Odometry constraints between consecutive submaps (Voxgraph: information x, y 1; yaw 2500).
-    odometry_sigma_xy: float = param(1.0, "std of the position of an odometry constraint", above=0, unit="m")
+    # Voxgraph's 1 m fits wheels alone. The fused front end's motion over a submap is good to
+    # centimetres, and at 1 m one registration that slid along a corridor carried a stretch of the
+    # graph with it, which a route longer than the front end's `smoother.hold_nodes_beyond` keeps:
+    # paper-1km-x3 large, seed 1 0.488 m, seed 0 0.810 (docs/scale.md).
+    odometry_sigma_xy: float | None = param(
+        None,
+        "std of the position of an odometry constraint; none: 1 m in wheel mode (Voxgraph's), "
+        f"{FUSED_ODOMETRY_SIGMA_XY:g} m with the fused front end",
+        above=0,
+        unit="m",
+    )
     odometry_sigma_yaw: float = param(0.02, "std of the heading of an odometry constraint", above=0, unit="rad")
     robust_kernel: str = param(
         "cauchy", "robust kernel on registration and loop-closure constraints", choices=ROBUST_KERNELS
@@ -153,6 +165,14 @@ class SubmapConfig:
         0.2, "frame time between frames whose rays vote free space (0: every frame)", at_least=0, unit="s"
     )
     write_mesh: bool = param(True, "map.ply mesh (marching cubes) in the run folder, if there is one")
+
+    @property
+    def odometry_xy_std(self) -> float:
+        """The std (m) of an odometry constraint's position (`odometry_sigma_xy`, or by the front
+        end's mode when unset)."""
+        if self.odometry_sigma_xy is not None:
+            return self.odometry_sigma_xy
+        return FUSED_ODOMETRY_SIGMA_XY if self.frontend.mode == "fused" else VOXGRAPH_ODOMETRY_SIGMA_XY
 
     @property
     def loops_on(self) -> bool:

@@ -254,7 +254,7 @@ class SubmapMethod:
             previous = self.submaps[-1]
             self._finish_submap(previous)
             self.graph.add_node(index, compose_xyyaw(self.graph.estimate(previous.index), origin))
-            info = np.diag([c.odometry_sigma_xy**-2, c.odometry_sigma_xy**-2, c.odometry_sigma_yaw**-2])
+            info = np.diag([c.odometry_xy_std**-2, c.odometry_xy_std**-2, c.odometry_sigma_yaw**-2])
             self.graph.add_edge(previous.index, index, origin, information=info, kind=ODOMETRY)
         else:
             self.graph.add_node(index, origin)
