@@ -1,5 +1,5 @@
 """The perturbations on small synthetic frames: each one's effect (frames dropped by share and in
-bursts, depth out of step with colour, the lights dimmed, motion blur, depth lost in bursts),
+bursts, depth out of step with colour, the lights dimmed, motion blur, depth lost in bursts, depth cut short),
 determinism per (perturbation, seed, frame), the text NAME[=LEVEL] and its one-line errors, the
 `longslam.perturbations` entry point, and `simulate --perturb` on a route of a few metres."""
 
@@ -89,6 +89,19 @@ def test_depth_dropout_zeroes_whole_frames_of_depth_in_bursts_and_leaves_colour(
     assert len(bursts) == 3 and all(14 <= len(b) <= 16 for b in bursts)
     original, _ = _frames(1)
     assert all((f.rgb == original[0].rgb).all() for f in frames)
+
+
+def test_depth_range_leaves_no_return_beyond_its_level_and_the_rest_exact():
+    rng = np.random.default_rng(3)
+    depth = rng.uniform(0.3, 8.0, (24, 32)).astype(np.float32)
+    depth[0, :4] = 0.0  # no return already
+    rgb = rng.integers(30, 225, (24, 32, 3), dtype=np.uint8)
+    cut_rgb, cut = get_perturbation("depth-range", 4.5).perturb(rgb, depth, _context(), np.random.default_rng(0))
+    near = depth <= 4.5
+    assert near.any() and (~near).any()
+    assert (cut[near] == depth[near]).all() and not cut[~near].any()
+    assert cut.dtype == np.float32 and cut_rgb is rgb
+    assert get_perturbation("depth-range", None).level == 4.5  # a Kinect v1's reach
 
 
 def test_depth_offset_shows_the_depth_from_where_the_camera_was():
@@ -194,6 +207,7 @@ def test_names_levels_and_their_canonical_text():
     ("drop=1.5", InputError, ["perturbation drop=1.5: level 1.5 is out of range; expected a share of frames dropped, > 0 and <= 0.95"]),
     ("blur=0", InputError, ["level 0 is out of range; expected seconds of extra exposure"]),
     ("depth-offset=0", InputError, ["level 0 changes nothing"]),
+    ("depth-range=-1", InputError, ["level -1 is out of range; expected metres beyond which depth has no return, > 0"]),
     ("drop=0.1+drop=0.2", InputError, ["perturbation 'drop' is given twice"]),
     ("=0.1", InputError, ["expected NAME or NAME=LEVEL"]),
 ])

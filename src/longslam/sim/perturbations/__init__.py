@@ -1,6 +1,6 @@
 """Perturbations: the ways a real camera fails beyond its noise (frames dropped, colour and depth
-out of step, the lights dimmed, motion blur, depth lost in bursts), applied after the sensor model
-to frames rendered once."""
+out of step, the lights dimmed, motion blur, depth lost in bursts, depth cut short in range),
+applied after the sensor model to frames rendered once."""
 
 from longslam.sim.perturbations.base import FrameContext, Perturbation, perturbation_rng
 from longslam.sim.perturbations.catalog import get_perturbation, perturbation_names

@@ -19,7 +19,7 @@ from longslam.core.errors import InputError
 from longslam.core.registry import Registry, failure
 from longslam.sim.perturbations.base import Perturbation, level_text
 from longslam.sim.perturbations.colour import Blur, Exposure
-from longslam.sim.perturbations.depth import DepthDropout, DepthOffset
+from longslam.sim.perturbations.depth import DepthDropout, DepthOffset, DepthRange
 from longslam.sim.perturbations.frames import Drop, DropBurst
 
 ENTRY_POINT_GROUP = "longslam.perturbations"
@@ -44,7 +44,7 @@ def _as_class(name: str, loaded: Any) -> type[Perturbation]:
 
 
 PERTURBATIONS: Registry[type[Perturbation]] = Registry("perturbation", ENTRY_POINT_GROUP, _as_class)
-for _cls in (Drop, DropBurst, DepthOffset, Exposure, Blur, DepthDropout):
+for _cls in (Drop, DropBurst, DepthOffset, Exposure, Blur, DepthDropout, DepthRange):
     PERTURBATIONS.register(_cls.name, _cls)
 BUILTIN = tuple(PERTURBATIONS.builtin_names())
 

@@ -1,4 +1,4 @@
-"""The depth image perturbed: out of step with the colour, and lost in bursts."""
+"""The depth image perturbed: out of step with the colour, lost in bursts, cut short in range."""
 
 from __future__ import annotations
 
@@ -51,3 +51,17 @@ class DepthDropout(Perturbation):
         if in_stretch(self.name, frame.seed, frame.timestamp, frame.start, frame.end, self.level):
             return rgb, np.zeros_like(depth)
         return rgb, depth
+
+
+class DepthRange(Perturbation):
+    """Depth cut short: no return beyond `level` metres, colour unaffected and the rest of the
+    depth exact. It separates what a sensor's range costs from what its noise costs: a Kinect v1
+    returns nothing beyond 4.5 m, so the ideal sensor at `depth-range=4.5` has the Kinect's reach
+    without its noise, holes or quantisation (docs/sensors.md)."""
+
+    name = "depth-range"
+    default_level = 4.5
+    meaning = "metres beyond which depth has no return, > 0"
+
+    def perturb(self, rgb, depth, frame: FrameContext, rng: np.random.Generator):
+        return rgb, np.where(depth <= self.level, depth, np.float32(0)).astype(np.float32, copy=False)
