@@ -9,9 +9,6 @@ from longslam.core.parameter import check_declared, nested, param
 from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.place_recognition import WORD_INDEXES
 
-RTABMAP_ODOM_SIGMA_MIN = 0.01  # m, rad: the floor of an odometry link's std on wheels alone (the paper's)
-FUSED_ODOM_SIGMA_MIN = 0.001  # checked on paper-1km-x3 large seeds 1 and 2, which no page reports (docs/scale.md)
-
 
 @dataclass(frozen=True)
 class KeyframeConfig:
@@ -123,16 +120,7 @@ class KeyframeConfig:
     # by turning rather than sliding.
     odom_sigma_lateral: float = param(0.2, "odometry link lateral std, a fraction of its forward std", at_least=0)
     odom_sigma_angular: float = param(0.005, "odometry link yaw std per second", at_least=0, unit="rad/s")
-    # A node a second after the last has turned by 0.005 rad of std at odom_sigma_angular, under the
-    # 0.01 rad that suits wheels alone. The fused front end's heading over a second is good to
-    # better than that, and at 0.01 the loops bent the graph's headings, which a route longer than
-    # the front end's `smoother.hold_nodes_beyond` keeps: paper-1km-x3 large seed 0 0.129 m.
-    odom_sigma_min: float | None = param(
-        None,
-        f"floor of a link's std (m, rad); none: {RTABMAP_ODOM_SIGMA_MIN:g} in wheel mode, "
-        f"{FUSED_ODOM_SIGMA_MIN:g} with the fused front end",
-        above=0,
-    )
+    odom_sigma_min: float = param(0.01, "floor of a link's std (m, rad)", above=0)
     loop_sigma_linear: float = param(0.05, "std of a loop-closure link's translation", above=0, unit="m")
     loop_sigma_angular: float = param(0.02, "std of a loop-closure link's rotation", above=0, unit="rad")
     # Maps (Grid/CellSize, Grid/RangeMax, obstacle band from the paper). A grid's cells grow as
@@ -178,13 +166,6 @@ class KeyframeConfig:
     frontend: FrontEndConfig = nested(
         FrontEndConfig, "where each frame's motion comes from: fused (wheels, scans, RGB-D) or wheel (the paper's)"
     )
-
-    @property
-    def odom_std_floor(self) -> float:
-        """The floor (m, rad) of an odometry link's std (`odom_sigma_min`, or by the front end's mode when unset)."""
-        if self.odom_sigma_min is not None:
-            return self.odom_sigma_min
-        return FUSED_ODOM_SIGMA_MIN if self.frontend.mode == "fused" else RTABMAP_ODOM_SIGMA_MIN
 
     @property
     def scan_proximity_on(self) -> bool:

@@ -207,10 +207,9 @@ class KeyframeMethod:
 
     def _odometry_sigmas(self, delta: np.ndarray, dt: float) -> np.ndarray:
         cfg = self.config
-        floor = cfg.odom_std_floor
-        forward = max(floor, cfg.odom_sigma_linear * float(np.hypot(delta[0], delta[1])))
-        rot = max(floor, cfg.odom_sigma_angular * max(dt, 0.0))
-        return np.array([forward, max(floor, cfg.odom_sigma_lateral * forward), rot])
+        forward = max(cfg.odom_sigma_min, cfg.odom_sigma_linear * float(np.hypot(delta[0], delta[1])))
+        rot = max(cfg.odom_sigma_min, cfg.odom_sigma_angular * max(dt, 0.0))
+        return np.array([forward, max(cfg.odom_sigma_min, cfg.odom_sigma_lateral * forward), rot])
 
     # --- the end -------------------------------------------------------------------------------
     def _frontend_final(self) -> np.ndarray:
