@@ -54,6 +54,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -146,6 +147,17 @@ def updated_record(
             else:  # run on a sequence of unknown fingerprint: the old one may not be its
                 fingerprints.pop(key[:3], None)
     return Record(commit, date, new_ates, commits, fingerprints)
+
+
+def record_header(name: str, record: Record) -> str:
+    """Where the record's rows come from: each commit its rows were run at, with how many, since a
+    record written in parts holds rows of several commits and a row's change is then the code's
+    change since its own commit, not since the last one written."""
+    if not record.ates:
+        return f"record: {name}, none yet"
+    counts = Counter(record.commits.values())
+    commits = ", ".join(f"{commit} ({n} rows)" for commit, n in sorted(counts.items(), key=lambda c: (-c[1], c[0])))
+    return f"record: {name}, last written at {record.commit} on {record.date}; rows run at {commits}"
 
 
 def write_record(path: Path, record: Record) -> None:
@@ -440,8 +452,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"held-out benchmark at {commit}: routes {noises}, "
           f"seeds {' '.join(map(str, args.seeds))}, methods {' '.join(args.methods)} and dead reckoning; "
           f"{args.jobs} at once, work {work}")
-    print(f"record: {args.record_file.name}, " + (f"made at {record.commit} on {record.date}" if record.commit else "none yet"),
-          flush=True)
+    print(record_header(args.record_file.name, record), flush=True)
     if WING_LOOP in args.routes:  # its mesh and route are written once here, not by two jobs at once
         route_argument(WING_LOOP, work)
     ates: dict[Key, float | None] = {}

@@ -176,3 +176,10 @@ def test_the_summary_says_what_moved_and_which_sequences_changed(record):
     assert lines[1].startswith("1 sequences differ") and "paper-300m large seed 40" in lines[1]
     still = {**NOW, ("paper-300m", "large", 40, "keyframe"): 0.100}
     assert held_out.summary(still, marked, {cell: "aaaa"}) == ["none of the 4 rows the record has moved more than 20%"]
+
+
+def test_the_header_names_each_commit_the_rows_were_run_at(record):
+    header = held_out.record_header("held_out.json", record)
+    assert "last written at abc1234 on 2027-01-01 00:00 UTC" in header
+    assert "rows run at abc1234 (4 rows), 0ld0ld0 (1 rows)" in header
+    assert held_out.record_header("held_out.json", held_out.Record("", "", {}, {}, {})) == "record: held_out.json, none yet"
