@@ -9,6 +9,11 @@ from longslam.core.parameter import check_declared, nested, param
 from longslam.slam.frontend import FrontEndConfig
 from longslam.slam.place_recognition import WORD_INDEXES
 
+# rad: the floor of an odometry link's heading std with the fused front end; tuned on
+# paper-1km-x3 large seeds 1 and 2, which no page reports, and checked on the held-out set
+# (docs/scale.md)
+FUSED_ODOM_SIGMA_MIN_ANGULAR = 0.001
+
 
 @dataclass(frozen=True)
 class KeyframeConfig:
@@ -121,6 +126,19 @@ class KeyframeConfig:
     odom_sigma_lateral: float = param(0.2, "odometry link lateral std, a fraction of its forward std", at_least=0)
     odom_sigma_angular: float = param(0.005, "odometry link yaw std per second", at_least=0, unit="rad/s")
     odom_sigma_min: float = param(0.01, "floor of a link's std (m, rad)", above=0)
+    # A node a second after the last has turned by 0.005 rad of std at odom_sigma_angular, under
+    # odom_sigma_min's 0.01 rad, which suits wheels alone. The fused front end's heading over a
+    # second is better than that, and held at 0.01 the loops bend the graph's headings, which a
+    # route longer than the front end's `smoother.hold_nodes_beyond` keeps. The translation keeps
+    # its floor: at 0.001 it also sets a node's position where the robot turns on the spot, and
+    # that made short routes at small noise worse.
+    odom_sigma_min_angular: float | None = param(
+        None,
+        f"floor of a link's heading std; none: odom_sigma_min in wheel mode, {FUSED_ODOM_SIGMA_MIN_ANGULAR:g} "
+        "with the fused front end",
+        above=0,
+        unit="rad",
+    )
     loop_sigma_linear: float = param(0.05, "std of a loop-closure link's translation", above=0, unit="m")
     loop_sigma_angular: float = param(0.02, "std of a loop-closure link's rotation", above=0, unit="rad")
     # Maps (Grid/CellSize, Grid/RangeMax, obstacle band from the paper). A grid's cells grow as
@@ -166,6 +184,14 @@ class KeyframeConfig:
     frontend: FrontEndConfig = nested(
         FrontEndConfig, "where each frame's motion comes from: fused (wheels, scans, RGB-D) or wheel (the paper's)"
     )
+
+    @property
+    def odom_heading_floor(self) -> float:
+        """The floor (rad) of an odometry link's heading std (`odom_sigma_min_angular`, or by the front
+        end's mode when unset)."""
+        if self.odom_sigma_min_angular is not None:
+            return self.odom_sigma_min_angular
+        return FUSED_ODOM_SIGMA_MIN_ANGULAR if self.frontend.mode == "fused" else self.odom_sigma_min
 
     @property
     def scan_proximity_on(self) -> bool:

@@ -208,7 +208,7 @@ class KeyframeMethod:
     def _odometry_sigmas(self, delta: np.ndarray, dt: float) -> np.ndarray:
         cfg = self.config
         forward = max(cfg.odom_sigma_min, cfg.odom_sigma_linear * float(np.hypot(delta[0], delta[1])))
-        rot = max(cfg.odom_sigma_min, cfg.odom_sigma_angular * max(dt, 0.0))
+        rot = max(cfg.odom_heading_floor, cfg.odom_sigma_angular * max(dt, 0.0))
         return np.array([forward, max(cfg.odom_sigma_min, cfg.odom_sigma_lateral * forward), rot])
 
     # --- the end -------------------------------------------------------------------------------
