@@ -151,7 +151,7 @@ def test_odometry_links_hold_the_fused_front_ends_heading_tighter_than_on_wheels
     stamps = np.array([sequence.timestamps[method._node_frame[n]] for e in links for n in (e.a, e.b)]).reshape(-1, 2)
     seconds = stamps[:, 1] - stamps[:, 0]  # a node a second: detection_rate
     np.testing.assert_allclose(sigmas[:, 2], np.maximum(heading_floor, cfg.odom_sigma_angular * seconds))
-    # A node a second: the heading's std per link is under wheel mode's 0.01 rad wherever the floor is.
+    # A node a second: the heading's std per link is under wheel mode's 0.01 rad exactly when its floor is.
     assert (sigmas[seconds < 1.5, 2] < 0.01).all() == (heading_floor < 0.01)
 
 

@@ -125,7 +125,9 @@ class KeyframeConfig:
     # by turning rather than sliding.
     odom_sigma_lateral: float = param(0.2, "odometry link lateral std, a fraction of its forward std", at_least=0)
     odom_sigma_angular: float = param(0.005, "odometry link yaw std per second", at_least=0, unit="rad/s")
-    odom_sigma_min: float = param(0.01, "floor of a link's std (m, rad)", above=0)
+    odom_sigma_min: float = param(
+        0.01, "floor of a link's std (m; the heading's in rad too unless odom_sigma_min_angular says)", above=0
+    )
     # A node a second after the last has turned by 0.005 rad of std at odom_sigma_angular, under
     # odom_sigma_min's 0.01 rad, which suits wheels alone. The fused front end's heading over a
     # second is better than that, and held at 0.01 the loops bend the graph's headings, which a
