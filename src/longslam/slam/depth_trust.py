@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from longslam.core.depth_cut import depth_within
 from longslam.core.parameter import check_declared, param
 
 MAD_TO_STD = 1.4826  # a Gaussian's std over its median absolute deviation
@@ -142,6 +143,4 @@ def scan_weight(sigma_w: float | None, trust: DepthTrust = DepthTrust()) -> floa
 
 def trusted_depth(depth: np.ndarray, limit: float | None) -> np.ndarray:
     """`depth` with the returns beyond `limit` removed; `depth` itself when there is no limit."""
-    if limit is None:
-        return depth
-    return np.where(depth <= limit, depth, np.float32(0)).astype(np.float32, copy=False)
+    return depth if limit is None else depth_within(depth, limit)

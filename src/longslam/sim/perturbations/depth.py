@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from longslam.core.depth_cut import depth_within
 from longslam.core.depth_warp import move_at_velocity, reproject_depth
 from longslam.sim.perturbations.base import FrameContext, Perturbation
 from longslam.sim.perturbations.stretches import PERIOD_S, in_stretch
@@ -64,4 +65,4 @@ class DepthRange(Perturbation):
     meaning = "metres beyond which depth has no return, > 0"
 
     def perturb(self, rgb, depth, frame: FrameContext, rng: np.random.Generator):
-        return rgb, np.where(depth <= self.level, depth, np.float32(0)).astype(np.float32, copy=False)
+        return rgb, depth_within(depth, self.level)
