@@ -6,24 +6,24 @@ The steps, in order (without --only: paper, sensors, scale, maps; real-systems a
 only when --only names them, as ORB-SLAM3's condition, a run alone with the CPU it asks for,
 cannot be met on 2 cores; --without-orbslam3 leaves ORB-SLAM3 out of sensors and degradation,
 plugin or not, and the pages say so). Estimated wall time on this project's 2-core machine, from the last
-recorded runs (degradation's from its runs' count):
+recorded runs (d78f602's, render cache cold, scale's at 286a7cb):
 
   paper         studies/paper.toml (200 runs, 5 variants at today's defaults)
-                -> docs/results/paper-reproduction.md                              about 1 h 50 min
+                -> docs/results/paper-reproduction.md                              about 1 h 25 min
   sensors       studies/sensors.toml (orbslam3 only if its plugin is installed)
-                -> docs/results/sensors.md                                         about 1 h 10 min
+                -> docs/results/sensors.md      about 7 min, with ORB-SLAM3 about 1 h 10 min
   scale         benchmarks/scale.py's runs: paper-1km, paper-1km-x3 (3 km), tour-10km at large
-                noise, seed 0; odometry, keyframe, submap -> docs/results/scale.md about 1 h 20 min
-                (rendering the 10 km tour alone takes about 20 min the first time)
+                noise, seed 0; odometry, keyframe, submap -> docs/results/scale.md about 1 h
+                (and about 20 min more the first time, to render the 10 km tour)
   maps          the paper study's keyframe and submap maps (first seed of every route and noise
-                level), scored and drawn -> docs/results/maps.md                   about 10 min
+                level), scored and drawn -> docs/results/maps.md                   about 1 min
   real-systems  studies/real-systems.toml and real-systems-1km.toml
                 -> docs/real-systems.md (scripts/publish_real_systems.py)          about 1 h 55 min
   degradation   studies/degradation.toml, degradation-depth-delay.toml and, with the plugin,
                 degradation-orbslam3.toml
-                -> docs/results/degradation.md              about 35 min, ORB-SLAM3's 2 h 30 min
+                -> docs/results/degradation.md              about 30 min, ORB-SLAM3's 2 h 30 min
 
-All four default steps: about 4 h 30 min with the render cache cold. Every step resumes: a study
+All four default steps: about 2 h 50 min with the render cache cold, without ORB-SLAM3. Every step resumes: a study
 from its database in WORK/STEP, the scale benchmark from the runs it measured in WORK/scale; a
 page is rewritten each time. The command refuses a git tree with uncommitted changes to tracked
 files outside docs/results (there, the pages of a step published before at the same commit may
