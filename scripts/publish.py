@@ -11,7 +11,8 @@ recorded runs (d78f602's, render cache cold, scale's at 286a7cb):
   paper         studies/paper.toml (200 runs, 5 variants at today's defaults)
                 -> docs/results/paper-reproduction.md                              about 1 h 25 min
   sensors       studies/sensors.toml (orbslam3 only if its plugin is installed)
-                -> docs/results/sensors.md      about 7 min, with ORB-SLAM3 about 1 h 10 min
+                -> docs/results/sensors.md                                         about 7 min
+                (with ORB-SLAM3 about 1 h 10 min)
   scale         benchmarks/scale.py's runs: paper-1km, paper-1km-x3 (3 km), tour-10km at large
                 noise, seed 0; odometry, keyframe, submap -> docs/results/scale.md about 1 h
                 (and about 20 min more the first time, to render the 10 km tour)
@@ -23,14 +24,14 @@ recorded runs (d78f602's, render cache cold, scale's at 286a7cb):
                 degradation-orbslam3.toml
                 -> docs/results/degradation.md              about 30 min, ORB-SLAM3's 2 h 30 min
 
-All four default steps: about 2 h 50 min with the render cache cold, without ORB-SLAM3. Every step resumes: a study
-from its database in WORK/STEP, the scale benchmark from the runs it measured in WORK/scale; a
-page is rewritten each time. The command refuses a git tree with uncommitted changes to tracked
-files outside docs/results (there, the pages of a step published before at the same commit may
-wait to be committed), and a page whose runs were made at more than one commit (it names them:
-delete WORK/STEP to run the step again at one commit). Each page begins with a stamp: the runs' commit, the date,
-the machine (cores, CPU model, memory), the command and the step's wall time; its figures go
-beside it in a folder named by the commit.
+All four default steps: about 2 h 50 min with the render cache cold, without ORB-SLAM3. Every step
+resumes: a study from its database in WORK/STEP, the scale benchmark from the runs it measured in
+WORK/scale; a page is rewritten each time. The command refuses a git tree with uncommitted changes
+to tracked files outside docs/results (there, the pages of a step published before at the same
+commit may wait to be committed), and a page whose runs were made at more than one commit (it names
+them: delete WORK/STEP to run the step again at one commit). Each page begins with a stamp: the
+runs' commit, the date, the machine (cores, CPU model, memory), the command and the step's wall
+time; its figures go beside it in a folder named by the commit.
 """
 
 from __future__ import annotations
